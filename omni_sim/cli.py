@@ -1,0 +1,131 @@
+"""The ``omni`` command line: parses arguments, calls the packages, reports user errors.
+
+A user error (:class:`identification.errors.UserError`) is printed as one line
+``error: <message>`` on stderr with exit status 2 and no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from identification.errors import UserError
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0: {text!r}")
+    return value
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the contract's one-line ``error:`` message and exit status 2."""
+
+    def error(self, message: str) -> None:  # noqa: D401
+        sys.stderr.write(f"error: {self.prog}: {message}\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="omni",
+        description="Virtual Phantom Omni (MuJoCo) and the alpha-invariant identification method.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    p = sub.add_parser("generate", help="run experiments on the virtual Omni and write a dataset")
+    p.add_argument("--campaign", default="paper",
+                   help="paper (Table 1 sines + Table 2 squares), sine, step (default: paper)")
+    p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
+    p.add_argument("--out", default="dataset", help="output folder (default: ./dataset)")
+    p.add_argument("--seed", type=_positive_int, default=0, help="seed for encoder noise (default: 0)")
+    p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
+    p.add_argument("--reference", default=None, metavar="CSV",
+                   help="drive one run with a user reference (CSV with columns t, r) instead of a campaign")
+    p.add_argument("--gamma1", type=float, default=65.0, help="shoulder set point [deg] for --reference (default 65)")
+    p.add_argument("--gamma2", type=float, default=90.0, help="elbow set point [deg] for --reference (default 90)")
+    p.add_argument("--quantize", action="store_true",
+                   help="quantize the measured yaw to the encoder's 15000 counts/rev")
+    p.add_argument("--noise", type=float, default=0.0, metavar="RAD",
+                   help="standard deviation of white encoder noise [rad] (default 0)")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+
+    p = sub.add_parser("identify", help="fit the paper's models to a dataset; writes DIR/params.json")
+    p.add_argument("data", help="dataset folder")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
+
+    p = sub.add_parser("fit-inertia", help="fit the inertia model (6) to a table of linear coefficients")
+    p.add_argument("table", help="CSV with columns gamma1_deg,gamma2_deg,C_linear,beta_tilde_linear")
+    p.add_argument("--out", default=None, help="write the JSON result to this file")
+
+    p = sub.add_parser("validate", help="score the linear and alpha-invariant models against a dataset")
+    p.add_argument("data", help="dataset folder")
+    p.add_argument("--params", required=True, help="params.json written by omni identify")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
+
+    p = sub.add_parser("reproduce", help="the main job: generate, identify, validate, report")
+    p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
+    p.add_argument("--out", default="reproduce", help="output folder (default: ./reproduce)")
+    p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+
+    p = sub.add_parser("discrepancy", help="find, name and fix the effect a model is missing")
+    p.add_argument("--measured", default=None, help="measured dataset folder")
+    p.add_argument("--model", default=None, help="MJCF file of the model to test")
+    p.add_argument("--out", default=None, help="output folder")
+    p.add_argument("--demo", action="store_true", help="hide an effect in a copy of the virtual Omni and find it")
+    p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
+
+    p = sub.add_parser("bench", help="print and write the performance figures")
+    p.add_argument("--out", default=None, help="write the figures as JSON to this file")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    return parser
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    if args.command == "generate":
+        from .commands import generate
+        return generate(args)
+    if args.command == "identify":
+        from identification.commands import identify
+        return identify(args)
+    if args.command == "fit-inertia":
+        from identification.commands import fit_inertia
+        return fit_inertia(args)
+    if args.command == "validate":
+        from identification.commands import validate
+        return validate(args)
+    if args.command == "reproduce":
+        from .commands import reproduce
+        return reproduce(args)
+    if args.command == "discrepancy":
+        from .commands import discrepancy
+        return discrepancy(args)
+    if args.command == "bench":
+        from .commands import bench
+        return bench(args)
+    raise AssertionError(args.command)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return _dispatch(args) or 0
+    except UserError as exc:
+        sys.stderr.write(f"error: {exc}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write("error: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
