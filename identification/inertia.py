@@ -1,0 +1,368 @@
+"""Yaw inertia model, paper equations (5)–(8), and its fit (27)–(29).
+
+Angles: γ1, γ2 [deg] are the arm's *actual* angles (the paper's "True Angle"); γoffs [deg].
+Inertia is in the paper's units, where the torque constant β̄ is fixed to 1 (section 2.1.2), so
+that (7) ``β̃ = 1/I`` [rad/(V·s²)] and (8) ``C = 1/(C̄0 I)`` [1/s]; C̄0 [-] is the damping ratio
+``β̄ / C̄``.
+
+The basic model (5) of two uniform thin rods expands exactly into the minimal model (6) with
+``I1 = m1 L1²/3 + m2 L1²``, ``I2 = m2 L2²/3`` and ``I3 = m2 L1 L2``
+(:func:`minimal_from_analytic`).
+
+Fit method (:func:`fit_inertia_model`)
+--------------------------------------
+Residuals are *relative*, one per pose for each of (28) and (29):
+
+    r_β = (1/I) / β̃_linear − 1,     r_C = (1/(C̄0 I)) / C_linear − 1
+
+so the C and β̃ data (≈ 5 1/s vs ≈ 200) weigh equally and each pose weighs by its relative
+error (measurement error of both scales with the value).  The I terms are bounded ≥ 0 (the
+paper's physical-validity condition).  For fixed γoffs, I is linear in (I_base, I1, I2, I3); the
+global minimum is found by profiling: on a grid of γoffs over the whole circle (2° steps) a
+non-negative least squares of the linearised β̃ residuals ``I β̃ − 1`` starts a bounded
+non-linear least squares in (I_base, I1, I2, I3, C̄0); the best few grid minima are then polished
+with γoffs free.  γoffs has period 360° (a 180° shift flips the sign of the I3 term, which
+the bound I3 ≥ 0 forbids).
+
+How well each parameter is determined: the Jacobian J of the residuals at the optimum gives the
+approximate covariance ``s² (JᵀJ)⁻¹`` with ``s² = Σr² / (2n − 6)``, and 95% intervals with
+Student's t.  The singular values and condition number are of the *scaled* Jacobian (columns:
+I terms per unit of the median data inertia, γoffs per radian, C̄0 per unit relative change).
+A parameter is flagged poorly determined when its 95% half-width exceeds 50% of its value (I
+terms, C̄0) or 10° (γoffs), or when it sits on its bound (the interval is then not meaningful).
+
+Poses: 6 parameters; β̃ alone carries the 5 parameters of I, so at least
+:data:`MIN_POSES` = 6 poses are required (one degree of freedom for the β̃ part, 6 for all).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize, stats
+
+from .errors import UserError
+
+#: Minimum number of poses for the inertia fit (see module docstring).
+MIN_POSES = 6
+#: Grid step of the γoffs profile [deg].
+GRID_STEP_DEG = 2.0
+#: Relative 95% half-width above which an I term or C̄0 is "poorly determined" [-].
+POOR_REL = 0.5
+#: 95% half-width above which γoffs is "poorly determined" [deg].
+POOR_GAMMA_DEG = 10.0
+
+PARAM_NAMES = ("I_base", "I1", "I2", "I3", "gamma_offs_deg", "C0_bar")
+
+
+def _link2_angle(gamma1_deg, gamma2_deg, gamma_offs_deg):
+    """π − γ1 − γ2 − γoffs [rad], the angle of Link 2 in (5)–(6)."""
+    return math.pi - np.radians(gamma1_deg) - np.radians(gamma2_deg) - np.radians(gamma_offs_deg)
+
+
+def inertia_analytic(gamma1_deg, gamma2_deg, m1, L1, m2, L2, I_base, gamma_offs_deg=0.0):
+    """Basic thin-rod yaw inertia (5).
+
+    Parameters
+    ----------
+    gamma1_deg, gamma2_deg : float or array [deg]
+        Actual shoulder and elbow angles.
+    m1, m2 : float [kg]
+        Masses of Link 1 and Link 2.
+    L1, L2 : float [m]
+        Lengths of Link 1 and Link 2.
+    I_base : float [kg·m²]
+        Inertia of the base about the yaw axis.
+    gamma_offs_deg : float [deg]
+        Offset angle γoffs.
+
+    Returns
+    -------
+    I : float or array [kg·m²]
+    """
+    c1 = np.cos(np.radians(gamma1_deg))
+    c2 = np.cos(_link2_angle(gamma1_deg, gamma2_deg, gamma_offs_deg))
+    return (I_base + m1 * L1**2 * c1**2 / 3.0 + m2 * (L1 * c1 + 0.5 * L2 * c2) ** 2
+            + m2 * L2**2 * c2**2 / 12.0)
+
+
+def minimal_from_analytic(m1, L1, m2, L2, I_base):
+    """Coefficients of (6) equivalent to (5): returns ``(I_base, I1, I2, I3)`` [kg·m²]."""
+    return I_base, m1 * L1**2 / 3.0 + m2 * L1**2, m2 * L2**2 / 3.0, m2 * L1 * L2
+
+
+def _basis(gamma1_deg, gamma2_deg, gamma_offs_deg):
+    c1 = np.cos(np.radians(np.asarray(gamma1_deg, dtype=float)))
+    c2 = np.cos(_link2_angle(np.asarray(gamma1_deg, dtype=float), gamma2_deg, gamma_offs_deg))
+    return np.column_stack([np.ones_like(c1), c1**2, c2**2, c1 * c2])
+
+
+def inertia_minimal(gamma1_deg, gamma2_deg, I_base, I1, I2, I3, gamma_offs_deg):
+    """Minimal yaw inertia model (6) / (27).
+
+    ``I = I_base + I1 cos²γ1 + I2 cos²(π−γ1−γ2−γoffs) + I3 cos γ1 cos(π−γ1−γ2−γoffs)``
+
+    Parameters
+    ----------
+    gamma1_deg, gamma2_deg : float or array [deg]
+    I_base, I1, I2, I3 : float [inertia units]
+    gamma_offs_deg : float [deg]
+
+    Returns
+    -------
+    I : float or array [same units as the I terms]
+    """
+    scalar = np.ndim(gamma1_deg) == 0 and np.ndim(gamma2_deg) == 0
+    g1, g2 = np.broadcast_arrays(np.atleast_1d(gamma1_deg), np.atleast_1d(gamma2_deg))
+    val = _basis(g1.astype(float), g2.astype(float), gamma_offs_deg) @ np.array(
+        [I_base, I1, I2, I3], dtype=float)
+    return float(val[0]) if scalar else val
+
+
+@dataclass(frozen=True)
+class InertiaParameters:
+    """Parameters of (6)–(8): ``I_base, I1, I2, I3`` [β̄ = 1 units], γoffs [deg], C̄0 [-]."""
+
+    I_base: float
+    I1: float
+    I2: float
+    I3: float
+    gamma_offs_deg: float
+    C0_bar: float
+
+    def inertia(self, gamma1_deg, gamma2_deg):
+        """Inertia (6) at the given actual angles [β̄ = 1 units]."""
+        return inertia_minimal(gamma1_deg, gamma2_deg, self.I_base, self.I1, self.I2, self.I3,
+                               self.gamma_offs_deg)
+
+    def beta_tilde(self, gamma1_deg, gamma2_deg):
+        """β̃_linear = 1/I (7), (28) [rad/(V·s²)]."""
+        return 1.0 / self.inertia(gamma1_deg, gamma2_deg)
+
+    def C(self, gamma1_deg, gamma2_deg):
+        """C_linear = 1/(C̄0 I) (8), (29) [1/s]."""
+        return 1.0 / (self.C0_bar * self.inertia(gamma1_deg, gamma2_deg))
+
+    def to_dict(self) -> dict:
+        return {k: float(getattr(self, k)) for k in PARAM_NAMES}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "InertiaParameters":
+        return cls(*(float(d[k]) for k in PARAM_NAMES))
+
+
+@dataclass
+class InertiaFit:
+    """Result of :func:`fit_inertia_model`.
+
+    Attributes
+    ----------
+    params : InertiaParameters
+    ci95 : dict of (low, high)
+        Approximate 95% confidence intervals (linearised, Student's t) per parameter.
+    poorly_determined : list of str
+        Parameter names flagged by the rule in the module docstring.
+    at_bound : list of str
+        I terms that sit on the bound 0.
+    singular_values : list of float
+        Of the scaled Jacobian (see module docstring).
+    condition_number : float
+    weakest_direction : dict
+        Right singular vector of the smallest singular value (scaled parameters).
+    rel_residual_beta, rel_residual_C : array [-]
+        Per pose ``model/data − 1``.
+    rms_rel_beta, rms_rel_C : float [-]
+    cost : float
+        ``½ Σ r²`` of the relative residuals.
+    C0_bar_regression : float [-]
+        C̄0 "by simple regression" (:func:`c0_bar_regression`).
+    n_poses, dof : int
+    profile_gamma_deg, profile_cost : array
+        The γoffs profile (cost minimised over the other parameters on the grid).
+    """
+
+    params: InertiaParameters
+    ci95: dict
+    poorly_determined: list
+    at_bound: list
+    singular_values: list
+    condition_number: float
+    weakest_direction: dict
+    rel_residual_beta: np.ndarray
+    rel_residual_C: np.ndarray
+    rms_rel_beta: float
+    rms_rel_C: float
+    cost: float
+    C0_bar_regression: float
+    n_poses: int
+    dof: int
+    profile_gamma_deg: np.ndarray = field(repr=False)
+    profile_cost: np.ndarray = field(repr=False)
+
+    def diagnostics(self) -> dict:
+        """JSON-friendly fit diagnostics (everything except the parameters themselves)."""
+        return {
+            "ci95": {k: [float(lo), float(hi)] for k, (lo, hi) in self.ci95.items()},
+            "poorly_determined": list(self.poorly_determined),
+            "at_bound": list(self.at_bound),
+            "singular_values": [float(s) for s in self.singular_values],
+            "condition_number": float(self.condition_number),
+            "weakest_direction": {k: float(v) for k, v in self.weakest_direction.items()},
+            "rms_rel_residual_beta_tilde": float(self.rms_rel_beta),
+            "rms_rel_residual_C": float(self.rms_rel_C),
+            "cost": float(self.cost),
+            "C0_bar_regression": float(self.C0_bar_regression),
+            "n_poses": int(self.n_poses),
+            "dof": int(self.dof),
+            "weighting": "relative residuals model/data-1 of C_linear and beta_tilde_linear, equal weight",
+        }
+
+
+def c0_bar_regression(C_linear, beta_tilde_linear) -> float:
+    """C̄0 "by simple linear regression" (Table 3): slope of β̃ = C̄0·C through the origin.
+
+    ``C̄0 = Σ β̃ C / Σ C²``.  On Table 3 this gives 36.726 against the paper's 36.727 (the
+    other candidate regressions are further off; see ``identification/data/REPRODUCTION.md``).
+
+    Parameters
+    ----------
+    C_linear : array [1/s]
+    beta_tilde_linear : array [rad/(V·s²)]
+    """
+    c = np.asarray(C_linear, dtype=float)
+    b = np.asarray(beta_tilde_linear, dtype=float)
+    return float(b @ c / (c @ c))
+
+
+def _check_inputs(g1, g2, c, b):
+    arrays = [np.asarray(x, dtype=float).ravel() for x in (g1, g2, c, b)]
+    n = arrays[0].size
+    if any(a.size != n for a in arrays):
+        raise UserError("inertia fit: gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear differ in length")
+    names = ("gamma1_deg", "gamma2_deg", "C_linear", "beta_tilde_linear")
+    for name, a in zip(names, arrays):
+        if not np.all(np.isfinite(a)):
+            raise UserError(f"inertia fit: {name} has a non-finite value (row {int(np.argmin(np.isfinite(a)))})")
+    for name, a in zip(names[2:], arrays[2:]):
+        if np.any(a <= 0):
+            raise UserError(f"inertia fit: {name} must be > 0 (row {int(np.argmax(a <= 0))} is {a[a <= 0][0]:g})")
+    if n < MIN_POSES:
+        raise UserError(f"inertia fit: {n} pose(s); the inertia model (6) with C0_bar has 6 parameters "
+                        f"and needs >= {MIN_POSES} poses")
+    return arrays
+
+
+def fit_inertia_model(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear, *,
+                      grid_step_deg: float = GRID_STEP_DEG, n_polish: int = 4) -> InertiaFit:
+    """Fit (6)–(8) to per-pose global linear coefficients by the method of (27)–(29).
+
+    Parameters
+    ----------
+    gamma1_deg, gamma2_deg : array [deg]
+        Actual angles of each pose.
+    C_linear : array [1/s]
+    beta_tilde_linear : array [rad/(V·s²)]
+    grid_step_deg : float [deg]
+        Step of the γoffs profile grid.
+    n_polish : int
+        Number of best profile minima polished with γoffs free.
+
+    Returns
+    -------
+    InertiaFit
+
+    Raises
+    ------
+    UserError
+        Fewer than :data:`MIN_POSES` poses, non-finite or non-positive coefficients.
+    """
+    g1, g2, c, b = _check_inputs(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear)
+    n = g1.size
+    s = float(np.median(1.0 / b))  # inertia scale [β̄ = 1 units]
+    c0_reg = c0_bar_regression(c, b)
+
+    def resid(x):  # x = [Ib, I1, I2, I3]/s, γoffs [deg], C̄0/c0_reg
+        inert = s * (_basis(g1, g2, x[4]) @ x[:4])
+        return np.concatenate([1.0 / (inert * b) - 1.0, 1.0 / (x[5] * c0_reg * inert * c) - 1.0])
+
+    lo = np.array([0, 0, 0, 0, -np.inf, 1e-6])
+    hi = np.full(6, np.inf)
+
+    def solve_fixed_gamma(gam):
+        a = s * _basis(g1, g2, gam)
+        x4, _ = optimize.nnls(a * b[:, None], np.ones(n))
+        if not np.any(x4 > 0):
+            x4 = np.full(4, 0.25)
+        inert = a @ x4
+        u = 1.0 / (inert * c * c0_reg)
+        k = float(u @ u / u.sum()) if u.sum() > 0 else 1.0  # C̄0/c0_reg closing r_C in LS sense
+        x0 = np.r_[x4, k]
+        x0 = np.maximum(x0, [0, 0, 0, 0, 1e-6]) + [1e-9, 1e-9, 1e-9, 1e-9, 0]
+
+        def f5(y):
+            return resid(np.r_[y[:4], gam, y[4]])
+
+        r = optimize.least_squares(f5, x0, bounds=(np.delete(lo, 4), np.delete(hi, 4)),
+                                   method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        return r.cost, np.r_[r.x[:4], gam, r.x[4]]
+
+    grid = np.arange(-180.0, 180.0, grid_step_deg)
+    results = [solve_fixed_gamma(g) for g in grid]
+    costs = np.array([r[0] for r in results])
+    # Local minima of the (circular) profile, best first.
+    left, right = np.roll(costs, 1), np.roll(costs, -1)
+    minima = np.flatnonzero((costs <= left) & (costs <= right))
+    order = minima[np.argsort(costs[minima])][:n_polish]
+    best = None
+    for i in order:
+        x0 = results[i][1]
+        r = optimize.least_squares(resid, x0, bounds=(lo, hi), method="trf",
+                                   x_scale=np.r_[np.maximum(x0[:4], 0.1), 1.0, 1.0],
+                                   xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        if best is None or r.cost < best.cost:
+            best = r
+    x = best.x.copy()
+    x[4] = (x[4] + 180.0) % 360.0 - 180.0
+    params = InertiaParameters(*(x[:4] * s), float(x[4]), float(x[5] * c0_reg))
+
+    r = resid(x)
+    jac = optimize.approx_fprime(x, resid, epsilon=1e-7 * np.maximum(np.abs(x), 1.0))
+    m, p = jac.shape
+    dof = m - p
+    s2 = float(r @ r) / dof if dof > 0 else math.nan
+    # Covariance in x units, then physical units.
+    u_, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    with np.errstate(divide="ignore"):
+        inv_sv2 = np.where(sv > sv[0] * 1e-12, 1.0 / sv**2, np.inf)
+    cov_x = (vt.T * inv_sv2) @ vt if np.all(np.isfinite(inv_sv2)) else np.full((p, p), np.inf)
+    cov_x = cov_x * s2
+    to_phys = np.array([s, s, s, s, 1.0, c0_reg])
+    tq = float(stats.t.ppf(0.975, dof)) if dof > 0 else math.inf
+    half = tq * np.sqrt(np.abs(np.diag(cov_x))) * to_phys
+    values = np.array([getattr(params, k) for k in PARAM_NAMES])
+    ci = {k: (float(v - h), float(v + h)) for k, v, h in zip(PARAM_NAMES, values, half)}
+    at_bound = [k for k, v in zip(PARAM_NAMES[:4], x[:4]) if v <= 1e-8]
+    poor = []
+    for k, v, h in zip(PARAM_NAMES, values, half):
+        if k in at_bound:
+            poor.append(k)
+        elif k == "gamma_offs_deg":
+            if not h <= POOR_GAMMA_DEG:
+                poor.append(k)
+        elif not h <= POOR_REL * abs(v):
+            poor.append(k)
+    # Scaled Jacobian for conditioning: γoffs per radian, C̄0 per relative change.
+    scale = np.array([1, 1, 1, 1, 180.0 / math.pi, x[5]])
+    sv_scaled = np.linalg.svd(jac * scale, compute_uv=False)
+    _, _, vt_s = np.linalg.svd(jac * scale)
+    weakest = dict(zip(PARAM_NAMES, vt_s[-1] * np.sign(vt_s[-1][np.argmax(np.abs(vt_s[-1]))])))
+    rb, rc = r[:n], r[n:]
+    return InertiaFit(
+        params=params, ci95=ci, poorly_determined=poor, at_bound=at_bound,
+        singular_values=list(sv_scaled), condition_number=float(sv_scaled[0] / sv_scaled[-1]),
+        weakest_direction=weakest, rel_residual_beta=rb, rel_residual_C=rc,
+        rms_rel_beta=float(np.sqrt(np.mean(rb**2))), rms_rel_C=float(np.sqrt(np.mean(rc**2))),
+        cost=float(0.5 * r @ r), C0_bar_regression=c0_reg, n_poses=n, dof=dof,
+        profile_gamma_deg=grid, profile_cost=costs)
