@@ -1,0 +1,382 @@
+"""Quasilinear simulation of the α-invariant model, paper section 2.4.1, (43)–(46), and of the
+global linear model (26).
+
+State space (43): θ' = Φ, Φ' = −C(α)·Φ + β̃(α)·v, α = v̇² − v·v̈, v = kp·(r − θ).
+
+Discretisation
+--------------
+The device (and the MuJoCo simulator) apply the command with a zero-order hold at the sample
+rate: v_k = kp·(r_k − θ_k) is held over [t_k, t_k + dt).  Over one step C and β̃ are frozen at
+the values of the converged α_k, so the step is the linear ODE θ'' + C·θ' = u with constant
+u = β̃·v_k, integrated exactly:
+
+    Φ(t_k + h) = Φ_k·e^{−Ch} + u·g1,        g1 = (1 − e^{−Ch})/C        (→ h    as C → 0)
+    θ(t_k + h) = θ_k + Φ_k·g1 + u·g2,       g2 = (h − g1)/C              (→ h²/2 as C → 0)
+
+with h = dt; for |C·h| < 0.02 g1 and g2 come from their power series (7 terms, truncation
+< 1e-17 relative) instead of the cancelling closed forms.  With constant C and β̃ this is the
+exact sampled-data (ZOH) closed loop, identical to ``scipy.signal.cont2discrete(..., "zoh")``
+of the plant with v_k fed back.
+
+The α iteration (44)–(46) at t_k
+--------------------------------
+v = kp·(r − θ) and v̇ = kp·(ṙ − Φ) are known from the state; v̈ = kp·(r̈ − Φ̇) needs
+Φ̇ = −C(α)Φ + β̃(α)v, which needs α, which needs v̈.  The fixed-point iteration is
+
+    α^(i)  = v̇² − v·v̈^(i−1)                                                    (44)
+    Φ̇^(i)  = −C(α^(i))·Φ + β̃(α^(i))·v
+    v̈^(i)  = kp·(r̈ − Φ̇^(i)),        i = 1, 2, …
+
+First iterate.  (45) as printed, v̈^(0) = −C_linear·Φ + β̃_linear·v, is the acceleration Φ̇ of
+the linear model (26), not v̈ (the units differ by V/rad and the sign by −1).  Differentiating
+v = kp·(r − θ) twice gives v̈ = kp·(r̈ − θ'') = kp·(r̈ − Φ̇), and the natural first guess
+for Φ̇ is the linear model's, so the first iterate implemented is
+
+    v̈^(0) = kp·(r̈ − (−C_linear·Φ + β̃_linear·v)).                               (45')
+
+Stopping rule (46): stop at the first i ≥ 2 with |α^(i) − α^(i−1)| < max(1e-6, 1e-3·|α^(i)|)
+and use C(α^(i)), β̃(α^(i)) for the step.  If that has not happened at i = ``max_iter`` the
+last iterate is used and the step is counted as not converged (per run).
+
+Batching: r has shape (n_runs, n_samples); every run has its own inertia I (and linear
+coefficients), and the iteration is vectorised over runs: at each step the runs iterate
+together, a run that has converged is frozen, and the step ends when all have converged.
+
+Reference derivatives: ṙ and r̈ enter v̇ and v̈.  Pass them when known (for a square wave
+they are zero between edges: pass zeros; the jump of r is already applied through v_k).  If
+omitted they are computed with ``numpy.gradient`` (second-order central differences, one-sided
+second order at the ends) applied once for ṙ and again for r̈, which is only suitable for
+smooth references (a jump would give a spike of Δr/dt).
+
+Units: t [s], θ, r [rad], Φ [rad/s], v [V], kp [V/rad], C [1/s], β̃ [rad/(V·s²)], α [V²/s²].
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .nonlinear import AlphaModel, paper_alpha_model
+
+__all__ = [
+    "SimResult",
+    "simulate_alpha",
+    "simulate_linear",
+    "zoh_coefficients",
+    "square_wave_reference",
+    "bench_simulation",
+    "DEFAULT_MAX_ITER",
+]
+
+#: Bound on the iterations (44) per step.
+DEFAULT_MAX_ITER = 50
+_SERIES_BELOW = 0.02
+# Taylor coefficients of G1(x) = (1 − e^{−x})/x = Σ (−x)^n/(n+1)! and
+# G2(x) = (x − 1 + e^{−x})/x² = Σ (−x)^n/(n+2)!, highest power first (for Horner).
+_N_SERIES = 7
+_G1_COEF = [(-1) ** n / float(np.prod(np.arange(1, n + 2))) for n in range(_N_SERIES)][::-1]
+_G2_COEF = [(-1) ** n / float(np.prod(np.arange(1, n + 3))) for n in range(_N_SERIES)][::-1]
+
+
+def zoh_coefficients(C, h):
+    """Exact one-step coefficients of θ'' + C·θ' = u (u constant over the step).
+
+    Parameters
+    ----------
+    C : array_like [1/s]
+        Damping (any sign; 0 allowed).
+    h : float [s]
+        Step.
+
+    Returns
+    -------
+    E, g1, g2 : ndarray
+        e^{−Ch} [-], (1 − e^{−Ch})/C [s], (h − g1)/C [s²], so that
+        Φ⁺ = E·Φ + g1·u and θ⁺ = θ + g1·Φ + g2·u.
+    """
+    x = np.asarray(C, dtype=float) * h
+    small = np.abs(x) < _SERIES_BELOW
+    xs = np.where(small, 1.0, x)
+    em1 = np.expm1(-xs)
+    G1 = -em1 / xs
+    G2 = (1.0 - G1) / xs
+    if np.any(small):
+        s1 = np.zeros_like(x)
+        s2 = np.zeros_like(x)
+        for c1, c2 in zip(_G1_COEF, _G2_COEF):
+            s1 = s1 * (-x) + c1
+            s2 = s2 * (-x) + c2
+        G1 = np.where(small, s1, G1)
+        G2 = np.where(small, s2, G2)
+    return np.exp(-x), h * G1, h * h * G2
+
+
+@dataclass
+class SimResult:
+    """Output of :func:`simulate_alpha` / :func:`simulate_linear`.
+
+    All arrays have the shape of ``r`` ((n_runs, n_samples), or (n_samples,) for one run);
+    entry k belongs to sample time t_k.
+
+    Attributes
+    ----------
+    theta : ndarray [rad]
+        Angle θ_k.
+    phi : ndarray [rad/s]
+        Angular velocity Φ_k.
+    v : ndarray [V]
+        Command v_k = kp·(r_k − θ_k), held over [t_k, t_k + dt).
+    alpha : ndarray [V²/s²] or None
+        Converged α used on step k (None for the linear model).
+    C, beta_tilde : ndarray
+        Coefficients used on step k [1/s], [rad/(V·s²)].
+    n_iter : ndarray of int or None
+        Iterations (44) on step k (the index i of the accepted α^(i)).
+    n_not_converged : ndarray of int or int
+        Steps per run where (46) was not met within ``max_iter``.
+    """
+
+    theta: np.ndarray
+    phi: np.ndarray
+    v: np.ndarray
+    C: np.ndarray
+    beta_tilde: np.ndarray
+    alpha: np.ndarray | None = None
+    n_iter: np.ndarray | None = None
+    n_not_converged: np.ndarray | int = 0
+
+
+def _prepare(r, dt, r_dot, r_ddot, *per_run):
+    r = np.asarray(r, dtype=float)
+    single = r.ndim == 1
+    r2 = np.atleast_2d(r)
+    if r2.ndim != 2 or r2.shape[1] < 2:
+        raise ValueError(f"r must have shape (n_samples,) or (n_runs, n_samples), got {r.shape}")
+    if not dt > 0:
+        raise ValueError(f"dt must be positive, got {dt}")
+    R = r2.shape[0]
+
+    def deriv(x, base):
+        if x is None:
+            return np.gradient(base, dt, axis=1, edge_order=2)
+        return np.atleast_2d(np.broadcast_to(np.asarray(x, dtype=float), r.shape))
+
+    rd = deriv(r_dot, r2)
+    rdd = deriv(r_ddot, rd)
+    vecs = [np.broadcast_to(np.asarray(p, dtype=float), (R,)).copy() for p in per_run]
+    return single, r2, rd, rdd, vecs
+
+
+def _finish(single, **arrays):
+    if single:
+        arrays = {k: (v[0] if isinstance(v, np.ndarray) else v) for k, v in arrays.items()}
+    return SimResult(**arrays)
+
+
+def simulate_linear(C_linear, beta_tilde_linear, r, dt, kp, theta0=0.0, phi0=0.0) -> SimResult:
+    """Global linear model (26), θ'' + C_linear·θ' = β̃_linear·v, v = kp·(r − θ), exact ZOH.
+
+    Parameters
+    ----------
+    C_linear : float or array_like (n_runs,) [1/s]
+    beta_tilde_linear : float or array_like (n_runs,) [rad/(V·s²)]
+    r : array_like (n_samples,) or (n_runs, n_samples) [rad]
+        Reference, uniformly sampled.
+    dt : float [s]
+        Sample period (the hold interval).
+    kp : float [V/rad]
+    theta0, phi0 : float or array_like (n_runs,) [rad], [rad/s]
+        Initial state.
+
+    Returns
+    -------
+    SimResult
+        ``alpha`` and ``n_iter`` are None.
+    """
+    single, r2, _, _, (C, b, th, ph) = _prepare(r, dt, 0.0, 0.0, C_linear, beta_tilde_linear,
+                                                theta0, phi0)
+    R, n = r2.shape
+    E, g1, g2 = zoh_coefficients(C, dt)
+    theta = np.empty((R, n))
+    phi = np.empty((R, n))
+    v = np.empty((R, n))
+    for k in range(n):
+        theta[:, k] = th
+        phi[:, k] = ph
+        vk = kp * (r2[:, k] - th)
+        v[:, k] = vk
+        u = b * vk
+        th = th + g1 * ph + g2 * u
+        ph = E * ph + g1 * u
+    Cs = np.broadcast_to(C[:, None], (R, n)).copy()
+    bs = np.broadcast_to(b[:, None], (R, n)).copy()
+    return _finish(single, theta=theta, phi=phi, v=v, C=Cs, beta_tilde=bs)
+
+
+def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_linear, theta0=0.0,
+                   phi0=0.0, r_dot=None, r_ddot=None, max_iter=DEFAULT_MAX_ITER) -> SimResult:
+    """α-invariant model (37) by the quasilinear iteration (43)–(46) with exact ZOH steps.
+
+    Parameters
+    ----------
+    model : AlphaModel
+        C(α, I) and β̃(α, I).
+    I : float or array_like (n_runs,) [paper units]
+        Inertia of each run (from the inertia model (6)).
+    r : array_like (n_samples,) or (n_runs, n_samples) [rad]
+        Reference, uniformly sampled.
+    dt : float [s]
+        Sample period.
+    kp : float [V/rad]
+    C_linear, beta_tilde_linear : float or array_like (n_runs,)
+        Global linear model of each run ((24)–(26)), used only by the first iterate (45').
+    theta0, phi0 : float or array_like (n_runs,) [rad], [rad/s]
+        Initial state.
+    r_dot, r_ddot : array_like, optional [rad/s], [rad/s²]
+        Reference derivatives, same shape as ``r``; numerical if omitted (module docstring).
+    max_iter : int
+        Bound on the iteration index i of (44).
+
+    Returns
+    -------
+    SimResult
+    """
+    if max_iter < 2:
+        raise ValueError(f"max_iter must be at least 2 (the rule (46) compares two iterates), got {max_iter}")
+    single, r2, rd, rdd, (I, Cl, bl, th, ph) = _prepare(
+        r, dt, r_dot, r_ddot, I, C_linear, beta_tilde_linear, theta0, phi0)
+    R, n = r2.shape
+    invI = 1.0 / I
+    breaks, c_inv = model.alpha_breaks, model.C_inv
+    b0, b1 = model.beta_inv
+    a0, a1 = model.alpha_bar
+    b_slope = (b1 - b0) / (a1 - a0)
+    b_floor = model.options["beta_floor_fraction"] * min(b0, b1)
+
+    theta = np.empty((R, n))
+    phi = np.empty((R, n))
+    v_out = np.empty((R, n))
+    alpha_out = np.empty((R, n))
+    C_out = np.empty((R, n))
+    b_out = np.empty((R, n))
+    n_iter = np.empty((R, n), dtype=np.int32)
+    not_conv = np.zeros(R, dtype=np.int64)
+    for k in range(n):
+        theta[:, k] = th
+        phi[:, k] = ph
+        v = kp * (r2[:, k] - th)
+        vd = kp * (rd[:, k] - ph)
+        vd2 = vd * vd
+        kr = kp * rdd[:, k]
+        # (45'): first iterate of v̈ from the linear model's acceleration; α^(1) by (44).
+        a = vd2 - v * (kr - kp * (bl * v - Cl * ph))
+        its = np.ones(R, dtype=np.int32)
+        active = np.ones(R, dtype=bool)
+        for i in range(2, max_iter + 1):
+            Ca = np.interp(a, breaks, c_inv) * invI
+            ba = np.maximum(b0 + b_slope * (a - a0), b_floor) * invI
+            a_new = vd2 - v * (kr - kp * (ba * v - Ca * ph))
+            done = np.abs(a_new - a) < np.maximum(1e-6, 1e-3 * np.abs(a_new))
+            a = np.where(active, a_new, a)
+            its = np.where(active, i, its)
+            active &= ~done
+            if not active.any():
+                break
+        not_conv += active
+        C = np.interp(a, breaks, c_inv) * invI
+        b = np.maximum(b0 + b_slope * (a - a0), b_floor) * invI
+        v_out[:, k] = v
+        alpha_out[:, k] = a
+        C_out[:, k] = C
+        b_out[:, k] = b
+        n_iter[:, k] = its
+        if k + 1 < n:
+            E, g1, g2 = zoh_coefficients(C, dt)
+            u = b * v
+            th = th + g1 * ph + g2 * u
+            ph = E * ph + g1 * u
+    return _finish(single, theta=theta, phi=phi, v=v_out, C=C_out, beta_tilde=b_out,
+                   alpha=alpha_out, n_iter=n_iter,
+                   n_not_converged=(int(not_conv[0]) if single else not_conv))
+
+
+def square_wave_reference(t, frequency_hz, amplitude_rad):
+    """Square-wave reference of the step experiments (47): +A_r on the first half period.
+
+    r(t) = A_r·(2H(t) − 1) for the first half period and alternating after, i.e.
+    +A_r on [0, T/2), −A_r on [T/2, T), …  With θ(0) = −A_r, θ'(0) = 0 this is (47).
+    Its derivatives between edges are zero (pass ``r_dot = r_ddot = 0`` to the simulators).
+
+    Parameters
+    ----------
+    t : array_like [s]
+    frequency_hz : float [Hz]
+    amplitude_rad : float [rad]
+
+    Returns
+    -------
+    r : ndarray [rad]
+    """
+    t = np.asarray(t, dtype=float)
+    half = np.floor(2.0 * frequency_hz * t + 1e-9).astype(np.int64)
+    return amplitude_rad * (1.0 - 2.0 * (half % 2))
+
+
+def bench_simulation(n_runs=25, duration_s=8.0, dt=1e-3, kp=2.0, model=None, repeat=1):
+    """Time the batched α-model simulation against ``scipy.signal.lsim`` of the linear model.
+
+    The workload is the paper's step campaign: ``n_runs`` square-wave runs (47) (0.25 Hz,
+    0.07 rad, θ(0) = −0.07 rad at rest) of ``duration_s`` at 1/``dt`` Hz, with inertias spread
+    over the range of the paper's Table 3 (β̃_linear 149–275) and C_linear = 1/(C̄0·I),
+    C̄0 = 36.693 (Table 4).  The α model defaults to :func:`paper_alpha_model`.
+
+    Returns
+    -------
+    dict
+        ``alpha_s`` (batched α simulation), ``linear_zoh_s`` (batched :func:`simulate_linear`),
+        ``lsim_s`` (``scipy.signal.lsim`` of the continuous closed loop (21), one call per run),
+        all best of ``repeat`` [s]; ``ratio_alpha_to_lsim`` [-]; ``n_not_converged`` (total
+        steps); ``mean_iterations`` per step; the workload (``n_runs``, ``n_samples``).
+    """
+    from scipy.signal import lsim
+
+    model = paper_alpha_model() if model is None else model
+    t = np.arange(int(round(duration_s / dt))) * dt
+    r1 = square_wave_reference(t, 0.25, 0.07)
+    r = np.tile(r1, (n_runs, 1))
+    I = 1.0 / np.linspace(149.0, 275.0, n_runs)
+    C_lin = 1.0 / (36.693 * I)
+    b_lin = 1.0 / I
+
+    def best(fn):
+        out, times = None, []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            out = fn()
+            times.append(time.perf_counter() - t0)
+        return out, min(times)
+
+    res, t_alpha = best(lambda: simulate_alpha(model, I, r, dt, kp, C_linear=C_lin,
+                                               beta_tilde_linear=b_lin, theta0=-0.07,
+                                               r_dot=0.0, r_ddot=0.0))
+    _, t_lin = best(lambda: simulate_linear(C_lin, b_lin, r, dt, kp, theta0=-0.07))
+
+    def run_lsim():
+        for j in range(n_runs):
+            beta = kp * b_lin[j]
+            A = [[0.0, 1.0], [-beta, -C_lin[j]]]
+            lsim((A, [[0.0], [beta]], [[1.0, 0.0]], [[0.0]]), r1, t, X0=[-0.07, 0.0])
+
+    _, t_lsim = best(run_lsim)
+    return {
+        "n_runs": n_runs,
+        "n_samples": t.size,
+        "alpha_s": t_alpha,
+        "linear_zoh_s": t_lin,
+        "lsim_s": t_lsim,
+        "ratio_alpha_to_lsim": t_alpha / t_lsim,
+        "n_not_converged": int(np.sum(res.n_not_converged)),
+        "mean_iterations": float(res.n_iter.mean()),
+    }
