@@ -474,8 +474,9 @@ def fit_alpha_model(poses: Sequence, *, use="up_to_resonance", monotone=True, me
     Returns
     -------
     AlphaModel
-        With ``diagnostics``: ``poses`` (per pose: ``used`` mask, ``C_k``, ``beta_k``, ``sse_C``
-        for ``two_stage``), ``sse_C`` of the global model, ``n_candidates`` tried.
+        With ``diagnostics``: ``poses`` (per pose: ``I``, ``used`` mask and, for
+        ``two_stage``, ``C_k``, ``beta_k``, ``sse_C``, ``sse_beta``), ``sse_C`` of the global
+        model, ``alpha_grid`` (the candidates) and ``n_candidates`` (admissible subsets tried).
 
     Raises
     ------
@@ -504,7 +505,8 @@ def fit_alpha_model(poses: Sequence, *, use="up_to_resonance", monotone=True, me
     all_alpha = np.concatenate([d["alpha"] for d in data])
 
     if alpha_breaks is not None:
-        candidates = [_as_vec(alpha_breaks, 4, "alpha_breaks")]
+        grid = _as_vec(alpha_breaks, 4, "alpha_breaks")
+        candidates = [grid]
     else:
         grid = default_alpha_grid(all_alpha, n_grid) if alpha_grid is None else np.unique(
             np.asarray(alpha_grid, dtype=float))
@@ -543,6 +545,7 @@ def fit_alpha_model(poses: Sequence, *, use="up_to_resonance", monotone=True, me
     options = {"use": use, "monotone": monotone, "method": method,
                "beta_floor_fraction": beta_floor_fraction,
                "breaks_from": "given" if alpha_breaks is not None else "grid search"}
-    diagnostics = {"poses": diag_poses, "sse_C": sse, "n_candidates": n_tried}
+    diagnostics = {"poses": diag_poses, "sse_C": sse, "n_candidates": n_tried,
+                   "alpha_grid": grid.tolist()}
     return AlphaModel(alpha_breaks=breaks, C_k1=C_k1, alpha_bar=alpha_bar,
                       beta_k1=1.0 / beta_inv, options=options, diagnostics=diagnostics)
