@@ -1,0 +1,237 @@
+"""Command entry points ``omni identify``, ``omni fit-inertia`` and ``omni validate``.
+
+:func:`identify_dataset` is the reusable core: runs in, the ``params.json`` dict out.
+
+Pose grouping: sine runs are grouped by their set points ``(gamma1_set_deg, gamma2_set_deg)``
+rounded to 0.01° when a run has both, else by the actual angles rounded to 0.01°.  A pose's
+actual angles are the mean over its runs.  All runs of a pose must share ``kp``.
+
+Poses whose global linear model is non-physical (C_linear or β_linear ≤ 0) are kept in
+``poses`` but left out of the inertia fit.  With fewer than
+:data:`identification.inertia.MIN_POSES` usable poses the inertia model is not fitted:
+``"inertia_model": null`` and the reason is in ``"warnings"`` (per-pose results are still
+written).  Step and other runs are ignored by ``identify``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .dataset import Run, atomic_output_dir, atomic_write_text, read_dataset
+from .errors import UserError
+from .inertia import MIN_POSES, InertiaFit, fit_inertia_model
+from .linear import PoseLinearModel, fit_pose
+from .sine_fit import fit_run
+
+
+@dataclass
+class Identification:
+    """Everything ``omni identify`` found: per-pose linear models and the inertia fit.
+
+    Attributes
+    ----------
+    poses : list of PoseLinearModel
+    inertia : InertiaFit or None
+        None when there are too few usable poses (see ``warnings``).
+    warnings : list of str
+    ignored_runs : list of str
+        Non-sine runs.
+    """
+
+    poses: list
+    inertia: InertiaFit | None
+    warnings: list = field(default_factory=list)
+    ignored_runs: list = field(default_factory=list)
+
+    def to_params(self) -> dict:
+        """The ``params.json`` dict (contract shape; ``alpha_model`` left empty)."""
+        return {
+            "poses": [p.to_dict() for p in self.poses],
+            "inertia_model": self.inertia.params.to_dict() if self.inertia else None,
+            "inertia_fit": self.inertia.diagnostics() if self.inertia else None,
+            "alpha_model": {},
+            "warnings": list(self.warnings),
+        }
+
+
+def _pose_key(run: Run):
+    m = run.meta
+    if m.get("gamma1_set_deg") is not None and m.get("gamma2_set_deg") is not None:
+        try:
+            return ("set", round(float(m["gamma1_set_deg"]), 2), round(float(m["gamma2_set_deg"]), 2))
+        except (TypeError, ValueError):
+            raise UserError(f"{run.name}: gamma1_set_deg/gamma2_set_deg must be numbers") from None
+    return ("actual", round(run.gamma1_deg, 2), round(run.gamma2_deg, 2))
+
+
+def identify_runs(runs: list[Run]) -> Identification:
+    """Fit sines, local and global linear models per pose, and the inertia model.
+
+    Parameters
+    ----------
+    runs : list of Run
+        A dataset (any kinds; only ``kind == "sine"`` runs are used).
+
+    Raises
+    ------
+    UserError
+        No sine runs, too few steady-state cycles, mixed kp within a pose, a pose with too
+        few frequencies.
+    """
+    sines = [r for r in runs if r.kind == "sine"]
+    ignored = [r.name for r in runs if r.kind != "sine"]
+    if not sines:
+        raise UserError("dataset has no sine runs (kind \"sine\"); identify needs sine sweeps")
+    groups: dict = {}
+    for r in sines:
+        groups.setdefault(_pose_key(r), []).append(r)
+    poses, warnings = [], []
+    for key in sorted(groups):
+        members = groups[key]
+        kps = {r.kp for r in members}
+        label = (f"set ({key[1]:g}, {key[2]:g}) deg" if key[0] == "set"
+                 else f"actual ({key[1]:.2f}, {key[2]:.2f}) deg")
+        if len(kps) > 1:
+            raise UserError(f"pose {label}: runs {', '.join(r.name for r in members)} have different "
+                            f"kp {sorted(kps)}; one pose needs one kp")
+        fits = [fit_run(r) for r in members]
+        g1 = float(np.mean([r.gamma1_deg for r in members]))
+        g2 = float(np.mean([r.gamma2_deg for r in members]))
+        pose = fit_pose(fits, kps.pop(), g1, g2, label=label,
+                        gamma1_set_deg=key[1] if key[0] == "set" else None,
+                        gamma2_set_deg=key[2] if key[0] == "set" else None)
+        poses.append(pose)
+        warnings.extend(pose.warnings)
+    usable = [p for p in poses if p.physical]
+    inertia = None
+    if len(usable) >= MIN_POSES:
+        inertia = fit_inertia_model([p.gamma1_deg for p in usable], [p.gamma2_deg for p in usable],
+                                    [p.C_linear for p in usable], [p.beta_tilde_linear for p in usable])
+        if inertia.poorly_determined:
+            warnings.append("inertia model: poorly determined parameter(s): "
+                            + ", ".join(inertia.poorly_determined))
+    else:
+        warnings.append(f"inertia model not fitted: {len(usable)} pose(s) with a physical global "
+                        f"linear model; the inertia model (6)-(8) needs >= {MIN_POSES} poses")
+    return Identification(poses, inertia, warnings, ignored)
+
+
+def identify_dataset(runs: list[Run]) -> dict:
+    """Build the ``params.json`` dict from a dataset's runs (see :func:`identify_runs`)."""
+    return identify_runs(runs).to_params()
+
+
+def identify(args) -> int:
+    """``omni identify DATA --out DIR [--force]``: writes params.json, report.md, figures."""
+    runs = read_dataset(args.data)
+    ident = identify_runs(runs)
+    params = ident.to_params()
+    with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
+        (tmp / "params.json").write_text(json.dumps(params, indent=2) + "\n")
+        from .report import write_identify_report
+        write_identify_report(ident, tmp, source=str(args.data))
+    print(f"identified {len(ident.poses)} pose(s) from {len(runs)} run(s); wrote {args.out}/params.json")
+    for w in ident.warnings:
+        print(f"warning: {w}")
+    return 0
+
+
+TABLE_COLUMNS = ("gamma1_deg", "gamma2_deg", "C_linear", "beta_tilde_linear")
+
+
+def read_linear_table(path) -> dict:
+    """Read a CSV with columns gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear (more allowed).
+
+    Returns
+    -------
+    dict of str to ndarray
+
+    Raises
+    ------
+    UserError
+        Missing file or columns, non-numeric or non-finite values.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: file not found")
+    try:
+        with open(path, newline="") as fh:
+            reader = csv.reader(fh)
+            header = [h.strip() for h in next(reader, [])]
+            rows = [row for row in reader if any(c.strip() for c in row)]
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise UserError(f"{path}: malformed CSV ({exc})") from None
+    missing = [c for c in TABLE_COLUMNS if c not in header]
+    if missing:
+        raise UserError(f"{path}: missing column(s): {', '.join(missing)} (need {','.join(TABLE_COLUMNS)})")
+    out = {c: [] for c in TABLE_COLUMNS}
+    for i, row in enumerate(rows, start=2):
+        if len(row) != len(header):
+            raise UserError(f"{path}: line {i} has {len(row)} values but the header has {len(header)}")
+        for c in TABLE_COLUMNS:
+            text = row[header.index(c)].strip()
+            try:
+                val = float(text)
+            except ValueError:
+                raise UserError(f"{path}: line {i}, column {c}: not a number: {text!r}") from None
+            if not math.isfinite(val):
+                raise UserError(f"{path}: line {i}, column {c}: non-finite value {text!r}")
+            out[c].append(val)
+    return {c: np.array(v) for c, v in out.items()}
+
+
+def fit_inertia_table(path) -> tuple[InertiaFit, dict]:
+    """Fit the inertia model to a table file; returns the fit and its JSON dict."""
+    tab = read_linear_table(path)
+    try:
+        fit = fit_inertia_model(tab["gamma1_deg"], tab["gamma2_deg"], tab["C_linear"],
+                                tab["beta_tilde_linear"])
+    except UserError as exc:
+        raise UserError(f"{path}: {exc}") from None
+    p = fit.params
+    rows = [{"gamma1_deg": float(a), "gamma2_deg": float(b), "C_linear": float(c),
+             "beta_tilde_linear": float(d), "C_model": float(p.C(a, b)),
+             "beta_tilde_model": float(p.beta_tilde(a, b)), "inertia": float(p.inertia(a, b))}
+            for a, b, c, d in zip(*(tab[k] for k in TABLE_COLUMNS))]
+    return fit, {"inertia_model": p.to_dict(), "inertia_fit": fit.diagnostics(), "poses": rows}
+
+
+def format_inertia_fit(fit: InertiaFit) -> str:
+    """Readable multi-line summary of an inertia fit."""
+    p = fit.params
+    lines = [f"inertia model (6)-(8) fitted to {fit.n_poses} poses ({fit.dof} degrees of freedom)",
+             f"{'parameter':<16}{'value':>12}   95% interval (approx.)"]
+    for k in ("I_base", "I1", "I2", "I3", "gamma_offs_deg", "C0_bar"):
+        lo, hi = fit.ci95[k]
+        flag = "  poorly determined" if k in fit.poorly_determined else ""
+        lines.append(f"{k:<16}{getattr(p, k):>12.5g}   [{lo:.4g}, {hi:.4g}]{flag}")
+    lines.append(f"C0_bar by simple regression (beta_tilde = C0_bar*C through origin): "
+                 f"{fit.C0_bar_regression:.3f}")
+    lines.append(f"rms relative residual: beta_tilde {fit.rms_rel_beta:.4f}, C {fit.rms_rel_C:.4f}")
+    lines.append(f"scaled Jacobian condition number {fit.condition_number:.3g}; singular values "
+                 + ", ".join(f"{s:.3g}" for s in fit.singular_values))
+    return "\n".join(lines)
+
+
+def fit_inertia(args) -> int:
+    """``omni fit-inertia TABLE.csv [--out FILE]``."""
+    if args.out and Path(args.out).is_dir():
+        raise UserError(f"{args.out}: is a folder; --out takes a file name")
+    fit, result = fit_inertia_table(args.table)
+    print(format_inertia_fit(fit))
+    if args.out:
+        atomic_write_text(args.out, json.dumps(result, indent=2) + "\n")
+        print(f"wrote {args.out}")
+    return 0
+
+
+def validate(args):
+    """``omni validate``: implemented in :mod:`identification.validation`."""
+    from .validation import validate_command
+    return validate_command(args)
