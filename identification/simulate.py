@@ -53,6 +53,7 @@ Units: t [s], θ, r [rad], Φ [rad/s], v [V], kp [V/rad], C [1/s], β̃ [rad/(V�
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -74,10 +75,11 @@ __all__ = [
 DEFAULT_MAX_ITER = 50
 _SERIES_BELOW = 0.02
 # Taylor coefficients of G1(x) = (1 − e^{−x})/x = Σ (−x)^n/(n+1)! and
-# G2(x) = (x − 1 + e^{−x})/x² = Σ (−x)^n/(n+2)!, highest power first (for Horner).
+# G2(x) = (x − 1 + e^{−x})/x² = Σ (−x)^n/(n+2)!: coefficients of (−x)^n, highest power first
+# (Horner in −x).
 _N_SERIES = 7
-_G1_COEF = [(-1) ** n / float(np.prod(np.arange(1, n + 2))) for n in range(_N_SERIES)][::-1]
-_G2_COEF = [(-1) ** n / float(np.prod(np.arange(1, n + 3))) for n in range(_N_SERIES)][::-1]
+_G1_COEF = [1.0 / math.factorial(n + 1) for n in range(_N_SERIES)][::-1]
+_G2_COEF = [1.0 / math.factorial(n + 2) for n in range(_N_SERIES)][::-1]
 
 
 def zoh_coefficients(C, h):
