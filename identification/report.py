@@ -58,8 +58,12 @@ def _local_figure(ident, path: Path) -> None:
         b = np.array([x.beta_data for x in q.frequencies])
         a = np.array([x.alpha for x in q.frequencies])
         used = np.array([x.used for x in q.frequencies])
+        line = None
         for col, xv in ((0, f), (1, a)):
-            line, = ax[0, col].plot(xv[used], c[used], "o-", label=q.label)
+            o = np.argsort(xv)
+            xv, c, b, used = xv[o], c[o], b[o], used[o]
+            line, = ax[0, col].plot(xv[used], c[used], "o-", label=q.label if col == 0 else None,
+                                    color=None if line is None else line.get_color())
             ax[0, col].plot(xv[~used], c[~used], "o", mfc="none", color=line.get_color())
             ax[1, col].plot(xv[used], b[used], "o-", color=line.get_color())
             ax[1, col].plot(xv[~used], b[~used], "o", mfc="none", color=line.get_color())
