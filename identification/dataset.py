@@ -100,9 +100,10 @@ def write_run(folder: str | os.PathLike, run: Run) -> None:
     cols = {"t": run.t, "r": run.r, "theta": run.theta, "v": run.v, **run.extra}
     names = list(cols)
     data = np.column_stack([np.asarray(cols[k], dtype=float) for k in names])
+    row = ",".join(["%.17g"] * len(names)) + "\n"
     with open(folder / f"{run.name}.csv", "w", newline="\n") as fh:
         fh.write(",".join(names) + "\n")
-        np.savetxt(fh, data, delimiter=",", fmt="%.17g")
+        fh.write((row * data.shape[0]) % tuple(data.ravel()))
     with open(folder / f"{run.name}.json", "w", newline="\n") as fh:
         json.dump(run.meta, fh, indent=2, sort_keys=True)
         fh.write("\n")

@@ -1,0 +1,80 @@
+"""``omni bench``: performance figures, measured on this machine.
+
+Figures (issue targets in brackets, 2-core machine):
+
+* ``generate_rtf``: simulated experiment time of the paper campaign / wall time of
+  ``omni generate --campaign paper`` work (simulation + writing the dataset) [>= 100];
+* ``simulate_rtf``: the same, simulation only;
+* ``rollout_ratio``: the campaign's physics steps per second / raw ``mujoco.rollout`` steps per
+  second for the same model, step count and threads with zero controls (the ceiling) [>= 0.8].
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from . import experiments as ex
+from . import model as om
+
+
+def _rollout_ceiling(model: mujoco.MjModel, nbatch: int, nstep: int, nthread: int) -> float:
+    """Raw rollout steps/s: same model, batch and steps, arm held at the home pose."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0) if model.nkey else mujoco.mj_resetData(model, data)
+    mujoco.mj_forward(model, data)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    x0 = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, x0, spec)
+    ctrl = np.tile(data.ctrl, (nbatch, nstep, 1))
+    datas = [mujoco.MjData(model) for _ in range(nthread)]
+    t0 = time.perf_counter()
+    rollout.rollout(model, datas, np.tile(x0, (nbatch, 1)), ctrl, nstep=nstep)
+    return nbatch * nstep / (time.perf_counter() - t0)
+
+
+def run_bench(jobs: int | None = None, repeats: int = 3) -> dict:
+    """Measure the figures above (best of ``repeats``) and return them as a dict."""
+    from .commands import write_dataset
+
+    jobs = max(1, jobs or os.cpu_count() or 1)
+    model = om.load_model()
+    exps = ex.campaign("paper")
+    sim_time = sum(len(e.r) for e in exps) * ex.CONTROL_PERIOD_S
+    steps = sum(len(e.r) for e in exps) * ex.substeps(model, ex.CONTROL_PERIOD_S)
+    t_sim, t_all, ceiling = [], [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        runs = ex.simulate(exps, model=model, jobs=jobs)
+        t1 = time.perf_counter()
+        with tempfile.TemporaryDirectory() as tmp:
+            write_dataset(runs, os.path.join(tmp, "ds"), force=False)
+        t2 = time.perf_counter()
+        t_sim.append(t1 - t0)
+        t_all.append(t2 - t0)
+        nstep = max(len(e.r) for e in exps)
+        ceiling.append(_rollout_ceiling(model, len(exps), nstep, jobs))
+    best_sim, best_all = min(t_sim), min(t_all)
+    ceil = max(ceiling)
+    figures = {
+        "cores": os.cpu_count(),
+        "jobs": jobs,
+        "paper_campaign": {
+            "runs": len(exps),
+            "simulated_time_s": round(sim_time, 3),
+            "physics_steps": steps,
+            "simulate_wall_s": round(best_sim, 3),
+            "generate_wall_s": round(best_all, 3),
+            "simulate_rtf": round(sim_time / best_sim, 1),
+            "generate_rtf": round(sim_time / best_all, 1),
+            "steps_per_s": round(steps / best_sim),
+            "rollout_ceiling_steps_per_s": round(ceil),
+            "rollout_ratio": round(steps / best_sim / ceil, 3),
+        },
+    }
+    return figures

@@ -1,0 +1,215 @@
+"""Load the virtual Omni, check the contract's names, set poses, and compute the yaw inertia.
+
+Pose convention (the paper's Fig. 1 and eq. (5)), used everywhere in this package:
+
+* ``gamma1_deg`` -- elevation of the upper arm above the horizontal [deg] (``shoulder`` qpos);
+* ``gamma2_deg`` -- the elbow's interior angle between upper arm and forearm [deg] (``elbow``
+  qpos), so the forearm's elevation is ``psi = gamma1 + gamma2 - 180`` [deg].
+
+Set points are what the arm servos are asked to hold; the *actual* angles sag below them under
+gravity (:func:`equilibrium_pose`), as in the paper's Table 3.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from identification.errors import UserError
+
+#: Folder of the built-in model files (``models/`` at the project root).
+MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+#: The built-in scene (includes ``omni.xml``).
+DEFAULT_SCENE = MODELS_DIR / "scene.xml"
+
+JOINTS = ("yaw", "shoulder", "elbow")
+YAW_ACTUATOR = "yaw_motor"
+ARM_ACTUATORS = ("shoulder_servo", "elbow_servo")
+
+
+@dataclass(frozen=True)
+class OmniIndex:
+    """Addresses of the contract's elements inside one compiled model."""
+
+    yaw_qpos: int
+    yaw_dof: int
+    shoulder_qpos: int
+    elbow_qpos: int
+    yaw_act: int
+    shoulder_act: int | None
+    elbow_act: int | None
+
+
+def load_model(path: str | os.PathLike | None = None) -> mujoco.MjModel:
+    """Compile an MJCF file (default: the built-in scene) and check the contract's names.
+
+    Raises
+    ------
+    UserError
+        The file is missing, does not compile, or lacks the joints ``yaw``, ``shoulder``,
+        ``elbow`` or the actuator ``yaw_motor`` acting on ``yaw``.
+    """
+    path = Path(path) if path is not None else DEFAULT_SCENE
+    if not path.is_file():
+        raise UserError(f"{path}: model file not found")
+    try:
+        model = mujoco.MjModel.from_xml_path(str(path))
+    except (ValueError, RuntimeError) as exc:  # MuJoCo reports XML/compile errors as ValueError
+        msg = " ".join(str(exc).split())
+        raise UserError(f"{path}: not a valid MJCF model ({msg})") from None
+    index(model, path)
+    return model
+
+
+def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>") -> OmniIndex:
+    """Find the contract's joints and actuators in ``model`` (UserError if missing)."""
+    missing = [j for j in JOINTS if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) < 0]
+    if missing:
+        raise UserError(f"{path}: model lacks the contract's joint(s) {', '.join(missing)}")
+    jid = {j: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in JOINTS}
+    for j, i in jid.items():
+        if model.jnt_type[i] != mujoco.mjtJoint.mjJNT_HINGE:
+            raise UserError(f"{path}: joint {j!r} must be a hinge")
+    aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, YAW_ACTUATOR)
+    if aid < 0:
+        raise UserError(f"{path}: model lacks the contract's actuator {YAW_ACTUATOR!r}")
+    if model.actuator_trntype[aid] != mujoco.mjtTrn.mjTRN_JOINT or model.actuator_trnid[aid, 0] != jid["yaw"]:
+        raise UserError(f"{path}: actuator {YAW_ACTUATOR!r} must act on joint 'yaw'")
+    arm = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in ARM_ACTUATORS]
+    return OmniIndex(
+        yaw_qpos=int(model.jnt_qposadr[jid["yaw"]]),
+        yaw_dof=int(model.jnt_dofadr[jid["yaw"]]),
+        shoulder_qpos=int(model.jnt_qposadr[jid["shoulder"]]),
+        elbow_qpos=int(model.jnt_qposadr[jid["elbow"]]),
+        yaw_act=int(aid),
+        shoulder_act=int(arm[0]) if arm[0] >= 0 else None,
+        elbow_act=int(arm[1]) if arm[1] >= 0 else None,
+    )
+
+
+def torque_constant(model: mujoco.MjModel) -> float:
+    """The yaw motor's gear, i.e. the torque constant beta_bar [N*m/V]."""
+    return float(model.actuator_gear[index(model).yaw_act, 0])
+
+
+def voltage_limit(model: mujoco.MjModel) -> float:
+    """The drive's voltage limit [V] (``ctrlrange`` of ``yaw_motor``; inf if unlimited)."""
+    i = index(model).yaw_act
+    if not model.actuator_ctrllimited[i]:
+        return math.inf
+    lo, hi = model.actuator_ctrlrange[i]
+    return float(min(-lo, hi))
+
+
+def set_arm_setpoints(model: mujoco.MjModel, data: mujoco.MjData, gamma1_set_deg: float,
+                      gamma2_set_deg: float) -> None:
+    """Write the shoulder/elbow servo set points [deg] into ``data.ctrl``."""
+    ix = index(model)
+    if ix.shoulder_act is not None:
+        data.ctrl[ix.shoulder_act] = math.radians(gamma1_set_deg)
+    if ix.elbow_act is not None:
+        data.ctrl[ix.elbow_act] = math.radians(gamma2_set_deg)
+
+
+def check_pose(model: mujoco.MjModel, gamma1_deg: float, gamma2_deg: float) -> None:
+    """Raise UserError if a pose is outside the shoulder/elbow joint ranges."""
+    for name, val in (("shoulder", gamma1_deg), ("elbow", gamma2_deg)):
+        if not math.isfinite(val):
+            raise UserError(f"{name} angle must be finite, got {val}")
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if model.jnt_limited[j]:
+            lo, hi = np.degrees(model.jnt_range[j])
+            if not lo - 1e-9 <= val <= hi + 1e-9:
+                raise UserError(f"{name} angle {val:g} deg is outside the joint range "
+                                f"[{lo:.1f}, {hi:.1f}] deg")
+
+
+def equilibrium_pose(model: mujoco.MjModel, gamma1_set_deg: float, gamma2_set_deg: float,
+                     tol_rad: float = 1e-10) -> tuple[float, float]:
+    """Actual (sagged) arm angles [deg] where the servos balance gravity, yaw at rest.
+
+    Solves ``qfrc_bias + qfrc_passive = qfrc_actuator`` for the shoulder and elbow with the
+    yaw at 0 by Newton's method on MuJoCo's own forces (finite-difference Jacobian).
+    """
+    check_pose(model, gamma1_set_deg, gamma2_set_deg)
+    ix = index(model)
+    data = mujoco.MjData(model)
+    set_arm_setpoints(model, data, gamma1_set_deg, gamma2_set_deg)
+    dofs = [model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
+            for j in ("shoulder", "elbow")]
+    qadr = [ix.shoulder_qpos, ix.elbow_qpos]
+    q = np.radians([gamma1_set_deg, gamma2_set_deg])
+
+    def residual(qa: np.ndarray) -> np.ndarray:
+        data.qpos[:] = model.qpos0
+        data.qpos[qadr] = qa
+        data.qvel[:] = 0
+        mujoco.mj_forward(model, data)
+        f = data.qfrc_actuator + data.qfrc_passive - data.qfrc_bias
+        return f[dofs].copy()
+
+    for _ in range(50):
+        f = residual(q)
+        h = 1e-7
+        jac = np.column_stack([(residual(q + h * e) - f) / h for e in np.eye(2)])
+        step = np.linalg.solve(jac, -f)
+        q = q + step
+        if np.max(np.abs(step)) < tol_rad:
+            break
+    return float(np.degrees(q[0])), float(np.degrees(q[1]))
+
+
+def yaw_inertia(gamma1_deg: float, gamma2_deg: float,
+                model_path: str | os.PathLike | None = None,
+                model: mujoco.MjModel | None = None) -> float:
+    """MuJoCo's yaw inertia [kg*m^2] with the arm at these ACTUAL angles [deg].
+
+    The yaw diagonal element of the joint-space mass matrix (``mj_fullM``), armature included.
+    """
+    if model is None:
+        model = load_model(model_path)
+    ix = index(model)
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    data.qpos[ix.shoulder_qpos] = math.radians(gamma1_deg)
+    data.qpos[ix.elbow_qpos] = math.radians(gamma2_deg)
+    mujoco.mj_forward(model, data)
+    mass = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, mass)
+    return float(mass[ix.yaw_dof, ix.yaw_dof])
+
+
+def analytic_yaw_inertia(gamma1_deg, gamma2_deg, I_base: float, m1: float, L1: float,
+                         m2: float, L2: float, m_tip: float = 0.0, L_tip: float | None = None,
+                         tip_offs_deg: float = 0.0, gamma_offs_deg: float = 0.0):
+    """The paper's thin-rod inertia (5) [kg*m^2], extended by a point mass for the stylus.
+
+    ``I = I_base + m1 L1^2 cos^2(g1)/3 + m2 (L1 cos g1 + L2 c2/2)^2 + m2 L2^2 c2^2/12
+    + m_tip (L1 cos g1 + L_tip ct)^2`` with ``c2 = cos(pi - g1 - g2 - gamma_offs)`` and
+    ``ct = cos(pi - g1 - g2 - gamma_offs - tip_offs)``.  ``m_tip = 0`` gives (5) exactly; the
+    tip term is the stylus/gimbal that the paper lumps into link 2 (its centre of mass sits
+    ``L_tip`` from the elbow, ``tip_offs`` off the forearm axis, positive upward as gamma_offs).
+
+    Parameters
+    ----------
+    gamma1_deg, gamma2_deg : float or array [deg]
+        Actual arm angles (paper convention).
+    I_base : float [kg*m^2]
+        Everything that turns with the yaw but not with the arm (turret, motors, rotor).
+    m1, L1, m2, L2, m_tip, L_tip : float [kg], [m]
+        Link masses and lengths; tip mass and its distance from the elbow (default ``L2``).
+    tip_offs_deg, gamma_offs_deg : float [deg]
+    """
+    L_tip = L2 if L_tip is None else L_tip
+    g1 = np.radians(gamma1_deg)
+    c1 = np.cos(g1)
+    a2 = np.pi - g1 - np.radians(gamma2_deg) - np.radians(gamma_offs_deg)
+    c2 = np.cos(a2)
+    ct = np.cos(a2 - np.radians(tip_offs_deg))
+    return (I_base + m1 * L1**2 * c1**2 / 3 + m2 * (L1 * c1 + 0.5 * L2 * c2) ** 2
+            + m2 * L2**2 * c2**2 / 12 + m_tip * (L1 * c1 + L_tip * ct) ** 2)

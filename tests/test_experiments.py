@@ -1,0 +1,194 @@
+"""Experiments and datasets: campaign design, fast path vs reference loop, determinism, round
+trip, the physics of Coulomb friction, and the contract's error paths."""
+
+import hashlib
+import json
+import math
+import subprocess
+import sys
+
+import mujoco
+import numpy as np
+import pytest
+
+from identification.dataset import read_dataset
+from omni_sim import experiments as ex
+from omni_sim import model as om
+from omni_sim.cli import main
+
+
+def test_campaign_design():
+    paper = ex.campaign("paper")
+    sines = [e for e in paper if e.kind == "sine"]
+    steps = [e for e in paper if e.kind == "step"]
+    assert len(sines) == 81 and len(steps) == 25
+    assert len({e.name for e in paper}) == 106
+    for e in sines:
+        n_cycles = (len(e.r) * ex.CONTROL_PERIOD_S - ex.SINE_SETTLE_S) * e.frequency_hz
+        assert abs(n_cycles - round(n_cycles)) < 1e-6 and n_cycles >= 3
+    s = steps[0]
+    assert s.theta0_rad == -0.07 and s.r[0] == 0.07 and s.r[2000] == -0.07 and s.r[4000] == 0.07
+
+
+def _fundamental(run, f):
+    t0 = ex.SINE_SETTLE_S
+    keep = run.t >= t0
+    w = 2 * np.pi * f
+    basis = np.column_stack([np.cos(w * run.t[keep]), np.sin(w * run.t[keep]), np.ones(keep.sum())])
+    coef, *_ = np.linalg.lstsq(basis, run.theta[keep], rcond=None)
+    return math.hypot(coef[0], coef[1])
+
+
+@pytest.fixture(scope="module")
+def model():
+    return om.load_model()
+
+
+def test_fast_path_equals_reference_loop(model):
+    """The rollout path with the P loop inside the model is the same physics as the loop."""
+    exps = [ex.sine_experiment(25, 115, 1.5), ex.square_experiment(65, 60)]
+    exps = [ex.Experiment(e.name, e.kind, e.gamma1_set_deg, e.gamma2_set_deg, e.r[:3000],
+                          e.frequency_hz, e.amplitude_rad, e.theta0_rad) for e in exps]
+    assert ex.fast_path_ok(model, ex.Settings())
+    fast = ex.simulate(exps, model=model)
+    ref = ex.simulate(exps, model=model, force_reference=True, jobs=1)
+    for a, b in zip(fast, ref):
+        np.testing.assert_allclose(a.theta, b.theta, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(a.v, b.v, rtol=0, atol=1e-12)
+        assert a.meta == b.meta
+
+
+def test_coulomb_friction_amplitude_loss(model):
+    """Low-frequency sines lose amplitude to Coulomb friction (vs the same model without it),
+    and the loss shrinks as the amplitude grows -- the signature of Coulomb friction (its
+    equivalent damping 4 Fc / (pi w X) falls with X), which viscous damping does not have."""
+    frictionless = om.load_model()
+    frictionless.dof_frictionloss[om.index(frictionless).yaw_dof] = 0.0
+    loss = {}
+    for amp in (0.05, 0.1, 0.2):
+        exps = [ex.sine_experiment(45, 90, f, amp) for f in (0.5, 1.0)]
+        with_f = ex.simulate(exps, model=model)
+        without = ex.simulate(exps, model=frictionless)
+        loss[amp] = [1 - _fundamental(a, e.frequency_hz) / _fundamental(b, e.frequency_hz)
+                     for a, b, e in zip(with_f, without, exps)]
+    assert min(loss[0.1]) > 0.05, loss            # clear loss at the paper's scale
+    assert loss[0.05][0] > loss[0.1][0] > loss[0.2][0] > 0, loss
+
+
+def test_sticks_short_of_set_point(model):
+    """noslip: a P-held joint stops inside the dead band |kp e| < Fc/beta_bar, and stays."""
+    run = ex.simulate([ex.square_experiment(45, 90)], model=model)[0]
+    fc_volt = model.dof_frictionloss[om.index(model).yaw_dof] / om.torque_constant(model)
+    settled = run.theta[1500:2000]
+    assert np.ptp(settled) < 1e-9  # true stick, no creep
+    err = abs(0.07 - settled[-1])
+    assert 0 < err <= fc_volt / ex.KP_DEFAULT + 1e-9
+
+
+def test_determinism_and_round_trip(tmp_path):
+    args = ["generate", "--campaign", "step", "--seed", "3", "--noise", "1e-4", "--quantize",
+            "--jobs", "2"]
+    assert main(args + ["--out", str(tmp_path / "a")]) == 0
+    assert main(args + ["--out", str(tmp_path / "b")]) == 0
+    files = sorted(p.name for p in (tmp_path / "a").iterdir())
+    assert len(files) == 50
+    for f in files:
+        assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes(), f
+    runs = read_dataset(tmp_path / "a")
+    run = runs[0]
+    q = ex.ENCODER_STEP_RAD
+    assert np.allclose(run.theta / q, np.round(run.theta / q), atol=1e-6)
+    # round trip: what we read back is bit-identical to a fresh simulation
+    exp = [e for e in ex.campaign("step") if e.name == run.name][0]
+    fresh = ex.simulate([exp], settings=ex.Settings(quantize=True, noise_rad=1e-4, seed=3))[0]
+    assert np.array_equal(fresh.theta, run.theta) and np.array_equal(fresh.v, run.v)
+    assert fresh.meta == run.meta
+    # a different seed gives different noise
+    other = ex.simulate([exp], settings=ex.Settings(quantize=True, noise_rad=1e-4, seed=4))[0]
+    assert not np.array_equal(other.theta, run.theta)
+
+
+def test_paper_campaign_files(tmp_path):
+    out = tmp_path / "ds"
+    assert main(["generate", "--campaign", "paper", "--out", str(out)]) == 0
+    runs = read_dataset(out)
+    assert sum(r.kind == "sine" for r in runs) == 81 and sum(r.kind == "step" for r in runs) == 25
+    for r in runs:
+        assert r.meta["gamma1_deg"] < r.meta["gamma1_set_deg"]  # sag (Table 3)
+        assert set(("kind", "gamma1_deg", "gamma2_deg", "kp", "frequency_hz",
+                    "amplitude_rad")) <= set(r.meta)
+        assert r.dt == pytest.approx(1e-3)
+
+
+def test_user_reference(tmp_path):
+    t = np.arange(0, 2, 0.01)
+    ref = tmp_path / "chirp.csv"
+    np.savetxt(ref, np.column_stack([t, 0.05 * np.sin(2 * np.pi * (0.5 + t) * t)]),
+               delimiter=",", header="t,r", comments="")
+    out = tmp_path / "ds"
+    assert main(["generate", "--reference", str(ref), "--gamma1", "45", "--gamma2", "90",
+                 "--out", str(out)]) == 0
+    (run,) = read_dataset(out)
+    assert run.kind == "other" and len(run.t) == 1991 and np.ptp(run.theta) > 0.02
+
+
+def _cli(args, cwd):
+    return subprocess.run([sys.executable, "-m", "omni_sim", *args], cwd=cwd,
+                          capture_output=True, text=True)
+
+
+@pytest.mark.parametrize("case", ["campaign", "missing", "malformed", "nojoints", "nonempty",
+                                  "pose", "reference"])
+def test_generate_errors(tmp_path, case):
+    out = tmp_path / "out"
+    args = ["generate", "--campaign", "step", "--out", str(out)]
+    if case == "campaign":
+        args[2] = "bogus"
+    elif case == "missing":
+        args += ["--model", str(tmp_path / "nope.xml")]
+    elif case == "malformed":
+        (tmp_path / "m.xml").write_text("<mujoco><worldbody>")
+        args += ["--model", str(tmp_path / "m.xml")]
+    elif case == "nojoints":
+        (tmp_path / "m.xml").write_text('<mujoco><worldbody><body><joint name="yaw"/>'
+                                        '<geom size=".1"/></body></worldbody></mujoco>')
+        args += ["--model", str(tmp_path / "m.xml")]
+    elif case == "nonempty":
+        out.mkdir()
+        (out / "keep.txt").write_text("mine")
+    elif case == "pose":
+        args = ["generate", "--reference", str(tmp_path / "r.csv"), "--gamma1", "150",
+                "--out", str(out)]
+        (tmp_path / "r.csv").write_text("t,r\n0,0\n1,0.1\n")
+    elif case == "reference":
+        args = ["generate", "--reference", str(tmp_path / "r.csv"), "--out", str(out)]
+        (tmp_path / "r.csv").write_text("time,ref\n0,0\n1,0.1\n")
+    res = _cli(args, tmp_path)
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:"), res.stderr
+    assert "Traceback" not in res.stderr
+    if case == "nonempty":
+        assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]
+    else:
+        assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]
+
+
+def test_control_period_must_divide():
+    m = om.load_model()
+    m.opt.timestep = 0.0003
+    with pytest.raises(Exception, match="whole multiple"):
+        ex.simulate([ex.square_experiment(45, 90)], model=m)
+
+
+def test_substeps_reference_path():
+    """Physics timestep 0.5 ms under a 1 kHz servo: the reference loop takes 2 substeps, and
+    the trajectory converges to the 1 ms one (same controller, finer physics)."""
+    m = om.load_model()
+    m.opt.timestep = 0.0005
+    assert not ex.fast_path_ok(m, ex.Settings())
+    exp = ex.square_experiment(45, 90, duration_s=1.0)
+    fine = ex.simulate([exp], model=m)[0]
+    coarse = ex.simulate([exp])[0]
+    assert 0 < np.max(np.abs(fine.theta - coarse.theta)) < 2e-3
