@@ -208,3 +208,37 @@ def test_bench_runs_small():
 def test_speed_within_3x_lsim():
     out = bench_simulation(repeat=3)
     assert out["ratio_alpha_to_lsim"] <= 3.0, out
+
+
+def test_sine_steady_state_is_a_fixed_point_of_the_model():
+    """Chain check (36), (19)-(20), (43)-(46): the simulated sinusoidal steady state of the α
+    model, analysed like measured data, gives back C(α) and β̃(α) at its own α.
+
+    The ZOH holds v for one sample, a delay of dt/2 on the whole loop; matching coefficients
+    with it gives C_data = C·cos(ωτ) − ω·sin(ωτ) ≈ C − ω²·dt/2, which is added back here
+    (it is −0.97 1/s at 7 Hz for dt = 1 ms, so 0.2 ms steps keep the residual small).
+    """
+    from identification.alpha import alpha_sine
+    from identification.scoring import fit_fundamental
+
+    model, I, Ar, dt = paper_alpha_model(), 1 / 229.0, 0.05, 2e-4
+    fs = np.array([1.5, 3.5, 7.0])
+    w = 2 * np.pi * fs[:, None]
+    t = np.arange(int(3.0 / dt)) * dt
+    res = simulate_alpha(model, I, Ar * np.sin(w * t), dt, KP, C_linear=6.242,
+                         beta_tilde_linear=229.0, r_dot=Ar * w * np.cos(w * t),
+                         r_ddot=-Ar * w**2 * np.sin(w * t))
+    assert np.all(res.n_not_converged == 0)
+    last = slice(-int(round(1.0 / dt)), None)  # the last second: whole cycles of every f
+    for j, f in enumerate(fs):
+        wj = 2 * np.pi * f
+        A1, A2 = fit_fundamental(t[last], res.theta[j, last], f)
+        den = A1**2 + A2 * (A2 - Ar)
+        C_data = -wj * Ar * A1 / den + wj**2 * dt / 2                     # (19) + ZOH term
+        beta_tilde_data = wj**2 * (A1**2 + A2**2) / den / KP                # (20) / kp
+        a = alpha_sine(KP, wj, A1, A2, Ar)                                  # (36)
+        assert C_data == pytest.approx(model.C(a, I), rel=5e-3), f
+        assert beta_tilde_data == pytest.approx(model.beta_tilde(a, I), rel=5e-3), f
+        # α is (nearly) invariant over the steady-state cycle
+        al = res.alpha[j, last]
+        assert (al.max() - al.min()) < 0.05 * a, f
