@@ -11,3 +11,7 @@ Public API::
 from .model import DEFAULT_SCENE, MODELS_DIR, equilibrium_pose, load_model, yaw_inertia
 
 __all__ = ["DEFAULT_SCENE", "MODELS_DIR", "equilibrium_pose", "load_model", "yaw_inertia"]
+
+import gymnasium as _gym  # register the environment (omni_sim/env.py) once per process
+if "omni_sim/OmniYaw-v0" not in _gym.registry:
+    _gym.register(id="omni_sim/OmniYaw-v0", entry_point="omni_sim.env:OmniYawEnv")
