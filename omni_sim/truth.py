@@ -1,0 +1,114 @@
+"""Ground truth of the virtual Omni, for checking what the identification finds.
+
+Unlike the paper we know the plant: MuJoCo's mass matrix gives the true yaw inertia, and the
+model's damping, torque constant and gain give the true linear coefficients.  This module turns
+them into the quantities the paper's method estimates.
+
+Linear truth of a sampled P loop
+--------------------------------
+Without friction the yaw axis is ``I theta'' + c theta' = beta_bar v`` (3), i.e. (4) with
+``C = c/I`` and ``beta_tilde = beta_bar/I``.  The Omni's controller samples theta every
+``T = 1 ms`` and holds ``v_k = kp (r_k - theta_k)`` (zero-order hold).  That loop is not exactly
+(13): the hold acts like a delay of about ``T/2`` and lowers the apparent damping by about
+``beta T/2`` (~0.3 1/s here, 5-10 %).  :func:`sampled_linear_truth` therefore computes the
+*exact* steady-state sine response of the sampled loop (ZOH discretisation of (4), closed with
+the sampled P law, evaluated on the unit circle) at the campaign's frequencies and passes it
+through the same global fit (22) as the data.  The continuous values ``c/I`` and
+``kp beta_bar / I`` are reported beside it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+from scipy import signal
+
+from . import model as om
+
+
+def yaw_dynamics(model: mujoco.MjModel, gamma1_deg: float, gamma2_deg: float) -> dict:
+    """True yaw-axis constants at an actual pose.
+
+    Returns
+    -------
+    dict
+        ``inertia`` [kg*m^2] (mass matrix, armature included), ``damping`` c [N*m*s/rad],
+        ``frictionloss`` [N*m], ``beta_bar`` [N*m/V], ``C`` = c/I [1/s],
+        ``beta_tilde`` = beta_bar/I [rad/(V*s^2)], ``I_paper`` = I/beta_bar (the paper's units).
+    """
+    ix = om.index(model)
+    inertia = om.yaw_inertia(gamma1_deg, gamma2_deg, model=model)
+    damping = float(model.dof_damping[ix.yaw_dof])
+    beta_bar = om.torque_constant(model)
+    return {
+        "inertia": inertia,
+        "damping": damping,
+        "frictionloss": float(model.dof_frictionloss[ix.yaw_dof]),
+        "beta_bar": beta_bar,
+        "C": damping / inertia,
+        "beta_tilde": beta_bar / inertia,
+        "I_paper": inertia / beta_bar,
+    }
+
+
+def _discrete_plant(C: float, beta_tilde: float, period_s: float,
+                    physics_step_s: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """State-space (A, B) over one control period of (4) with the command held.
+
+    ``physics_step_s=None``: exact zero-order-hold discretisation.  Otherwise the plant as
+    MuJoCo's ``implicitfast`` integrator steps it (semi-implicit Euler, damping implicit):
+    ``(1 + h C) w' = w + h beta_tilde v``, ``theta' = theta + h w'``, repeated
+    ``period_s / h`` times.
+    """
+    if physics_step_s is None:
+        a = np.array([[0.0, 1.0], [0.0, -C]])
+        b = np.array([[0.0], [beta_tilde]])
+        ad, bd, *_ = signal.cont2discrete((a, b, np.eye(2), np.zeros((2, 1))), period_s, "zoh")
+        return ad, bd
+    h = physics_step_s
+    n = int(round(period_s / h))
+    k = 1.0 / (1.0 + h * C)
+    a_h = np.array([[1.0, h * k], [0.0, k]])
+    b_h = np.array([[h * h * k * beta_tilde], [h * k * beta_tilde]])
+    ad, bd = np.eye(2), np.zeros((2, 1))
+    for _ in range(n):
+        ad, bd = a_h @ ad, a_h @ bd + b_h
+    return ad, bd
+
+
+def sampled_sine_response(C: float, beta_tilde: float, kp: float, frequencies_hz,
+                          period_s: float, physics_step_s: float | None = None) -> np.ndarray:
+    """Exact steady-state gain ``theta/r`` (complex) of the sampled P loop at each frequency.
+
+    Plant (4) ``theta'' + C theta' = beta_tilde v`` discretised over the control period
+    ``period_s`` (see :func:`_discrete_plant`); loop ``v_k = kp (r_k - theta_k)``;
+    ``r_k = A_r sin(w k T)``; gain evaluated at ``z = exp(i w T)``.
+    """
+    ad, bd = _discrete_plant(C, beta_tilde, period_s, physics_step_s)
+    c = np.array([[1.0, 0.0]])
+    a_cl = ad - kp * bd @ c
+    out = []
+    for f in np.atleast_1d(np.asarray(frequencies_hz, dtype=float)):
+        z = np.exp(1j * 2 * np.pi * f * period_s)
+        out.append((c @ np.linalg.solve(z * np.eye(2) - a_cl, kp * bd))[0, 0])
+    return np.array(out)
+
+
+def sampled_linear_truth(C: float, beta_tilde: float, kp: float, frequencies_hz,
+                         period_s: float, physics_step_s: float | None = None,
+                         amplitude_rad: float = 1.0) -> tuple[float, float]:
+    """(C_linear, beta_linear) that (22) returns for the exact sampled loop's sine responses.
+
+    The fit (22) is applied to the response at the sample instants ``t_k = k T``: with
+    ``r = A_r sin(wt) = Im(A_r e^{iwt})``, ``theta = Im(h A_r e^{iwt})``, so in (14)
+    ``A1 = A_r Im(h)`` and ``A2 = A_r Re(h)``.
+    """
+    from identification.linear import global_coefficients
+
+    h = sampled_sine_response(C, beta_tilde, kp, frequencies_hz, period_s,
+                              physics_step_s) * amplitude_rad
+    A1, A2 = h.imag, h.real
+    w = 2 * math.pi * np.asarray(frequencies_hz, dtype=float)
+    return global_coefficients(A1, A2, np.full_like(w, amplitude_rad), w)
