@@ -495,8 +495,8 @@ class OmniYawEnv(gym.Env):
             return None
         if self.render_mode == "human":
             if self._viewer is None:
-                import mujoco.viewer
-                self._viewer = mujoco.viewer.launch_passive(self.model, self.data)
+                from mujoco import viewer  # needs a display
+                self._viewer = viewer.launch_passive(self.model, self.data)
             self._viewer.sync()
             return None
         if self._renderer is None:
