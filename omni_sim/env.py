@@ -531,6 +531,16 @@ class AlphaInvariantObservation(gym.ObservationWrapper, gym.utils.RecordConstruc
     raw value is 0), and the entry is 0 after reset.  For a pure sine ``v = A sin(w t)`` the
     invariant is the constant ``A**2 w**2``.
 
+    ====  =========  =======  ======================================================
+    idx   name       unit     bounds
+    ====  =========  =======  ======================================================
+    0-4   as :class:`OmniYawEnv`
+    5     ``alpha``  V^2/s^2  ``+-8 V**2 / dt**2`` (the largest value the backward
+                              differences can give for ``|v| <= V``)
+    ====  =========  =======  ======================================================
+
+    ``info["alpha_raw"]`` holds the unfiltered value; :attr:`alpha` the current filtered one.
+
     Parameters
     ----------
     env : gymnasium.Env
