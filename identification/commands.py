@@ -27,6 +27,7 @@ from .dataset import Run, atomic_output_dir, atomic_write_text, read_dataset
 from .errors import UserError
 from .inertia import MIN_POSES, InertiaFit, fit_inertia_model
 from .linear import PoseLinearModel, fit_pose
+from .nonlinear import AlphaModel, fit_alpha_model
 from .sine_fit import fit_run
 
 
@@ -48,14 +49,21 @@ class Identification:
     inertia: InertiaFit | None
     warnings: list = field(default_factory=list)
     ignored_runs: list = field(default_factory=list)
+    alpha_model: AlphaModel | None = None
+
+    def pose_inertia(self, pose: PoseLinearModel) -> float:
+        """Inertia of a pose [paper units]: the inertia model (6) if fitted, else 1/beta_tilde_linear."""
+        if self.inertia is not None:
+            return float(self.inertia.params.inertia(pose.gamma1_deg, pose.gamma2_deg))
+        return 1.0 / pose.beta_tilde_linear
 
     def to_params(self) -> dict:
-        """The ``params.json`` dict (contract shape; ``alpha_model`` left empty)."""
+        """The ``params.json`` dict (contract shape)."""
         return {
             "poses": [p.to_dict() for p in self.poses],
             "inertia_model": self.inertia.params.to_dict() if self.inertia else None,
             "inertia_fit": self.inertia.diagnostics() if self.inertia else None,
-            "alpha_model": {},
+            "alpha_model": self.alpha_model.to_dict() if self.alpha_model else {},
             "warnings": list(self.warnings),
         }
 
@@ -119,7 +127,35 @@ def identify_runs(runs: list[Run]) -> Identification:
     else:
         warnings.append(f"inertia model not fitted: {len(usable)} pose(s) with a physical global "
                         f"linear model; the inertia model (6)-(8) needs >= {MIN_POSES} poses")
-    return Identification(poses, inertia, warnings, ignored)
+    ident = Identification(poses, inertia, warnings, ignored)
+    ident.alpha_model = _fit_alpha(ident)
+    return ident
+
+
+def _fit_alpha(ident: Identification) -> AlphaModel | None:
+    """The alpha-invariant model (38)-(42) across the physical poses (2.3.5), or None."""
+    poses = []
+    for p in ident.poses:
+        if not p.physical:
+            continue
+        pts = p.frequencies
+        poses.append({
+            "I": ident.pose_inertia(p),
+            "alpha": [q.alpha for q in pts],
+            "C_data": [q.C_data for q in pts],
+            "beta_tilde_data": [q.beta_tilde_data for q in pts],
+            "frequency_hz": [q.frequency_hz for q in pts],
+            "beta_linear": p.beta_linear,
+            "amplitude": [math.hypot(q.A1, q.A2) for q in pts],
+        })
+    if not poses:
+        ident.warnings.append("alpha-invariant model not fitted: no pose with a physical linear model")
+        return None
+    try:
+        return fit_alpha_model(poses)
+    except UserError as exc:
+        ident.warnings.append(f"alpha-invariant model not fitted: {exc}")
+        return None
 
 
 def identify_dataset(runs: list[Run]) -> dict:

@@ -256,6 +256,8 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
     a0, a1 = model.alpha_bar
     b_slope = (b1 - b0) / (a1 - a0)
     b_floor = model.options["beta_floor_fraction"] * min(b0, b1)
+    # alpha range over which beta_tilde varies (clamped model: held outside [a0, a1])
+    a_lo, a_hi = (a0, a1) if model.options.get("beta_clamp", False) else (-np.inf, np.inf)
 
     theta = np.empty((R, n))
     phi = np.empty((R, n))
@@ -278,7 +280,7 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
         active = np.ones(R, dtype=bool)
         for i in range(2, max_iter + 1):
             Ca = np.interp(a, breaks, c_inv) * invI
-            ba = np.maximum(b0 + b_slope * (a - a0), b_floor) * invI
+            ba = np.maximum(b0 + b_slope * (np.clip(a, a_lo, a_hi) - a0), b_floor) * invI
             a_new = vd2 - v * (kr - kp * (ba * v - Ca * ph))
             done = np.abs(a_new - a) < np.maximum(1e-6, 1e-3 * np.abs(a_new))
             a = np.where(active, a_new, a)
@@ -288,7 +290,7 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
                 break
         not_conv += active
         C = np.interp(a, breaks, c_inv) * invI
-        b = np.maximum(b0 + b_slope * (a - a0), b_floor) * invI
+        b = np.maximum(b0 + b_slope * (np.clip(a, a_lo, a_hi) - a0), b_floor) * invI
         v_out[:, k] = v
         alpha_out[:, k] = a
         C_out[:, k] = C

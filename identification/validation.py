@@ -1,0 +1,254 @@
+"""Score the global linear model (26) and the α-invariant model (37) against a dataset.
+
+``omni validate DATA --params FILE --out DIR`` (and the validation stage of ``omni reproduce``):
+
+1. every run is simulated with both models under the run's P gain and reference, from the
+   run's first measured angle (at rest for ``step`` runs, as (47) says; otherwise with the
+   velocity of the first two samples);
+2. sine runs are scored as the paper's Table 8 (per pose: 90th percentile over frequencies of
+   the absolute fundamental-magnitude and phase errors), step runs as Table 11 (per run: median
+   and 90th percentile of the absolute angle error), in two windows: the whole record and the
+   first second after each edge (labelled; the window changes the ratio more than the model);
+3. ``summary.json`` (contract keys plus details) and ``predictions/NAME.csv`` (``t, theta,
+   theta_linear, theta_alpha``) are written.
+
+The inertia of a run is the identified inertia model (6) at the run's actual angles; without an
+inertia model, runs at an identified pose use that pose's 1/beta_tilde_linear, and other runs
+are an error.  Step-run poses that were not among the identification poses are marked
+``"fitted_pose": false``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import scoring
+from .dataset import Run, atomic_output_dir, read_dataset
+from .errors import UserError
+from .inertia import InertiaParameters
+from .nonlinear import AlphaModel
+from .simulate import simulate_alpha, simulate_linear
+from .sine_fit import fit_run
+
+#: A pose of a run counts as an identification pose if both angles agree within this [deg].
+POSE_MATCH_DEG = 0.5
+
+
+@dataclass
+class Params:
+    """The parts of ``params.json`` that validation needs."""
+
+    inertia: InertiaParameters | None
+    alpha: AlphaModel
+    poses: list = field(default_factory=list)
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "params") -> "Params":
+        if not isinstance(d, dict) or "poses" not in d or "alpha_model" not in d:
+            raise UserError(f"{source}: not a params.json written by omni identify "
+                            "(needs keys poses, inertia_model, alpha_model)")
+        if not d["alpha_model"]:
+            raise UserError(f"{source}: has no alpha_model (identify could not fit it; see its "
+                            "warnings)")
+        im = d.get("inertia_model")
+        inertia = None
+        if im:
+            try:
+                inertia = InertiaParameters(**{k: float(im[k]) for k in (
+                    "I_base", "I1", "I2", "I3", "gamma_offs_deg", "C0_bar")})
+            except (KeyError, TypeError, ValueError) as exc:
+                raise UserError(f"{source}: malformed inertia_model ({exc})") from None
+        return cls(inertia, AlphaModel.from_dict(d["alpha_model"]), list(d["poses"]))
+
+    def fitted_pose(self, run: Run) -> dict | None:
+        """The identification pose of a run, if its actual angles match one."""
+        for p in self.poses:
+            if (abs(p["gamma1_deg"] - run.gamma1_deg) <= POSE_MATCH_DEG
+                    and abs(p["gamma2_deg"] - run.gamma2_deg) <= POSE_MATCH_DEG):
+                return p
+        return None
+
+    def linear_coefficients(self, run: Run) -> tuple[float, float, float]:
+        """(I, C_linear, beta_tilde_linear) of a run by (6), (24)-(25) [paper units]."""
+        if self.inertia is not None:
+            I = float(self.inertia.inertia(run.gamma1_deg, run.gamma2_deg))
+            return I, 1.0 / (self.inertia.C0_bar * I), 1.0 / I
+        pose = self.fitted_pose(run)
+        if pose is None:
+            raise UserError(f"{run.name}: pose ({run.gamma1_deg:.2f}, {run.gamma2_deg:.2f}) deg was "
+                            "not identified and params has no inertia model to predict it")
+        return 1.0 / pose["beta_tilde_linear"], pose["C_linear"], pose["beta_tilde_linear"]
+
+
+def read_params(path) -> Params:
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: params file not found")
+    try:
+        d = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: not valid JSON ({exc})") from None
+    return Params.from_dict(d, str(path))
+
+
+def _reference_derivatives(run: Run) -> tuple[np.ndarray, np.ndarray]:
+    """(r_dot, r_ddot): analytic for sines and square waves, numerical otherwise."""
+    if run.kind == "step":
+        z = np.zeros_like(run.r)  # piecewise constant: derivatives vanish between edges
+        return z, z
+    if run.kind == "sine":
+        w = 2 * math.pi * run.frequency_hz
+        # the reference's own phase (robust to a file whose time origin is not at r = 0)
+        basis = np.column_stack([np.sin(w * run.t), np.cos(w * run.t)])
+        (a, b), *_ = np.linalg.lstsq(basis, run.r, rcond=None)
+        if np.max(np.abs(basis @ [a, b] - run.r)) <= 1e-6 * max(1e-12, np.max(np.abs(run.r))):
+            rd = w * (a * np.cos(w * run.t) - b * np.sin(w * run.t))
+            return rd, -w * w * run.r
+    rd = np.gradient(run.r, run.t)
+    return rd, np.gradient(rd, run.t)
+
+
+def _initial_velocity(run: Run) -> float:
+    return 0.0 if run.kind == "step" else float((run.theta[1] - run.theta[0]) / run.dt)
+
+
+def simulate_runs(runs: list[Run], params: Params) -> dict[str, dict]:
+    """Simulate both models for every run; batched over runs of equal length and dt."""
+    out: dict[str, dict] = {}
+    groups: dict = {}
+    for run in runs:
+        groups.setdefault((len(run.t), round(run.dt, 12)), []).append(run)
+    for (_, dt), group in groups.items():
+        I, Cl, bl, th0, ph0, kp = (np.array(x) for x in zip(*[
+            (*params.linear_coefficients(r), r.theta[0], _initial_velocity(r), r.kp) for r in group]))
+        r = np.vstack([g.r for g in group])
+        derivs = [_reference_derivatives(g) for g in group]
+        rd = np.vstack([d[0] for d in derivs])
+        rdd = np.vstack([d[1] for d in derivs])
+        for kp_value in np.unique(kp):
+            sel = kp == kp_value
+            lin = simulate_linear(Cl[sel], bl[sel], r[sel], dt, kp_value, theta0=th0[sel], phi0=ph0[sel])
+            alp = simulate_alpha(params.alpha, I[sel], r[sel], dt, kp_value, C_linear=Cl[sel],
+                                 beta_tilde_linear=bl[sel], theta0=th0[sel], phi0=ph0[sel],
+                                 r_dot=rd[sel], r_ddot=rdd[sel])
+            for j, run in enumerate(np.array(group, dtype=object)[sel]):
+                out[run.name] = {"theta_linear": lin.theta[j], "theta_alpha": alp.theta[j],
+                                 "n_not_converged": int(alp.n_not_converged[j]),
+                                 "I": float(I[sel][j])}
+    return out
+
+
+def _fundamental(run: Run, theta: np.ndarray) -> tuple[float, float]:
+    sim = Run(run.name, run.t, run.r, theta, run.v, run.meta)
+    f = fit_run(sim)
+    return f.A1, f.A2
+
+
+def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict:
+    """Tables 8 and 11 for both models, and the summary (contract keys plus details)."""
+    sine_rows, step_rows = [], []
+    by_pose: dict = {}
+    for run in runs:
+        if run.kind == "sine":
+            key = (round(run.meta.get("gamma1_set_deg", run.gamma1_deg), 2),
+                   round(run.meta.get("gamma2_set_deg", run.gamma2_deg), 2))
+            by_pose.setdefault(key, []).append(run)
+    for key, group in sorted(by_pose.items()):
+        group.sort(key=lambda r: r.frequency_hz)
+        data = [_fundamental(r, r.theta) for r in group]
+        lin = [_fundamental(r, predictions[r.name]["theta_linear"]) for r in group]
+        alp = [_fundamental(r, predictions[r.name]["theta_alpha"]) for r in group]
+        ar = np.array([r.amplitude_rad for r in group])
+        d1, d2 = np.array(data).T
+        row = {"gamma1_set_deg": key[0], "gamma2_set_deg": key[1],
+               "frequencies_hz": [r.frequency_hz for r in group]}
+        for label, model in (("linear", lin), ("alpha", alp)):
+            m1, m2 = np.array(model).T
+            s = scoring.sine_pose_scores(d1, d2, m1, m2, ar)
+            mag, ph = scoring.magnitude_phase(m1, m2, ar)
+            row[label] = {**s, "magnitude": mag.tolist(), "phase_deg": ph.tolist()}
+        mag, ph = scoring.magnitude_phase(d1, d2, ar)
+        row["data"] = {"magnitude": mag.tolist(), "phase_deg": ph.tolist()}
+        sine_rows.append(row)
+    for run in runs:
+        if run.kind != "step":
+            continue
+        p = predictions[run.name]
+        s = scoring.step_scores(run.t, run.theta, p["theta_linear"], p["theta_alpha"], r=run.r)
+        s.update(name=run.name, gamma1_set_deg=run.meta.get("gamma1_set_deg"),
+                 gamma2_set_deg=run.meta.get("gamma2_set_deg"), gamma1_deg=run.gamma1_deg,
+                 gamma2_deg=run.gamma2_deg, fitted_pose=params.fitted_pose(run) is not None)
+        step_rows.append(s)
+    summary: dict = {"inertia": None, "sine": None, "step": None}
+    if sine_rows:
+        avg = {}
+        for label in ("linear", "alpha"):
+            avg[f"magnitude_p90_{label}"] = float(np.mean([r[label]["magnitude_p90"] for r in sine_rows]))
+            avg[f"phase_p90_{label}_deg"] = float(np.mean([r[label]["phase_p90_deg"] for r in sine_rows]))
+        summary["sine"] = {**avg, "n_poses": len(sine_rows), "statistic": "mean over poses of the "
+                           "per-pose 90th percentile over frequencies (Table 8 'Average')"}
+    if step_rows:
+        st = scoring.step_summary(step_rows)
+        whole = st["whole_record"]
+        summary["step"] = {
+            "median_abs_error_linear_rad": whole["median_abs_error_linear_rad"],
+            "median_abs_error_alpha_rad": whole["median_abs_error_alpha_rad"],
+            "alpha_better_poses": whole["alpha_better_poses"],
+            "n_poses": whole["n_poses"],
+            "ratio_of_medians": whole["ratio_of_medians"],
+            "statistic": "median over runs of each run's median |error| over the whole record",
+            "windows": st,
+        }
+    n_bad = sum(p["n_not_converged"] for p in predictions.values())
+    n_steps = sum(len(r.t) for r in runs)
+    summary["alpha_simulation"] = {"steps": n_steps, "steps_not_converged": n_bad}
+    return {"summary": summary, "sine": sine_rows, "step": step_rows}
+
+
+def write_predictions(folder: Path, runs: list[Run], predictions: dict[str, dict]) -> None:
+    (folder / "predictions").mkdir()
+    for run in runs:
+        p = predictions[run.name]
+        data = np.column_stack([run.t, run.theta, p["theta_linear"], p["theta_alpha"]])
+        row = "%.17g,%.17g,%.17g,%.17g\n"
+        with open(folder / "predictions" / f"{run.name}.csv", "w", newline="\n") as fh:
+            fh.write("t,theta,theta_linear,theta_alpha\n")
+            fh.write((row * len(data)) % tuple(data.ravel()))
+
+
+def validate_runs(runs: list[Run], params: Params) -> tuple[dict, dict]:
+    """Simulate and score; returns (scores, predictions)."""
+    scored = [r for r in runs if r.kind in ("sine", "step")]
+    if not scored:
+        raise UserError("dataset has no sine or step runs to score")
+    predictions = simulate_runs(runs, params)
+    return score(runs, params, predictions), predictions
+
+
+def validate_command(args) -> int:
+    """``omni validate DATA --params FILE --out DIR [--force]``."""
+    params = read_params(args.params)
+    runs = read_dataset(args.data)
+    scores, predictions = validate_runs(runs, params)
+    with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
+        write_predictions(tmp, runs, predictions)
+        (tmp / "summary.json").write_text(json.dumps(scores["summary"], indent=2) + "\n")
+        (tmp / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
+    s = scores["summary"]
+    if s["step"]:
+        st = s["step"]
+        print(f"step: median |error| linear {st['median_abs_error_linear_rad']:.4f} rad, alpha "
+              f"{st['median_abs_error_alpha_rad']:.4f} rad (ratio {st['ratio_of_medians']:.2f}); "
+              f"alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses")
+    if s["sine"]:
+        sn = s["sine"]
+        print(f"sine: magnitude p90 linear {sn['magnitude_p90_linear']:.3f}, alpha "
+              f"{sn['magnitude_p90_alpha']:.3f}; phase p90 linear {sn['phase_p90_linear_deg']:.1f} deg, "
+              f"alpha {sn['phase_p90_alpha_deg']:.1f} deg")
+    print(f"wrote {args.out}/summary.json and predictions/")
+    return 0
