@@ -1,0 +1,229 @@
+"""Replay measured runs on a model: the closed yaw loop, batched over runs and models.
+
+Each measured run is replayed as the device ran it (the project's time convention, see
+:mod:`omni_sim.experiments`): the arm servos get the run's set points (``gamma1_set_deg``,
+``gamma2_set_deg``; the actual angles if set points are absent) and the arm starts at the
+model's equilibrium for them; the yaw starts at rest at the measured ``theta[0]``; at every
+control period the model's yaw angle ``theta_k`` is read, ``v_k = kp (r_k - theta_k)`` clipped
+to the drive's ``ctrlrange`` is written to ``yaw_motor`` and held for the period.
+
+The controller is evaluated in numpy for the whole batch and the physics is advanced one period
+by :class:`mujoco.rollout.Rollout` (C, threads), so any MJCF effect of ``yaw_motor`` -- a filter
+(``dyntype``), a ``delay`` with its ``nsample`` buffer, a ``forcerange`` or a bias -- acts on the
+command exactly as on the device.  One batch holds every (model, run) pair, so the models of a
+finite-difference Jacobian or a parameter grid are simulated together.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from identification.dataset import Run
+from identification.errors import UserError
+
+from .. import model as om
+
+#: Fewest samples a run needs to be replayed and localised (0.2 s at 1 kHz: one step edge's
+#: transient at the Omni's ~3.4 Hz resonance).
+MIN_SAMPLES = 200
+_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+@dataclass
+class ReplayRun:
+    """A measured run prepared for replay.
+
+    Attributes
+    ----------
+    name, kind : str
+    t, r, theta, v : ndarray
+        Time [s], reference [rad], measured yaw [rad], measured command [V].
+    dt : float [s]
+        Sample (= control) period.
+    kp : float [V/rad]
+    gamma_set_deg : tuple of float [deg]
+        Arm servo set points used in the replay.
+    frequency_hz, amplitude_rad : float
+    meta : dict
+    """
+
+    name: str
+    kind: str
+    t: np.ndarray
+    r: np.ndarray
+    theta: np.ndarray
+    v: np.ndarray
+    dt: float
+    kp: float
+    gamma_set_deg: tuple[float, float]
+    frequency_hz: float
+    amplitude_rad: float
+    meta: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def n(self) -> int:
+        return len(self.r)
+
+    def truncated(self, nmax: int) -> "ReplayRun":
+        """The first ``nmax`` samples of the run (the replay starts from the same state)."""
+        if nmax >= self.n:
+            return self
+        k = slice(0, nmax)
+        return ReplayRun(self.name, self.kind, self.t[k], self.r[k], self.theta[k], self.v[k],
+                         self.dt, self.kp, self.gamma_set_deg, self.frequency_hz,
+                         self.amplitude_rad, self.meta)
+
+
+def prepare_runs(runs: list[Run], model: mujoco.MjModel, source: str = "measured data") -> list[ReplayRun]:
+    """Check that every run can be replayed on ``model`` and convert it.
+
+    Raises
+    ------
+    UserError
+        A run is too short, has no usable ``kp``, a sample period that is not a whole multiple
+        of the model's timestep, or a pose outside the model's joint ranges.
+    """
+    if not runs:
+        raise UserError(f"{source}: no runs")
+    out = []
+    for run in runs:
+        where = f"{source}: run {run.name!r}"
+        if len(run.t) < MIN_SAMPLES:
+            raise UserError(f"{where} has {len(run.t)} samples; at least {MIN_SAMPLES} are needed "
+                            "to localise anything")
+        kp = run.meta.get("kp")
+        if isinstance(kp, bool) or not isinstance(kp, (int, float)) or not (kp > 0 and math.isfinite(kp)):
+            raise UserError(f"{where}: kp must be a positive number, got {kp!r}")
+        dt = float(np.mean(np.diff(run.t)))
+        ratio = dt / model.opt.timestep
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) != 1:
+            raise UserError(f"{where}: sample period {dt:g} s must equal the model's timestep "
+                            f"{model.opt.timestep:g} s (the replay steps once per control period)")
+        g1 = run.meta.get("gamma1_set_deg", run.meta.get("gamma1_deg"))
+        g2 = run.meta.get("gamma2_set_deg", run.meta.get("gamma2_deg"))
+        for name, val in (("gamma1", g1), ("gamma2", g2)):
+            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
+                raise UserError(f"{where}: metadata needs a finite {name}_set_deg or {name}_deg, got {val!r}")
+        try:
+            om.check_pose(model, float(g1), float(g2))
+        except UserError as exc:
+            raise UserError(f"{where}: unknown pose for this model ({exc})") from None
+        out.append(ReplayRun(run.name, run.kind, np.asarray(run.t, float), np.asarray(run.r, float),
+                             np.asarray(run.theta, float), np.asarray(run.v, float), dt, float(kp),
+                             (float(g1), float(g2)), float(run.meta.get("frequency_hz", 0.0)),
+                             float(run.meta.get("amplitude_rad", 0.0)), dict(run.meta)))
+    return out
+
+
+class Replayer:
+    """Closed-loop replay of many runs on many models in one batch.
+
+    Parameters
+    ----------
+    nthread : int, optional
+        Threads of the rollout pool (default: all cores).
+
+    Use as a context manager, or call :meth:`close` to stop the thread pool.
+    """
+
+    def __init__(self, nthread: int | None = None):
+        self.nthread = max(1, nthread or os.cpu_count() or 1)
+        self._pool = rollout.Rollout(nthread=self.nthread)
+        self._eq_cache: dict = {}
+        self.steps = 0  # physics steps simulated so far (for timings)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self) -> None:
+        self._pool.close()
+
+    def _pose(self, model: mujoco.MjModel, key: tuple[float, float]) -> tuple[float, float]:
+        ck = (id(model), key)
+        if ck not in self._eq_cache:
+            self._eq_cache[ck] = (om.equilibrium_pose(model, *key), model)  # keep model alive
+        return self._eq_cache[ck][0]
+
+    def initial_state(self, model: mujoco.MjModel, run: ReplayRun) -> tuple[np.ndarray, np.ndarray]:
+        """Full physics state and ctrl vector at the start of ``run`` on ``model``."""
+        ix = om.index(model)
+        pose = self._pose(model, run.gamma_set_deg)
+        data = mujoco.MjData(model)
+        mujoco.mj_resetData(model, data)
+        data.qpos[ix.yaw_qpos] = run.theta[0]
+        data.qpos[ix.shoulder_qpos] = math.radians(pose[0])
+        data.qpos[ix.elbow_qpos] = math.radians(pose[1])
+        om.set_arm_setpoints(model, data, *run.gamma_set_deg)
+        mujoco.mj_forward(model, data)
+        x0 = np.empty(mujoco.mj_stateSize(model, _STATE))
+        mujoco.mj_getState(model, data, x0, _STATE)
+        return x0, data.ctrl.copy()
+
+    def simulate(self, models: list[mujoco.MjModel], runs: list[ReplayRun],
+                 pairs: list[tuple[int, int]] | None = None) -> list[np.ndarray]:
+        """Replay runs on models; return the model's yaw angle [rad] per pair.
+
+        Parameters
+        ----------
+        models : list of MjModel
+            Models with the same size signature (same candidate structure).
+        runs : list of ReplayRun
+        pairs : list of (model index, run index), optional
+            What to simulate (default: every run on every model, model-major).
+
+        Returns
+        -------
+        list of ndarray
+            ``theta`` [rad] of each pair, sampled like the run (``theta[0]`` = measured start).
+        """
+        if pairs is None:
+            pairs = [(i, j) for i in range(len(models)) for j in range(len(runs))]
+        if not pairs:
+            return []
+        m0 = models[0]
+        ix = om.index(m0)
+        nstate = mujoco.mj_stateSize(m0, _STATE)
+        B = len(pairs)
+        lengths = np.array([runs[j].n for _, j in pairs])
+        nmax = int(lengths.max())
+        x = np.empty((B, nstate))
+        ctrl = np.empty((B, 1, m0.nu))
+        rmat = np.empty((B, nmax))
+        kp = np.empty(B)
+        vmax = np.empty(B)
+        batch_models = []
+        for b, (i, j) in enumerate(pairs):
+            m = models[i]
+            x[b], ctrl[b, 0] = self.initial_state(m, runs[j])
+            rmat[b, : runs[j].n] = runs[j].r
+            rmat[b, runs[j].n:] = runs[j].r[-1]
+            kp[b] = runs[j].kp
+            vmax[b] = om.voltage_limit(m)
+            batch_models.append(m)
+        qadr = 1 + ix.yaw_qpos  # FULLPHYSICS = [time, qpos, qvel, act, history, ...]
+        theta = np.empty((B, nmax))
+        state = np.empty((B, 1, nstate))
+        sens = np.empty((B, 1, m0.nsensordata))
+        datas = [mujoco.MjData(m0) for _ in range(self.nthread)]
+        a = ix.yaw_act
+        chunk = max(1, -(-B // self.nthread))  # one task per thread: small batches are overhead-bound
+        for k in range(nmax):
+            th = x[:, qadr]
+            theta[:, k] = th
+            ctrl[:, 0, a] = np.clip(kp * (rmat[:, k] - th), -vmax, vmax)
+            self._pool.rollout(batch_models, datas, x, ctrl, nstep=1, skip_checks=True,
+                               state=state, sensordata=sens, chunk_size=chunk)
+            x = state[:, 0, :].copy()
+        self.steps += B * nmax
+        if not np.all(np.isfinite(theta)):
+            raise RuntimeError("replay diverged (non-finite yaw angle)")
+        return [theta[b, : lengths[b]] for b in range(B)]
