@@ -1,0 +1,243 @@
+"""The whole workflow: replay, localise, name (held-out scoring), fit, show the gap shrink."""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from identification.dataset import Run
+from identification.errors import UserError
+
+from .. import model as om
+from . import effects as fx
+from . import select as sel
+from .fit import gap
+from .localise import localise
+from .replay import Replayer, prepare_runs
+
+#: Samples (all runs together) above which the fits use only the start of each run: the fit and
+#: the candidate scoring cost scale with it; the before/after evaluation always uses whole runs.
+MAX_FIT_SAMPLES = 300_000
+#: Shortest per-run record [samples] kept for fitting when runs are cut to the budget.
+MIN_FIT_RUN_SAMPLES = 3000
+
+
+@dataclass
+class Outcome:
+    """Everything the report needs.
+
+    Attributes
+    ----------
+    report : dict
+        The ``report.json`` content.
+    spec : MjSpec
+        The patched model (nominal + accepted effects at their all-runs fit).
+    runs : list of ReplayRun
+    theta_before, theta_after : list of ndarray [rad]
+        Replay of the nominal model; held-out replay of the patched model (each run with the
+        parameters fitted without it).
+    rounds : list of list of Scored
+    """
+
+    report: dict
+    spec: mujoco.MjSpec
+    runs: list
+    theta_before: list
+    theta_after: list
+    rounds: list = field(default_factory=list)
+
+
+def _load_spec(model_path) -> tuple[mujoco.MjSpec, mujoco.MjModel, str]:
+    path = Path(model_path) if model_path is not None else om.DEFAULT_SCENE
+    model = om.load_model(path)  # UserError on a missing file, bad XML or missing names
+    spec = mujoco.MjSpec.from_file(str(path))
+    return spec, model, str(path)
+
+
+def _heldout_theta(spec, scored, runs, rep) -> list[np.ndarray]:
+    models = [fx.compile_with(spec, [(e, x) for e, x in _split(scored.effects, fx_)])
+              for fx_ in scored.fold_x]
+    pairs = [(f, j) for f, idx in enumerate(scored.folds) for j in idx]
+    th = rep.simulate(models, runs, pairs)
+    out: list = [None] * len(runs)
+    for (f, j), t in zip(pairs, th):
+        out[j] = t
+    return out
+
+
+def _split(effects, x):
+    out, i = [], 0
+    for e in effects:
+        out.append((e, np.asarray(x[i:i + e.nparam], float)))
+        i += e.nparam
+    return out
+
+
+def _confidence(share, margin, unexplained) -> str:
+    return "high" if (margin >= 2 * sel.TIE_MARGIN and unexplained <= sel.UNEXPLAINED_SHARE) else "low"
+
+
+def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None, k: int = 5,
+                    max_effects: int = 2, max_fit_samples: int = MAX_FIT_SAMPLES,
+                    candidates: tuple[str, ...] | None = None, log=None) -> Outcome:
+    """Find, name, fit and check the effect(s) the model misses on these measured runs.
+
+    Parameters
+    ----------
+    runs : list of Run
+        Measured runs (the dataset contract).
+    model_path : path, optional
+        MJCF of the model to test (default: the built-in scene).
+    jobs : int, optional
+        Rollout threads (default: all cores).
+    k : int
+        Folds over runs for held-out scoring.
+    max_effects : int
+        Most effects named (rounds).
+    max_fit_samples : int
+        Sample budget of the fits (see :data:`MAX_FIT_SAMPLES`).
+    candidates : tuple of str, optional
+        Library names to consider (default: all).
+
+    Raises
+    ------
+    UserError
+        Model without the contract's names, runs the model cannot replay, too little data.
+    """
+    t_start = time.perf_counter()
+    spec, model, path = _load_spec(model_path)
+    rr = prepare_runs(runs, model)
+    if len(rr) < 2:
+        raise UserError("measured data: at least 2 runs are needed (candidates are scored on runs "
+                        "held out of their fit)")
+    total = sum(r.n for r in rr)
+    nfit = max(MIN_FIT_RUN_SAMPLES, max_fit_samples // len(rr)) if total > max_fit_samples else None
+    fit_runs = [r.truncated(nfit) for r in rr] if nfit else rr
+    log = log or (lambda s: None)
+    timings = {}
+    with Replayer(jobs) as rep:
+        t0 = time.perf_counter()
+        theta_before = rep.simulate([model], rr)
+        timings["replay_nominal_s"] = time.perf_counter() - t0
+        res_before = [th - r.theta for th, r in zip(theta_before, rr)]
+        gap_before = gap(res_before)
+        fit_before = gap([res[: r.n] for res, r in zip(res_before, fit_runs)])
+        noise = sel.noise_floor(res_before)
+        log(f"gap before {gap_before:.3e} rad, noise floor {noise:.2e} rad, {len(rr)} runs, "
+            f"{total} samples" + (f" (fits use the first {nfit} of each run)" if nfit else ""))
+        accepted, accepted_x, rounds, entries = [], np.zeros(0), [], []
+        gap_start = fit_before
+        best_accepted = None
+        t0 = time.perf_counter()
+        for rnd in range(max_effects):
+            if rnd > 0 and gap_start < sel.NOISE_FACTOR * noise:
+                log(f"round {rnd + 1}: skipped, the held-out gap is at the noise floor")
+                break
+            log(f"round {rnd + 1}: scoring {len(fx.NAMES) - len(accepted)} candidates")
+            scored = sel.score_round(spec, accepted, accepted_x, fit_runs, rep, gap_start, k=k,
+                                     candidates=candidates, log=log)
+            rounds.append(scored)
+            best = scored[0]
+            runner = scored[1] if len(scored) > 1 else None
+            # margin: share of the runner-up's remaining held-out gap the best removes on top
+            margin = 1 - best.heldout_gap / runner.heldout_gap if runner else 1.0
+            ok = best.share >= sel.MIN_SHARE and gap_start >= sel.NOISE_FACTOR * noise
+            entry = {"round": rnd + 1, "best": best.name, "share": best.share,
+                     "runner_up": runner.name if runner else None,
+                     "runner_up_share": runner.share if runner else None, "margin": margin,
+                     "gap_start_rad": gap_start, "gap_heldout_rad": best.heldout_gap,
+                     "accepted": bool(ok)}
+            if runner and margin < sel.TIE_MARGIN:
+                entry["tie"] = True
+                entry["separating_experiment"] = sel.separating_experiment(best.name, runner.name)
+            entries.append(entry)
+            if not ok:
+                log(f"round {rnd + 1}: best {best.name} removes {best.share:.0%} of the gap: not accepted")
+                break
+            log(f"round {rnd + 1}: accepted {best.name} (removes {best.share:.0%}; runner-up "
+                f"{entry['runner_up']}, margin {margin:.2f})")
+            accepted, accepted_x, best_accepted = best.effects, best.fit.x, best
+            gap_start = best.heldout_gap
+        timings["naming_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        if best_accepted is not None:
+            se, se_jk, se_jac = sel.uncertainty(spec, best_accepted, fit_runs, rep)
+            theta_after = _heldout_theta(spec, best_accepted, rr, rep)
+        else:
+            theta_after = theta_before
+        timings["uncertainty_and_evaluation_s"] = time.perf_counter() - t0
+        steps = rep.steps
+    res_after = [th - r.theta for th, r in zip(theta_after, rr)]
+    gap_after = gap(res_after)
+    excess0 = math.sqrt(max(gap_before**2 - noise**2, 0.0))
+    excess1 = math.sqrt(max(gap_after**2 - noise**2, 0.0))
+    unexplained = excess1 / excess0 if excess0 > 0 else 0.0
+    effects_out = []
+    if best_accepted is None:
+        e0 = entries[0]
+        effects_out.append({"name": "none", "parameters": {}, "uncertainty": {},
+                            "best_candidate": e0["best"], "best_share": e0["share"],
+                            "runner_up": e0["runner_up"], "margin": e0["margin"],
+                            "reason": ("no candidate removes a clear share of the held-out gap"
+                                       if gap_before >= sel.NOISE_FACTOR * noise else
+                                       "the gap is at the measurement noise floor")})
+        patched = spec.copy()
+    else:
+        i = 0
+        for n_acc, (eff, x) in enumerate(_split(best_accepted.effects, best_accepted.fit.x)):
+            ent = entries[n_acc]
+            sl = slice(i, i + eff.nparam)
+            i += eff.nparam
+            item = {
+                "name": eff.name,
+                "description": eff.description,
+                "parameters": {p.name: float(v) for p, v in zip(eff.params, x)},
+                "nominal": {p.name: float(v) for p, v in zip(eff.params, fx.nominal_values(eff, spec))},
+                "uncertainty": {p.name: float(2 * s) for p, s in zip(eff.params, se[sl])},
+                "standard_error": {p.name: float(s) for p, s in zip(eff.params, se[sl])},
+                "standard_error_jackknife": {p.name: float(s) for p, s in zip(eff.params, se_jk[sl])},
+                "standard_error_jacobian": {p.name: float(s) for p, s in zip(eff.params, se_jac[sl])},
+                "units": {p.name: p.unit for p in eff.params},
+                "share_of_round_gap": ent["share"],
+                "runner_up": ent["runner_up"],
+                "runner_up_share": ent["runner_up_share"],
+                "margin": ent["margin"],
+                "confidence": _confidence(ent["share"], ent["margin"], unexplained),
+            }
+            if ent.get("tie"):
+                item["indistinguishable_from"] = ent["runner_up"]
+                item["separating_experiment"] = ent["separating_experiment"]
+            effects_out.append(item)
+        patched = fx.apply(spec, _split(best_accepted.effects, best_accepted.fit.x))
+    loc_before = localise(rr, theta_before)
+    loc_after = localise(rr, theta_after)
+    timings["total_s"] = time.perf_counter() - t_start
+    report = {
+        "effects": effects_out,
+        "gap_before": gap_before,
+        "gap_after": gap_after,
+        "gap_units": "rad (root of the mean over runs of each run's mean-square replay error; "
+                     "after = held-out, each run replayed with parameters fitted without it)",
+        "shrink_factor": gap_before / gap_after if gap_after > 0 else float("inf"),
+        "noise_floor_rad": noise,
+        "unexplained_share": unexplained,
+        "unexplained": bool(best_accepted is not None and unexplained > sel.UNEXPLAINED_SHARE),
+        "rounds": entries,
+        "candidates": [[{"name": s.name, "heldout_gap_rad": s.heldout_gap, "share": s.share,
+                         "method": s.method,
+                         "parameters": {p.name: float(v) for e, x in _split(s.effects, s.fit.x)
+                                        for p, v in zip(e.params, x)}} for s in rnd] for rnd in rounds],
+        "localisation": {"before": loc_before, "after": loc_after},
+        "settings": {"folds": k, "max_effects": max_effects, "min_share": sel.MIN_SHARE,
+                     "noise_factor": sel.NOISE_FACTOR, "tie_margin": sel.TIE_MARGIN,
+                     "fit_samples_per_run": nfit, "model": path, "mujoco": mujoco.__version__},
+        "timings": {**timings, "physics_steps": steps,
+                    "steps_per_s": steps / max(timings["naming_s"] + timings["replay_nominal_s"], 1e-9)},
+    }
+    return Outcome(report, patched, rr, theta_before, theta_after, rounds)
