@@ -153,3 +153,32 @@ def generate(hidden: HiddenCase, exps: list[ex.Experiment] | None = None, seed: 
     exps = exps if exps is not None else bank_experiments()
     settings = ex.Settings(quantize=True, noise_rad=noise_rad, seed=seed)
     return ex.simulate(exps, model=m, settings=settings, jobs=jobs)
+
+
+def assess(hidden: HiddenCase, report: dict) -> tuple[bool, str]:
+    """Did the workflow pass this case?  (criteria of the bank)
+
+    * library effects: every hidden effect named (and nothing else), every parameter within the
+      reported 95 % uncertainty of the truth, held-out gap shrunk at least 3x;
+    * null case: ``none``;
+    * effects outside the library: ``none``, or the nearest candidate only with low confidence
+      (or flagged as leaving the gap partly unexplained) -- never confidently misnamed.
+    """
+    named = [e["name"] for e in report["effects"]]
+    if hidden.extra:
+        if named == ["none"]:
+            return True, "unexplained (none)"
+        ok = report["unexplained"] or all(e.get("confidence") == "low" for e in report["effects"])
+        return ok, "nearest candidate, low confidence" if ok else "confidently misnamed"
+    if sorted(named) != sorted(hidden.expect):
+        return False, f"named {named}, hidden {list(hidden.expect)}"
+    if named == ["none"]:
+        return True, "none"
+    truth = dict(hidden.effects)
+    for e in report["effects"]:
+        for (p, v), t in zip(e["parameters"].items(), truth[e["name"]]):
+            if abs(v - t) > e["uncertainty"][p]:
+                return False, f"{p}: {v:.4g} vs truth {t:.4g} (± {e['uncertainty'][p]:.2g})"
+    if report["shrink_factor"] < 3:
+        return False, f"gap shrank only x{report['shrink_factor']:.1f}"
+    return True, "ok"

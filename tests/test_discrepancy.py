@@ -1,0 +1,155 @@
+"""omni discrepancy: replay against the reference loop, the effect library, the localisation,
+the workflow on hidden effects (fast representatives; the whole bank is marked slow), and the
+command's error paths."""
+
+import json
+
+import mujoco
+import numpy as np
+import pytest
+
+from identification.dataset import read_dataset, write_run
+from omni_sim import experiments as ex
+from omni_sim import model as om
+from omni_sim.cli import main
+from omni_sim.discrepancy import bank
+from omni_sim.discrepancy import effects as fx
+from omni_sim.discrepancy.localise import command_lag
+from omni_sim.discrepancy.replay import Replayer, ReplayRun, prepare_runs
+from omni_sim.discrepancy.workflow import run_discrepancy
+
+
+@pytest.fixture(scope="module")
+def spec():
+    return mujoco.MjSpec.from_file(str(om.DEFAULT_SCENE))
+
+
+def _short(exps, n):
+    return [ex.Experiment(e.name, e.kind, e.gamma1_set_deg, e.gamma2_set_deg, e.r[:n], e.frequency_hz,
+                          e.amplitude_rad, e.theta0_rad) for e in exps]
+
+
+@pytest.mark.parametrize("name,value", [(None, None), ("time_delay", [0.0035]), ("actuator_lag", [0.006]),
+                                        ("torque_saturation", [0.05]), ("position_offset", [0.03]),
+                                        ("gravity_tilt", [0.05, -0.02])])
+def test_replay_equals_reference_loop(spec, name, value):
+    """The batched replay is the same closed loop as experiments' Python reference loop, for
+    effects that act on the command (filter, delay, forcerange, bias) too."""
+    m = spec.compile() if name is None else fx.compile_with(spec, [(fx.get(name), np.array(value))])
+    exps = _short([ex.sine_experiment(65, 90, 3.0, record_s=1.0), ex.square_experiment(25, 115)], 800)
+    runs = ex.simulate(exps, model=m, force_reference=True, jobs=1)
+    rr = prepare_runs(runs, m)
+    with Replayer(2) as rep:
+        th = rep.simulate([m], rr)
+    for a, r in zip(th, rr):
+        np.testing.assert_allclose(a, r.theta, rtol=0, atol=1e-12, err_msg=f"{name} {r.name}")
+
+
+def test_effects_write_read_and_xml(spec):
+    for eff in fx.LIBRARY:
+        x0 = fx.nominal_values(eff, spec)
+        x = eff.clip(x0 + 3 * eff.scales())
+        s2 = fx.apply(spec, [(eff, x)])
+        np.testing.assert_allclose(fx.nominal_values(eff, s2), x, rtol=1e-9, atol=1e-12, err_msg=eff.name)
+        m = mujoco.MjModel.from_xml_string(s2.to_xml())  # the patched MJCF compiles
+        om.index(m)
+    assert len(set(fx.NAMES)) == len(fx.NAMES) >= 10
+
+
+def test_command_lag_finds_a_delay():
+    rng = np.random.default_rng(0)
+    t = np.arange(3000) * 1e-3
+    v = np.convolve(rng.normal(size=3000), np.ones(20) / 20, mode="same")
+    res = np.roll(v, 7) * 1e-3
+    run = ReplayRun("x", "other", t, v * 0, v * 0, v, 1e-3, 2.0, (65.0, 90.0), 0.0, 0.0)
+    out = command_lag([run], [res])
+    assert abs(out["lag_s"] - 0.007) < 1.5e-3 and out["correlation"] > 0.9
+
+
+def _fast_exps():
+    return bank.bank_experiments(poses=((65.0, 90.0), (25.0, 115.0)), frequencies_hz=(1.5, 3.5),
+                                 amplitudes_rad=(0.04, 0.15), step_amplitudes_rad=(0.05,),
+                                 duration_s=1.5)
+
+
+@pytest.mark.parametrize("case_name", ["coulomb_friction", "none"])
+def test_fast_hidden_cases(case_name):
+    """Representatives of the bank on a smaller experiment set (the whole bank: -m slow)."""
+    hidden = bank.case(case_name)
+    runs = bank.generate(hidden, _fast_exps())
+    rep = run_discrepancy(runs, None, k=5).report
+    ok, why = bank.assess(hidden, rep)
+    assert ok, (why, [e["name"] for e in rep["effects"]], rep["effects"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case_name", [c.name for c in bank.CASES])
+def test_bank(case_name):
+    hidden = bank.case(case_name)
+    rep = run_discrepancy(bank.generate(hidden), None).report
+    ok, why = bank.assess(hidden, rep)
+    assert ok, (why, rep["effects"])
+
+
+# --- command line and bad input ------------------------------------------------------------
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("measured")
+    exps = _short([ex.sine_experiment(65, 90, 2.0), ex.square_experiment(65, 90)], 600)
+    for r in ex.simulate(exps):
+        write_run(folder, r)
+    return folder
+
+
+def _rewrite_meta(folder, change):
+    for p in folder.glob("*.json"):
+        meta = json.loads(p.read_text())
+        change(meta)
+        p.write_text(json.dumps(meta))
+
+
+def test_cli_unknown_pose(small_dataset, tmp_path, capsys):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for r in read_dataset(small_dataset):
+        write_run(bad, r)
+    _rewrite_meta(bad, lambda m: m.update(gamma1_set_deg=170.0))
+    out = tmp_path / "out"
+    assert main(["discrepancy", "--measured", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and "pose" in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_cli_missing_metadata(small_dataset, tmp_path, capsys):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for r in read_dataset(small_dataset):
+        write_run(bad, r)
+    _rewrite_meta(bad, lambda m: m.pop("kp"))
+    assert main(["discrepancy", "--measured", str(bad), "--out", str(tmp_path / "o")]) == 2
+    assert "kp" in capsys.readouterr().err
+
+
+def test_cli_model_without_contract_names(small_dataset, tmp_path, capsys):
+    xml = tmp_path / "m.xml"
+    xml.write_text('<mujoco><worldbody><body><joint name="j"/><geom size="0.1"/></body></worldbody></mujoco>')
+    assert main(["discrepancy", "--measured", str(small_dataset), "--model", str(xml),
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and "yaw" in err
+
+
+def test_cli_too_short(tmp_path, capsys):
+    folder = tmp_path / "short"
+    folder.mkdir()
+    for r in ex.simulate(_short([ex.sine_experiment(65, 90, 2.0), ex.square_experiment(65, 90)], 50)):
+        write_run(folder, r)
+    assert main(["discrepancy", "--measured", str(folder), "--out", str(tmp_path / "o")]) == 2
+    assert "samples" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_requires_measured(capsys):
+    assert main(["discrepancy", "--out", "x"]) == 2
+    assert "--measured" in capsys.readouterr().err
