@@ -78,13 +78,15 @@ def _pose_key(run: Run):
     return ("actual", round(run.gamma1_deg, 2), round(run.gamma2_deg, 2))
 
 
-def identify_runs(runs: list[Run]) -> Identification:
+def identify_runs(runs: list[Run], linear_only: bool = False) -> Identification:
     """Fit sines, local and global linear models per pose, and the inertia model.
 
     Parameters
     ----------
     runs : list of Run
         A dataset (any kinds; only ``kind == "sine"`` runs are used).
+    linear_only : bool
+        Stop after the per-pose linear models (no inertia or alpha model).
 
     Raises
     ------
@@ -118,6 +120,8 @@ def identify_runs(runs: list[Run]) -> Identification:
         warnings.extend(pose.warnings)
     usable = [p for p in poses if p.physical]
     inertia = None
+    if linear_only:
+        return Identification(poses, None, warnings, ignored)
     if len(usable) >= MIN_POSES:
         inertia = fit_inertia_model([p.gamma1_deg for p in usable], [p.gamma2_deg for p in usable],
                                     [p.C_linear for p in usable], [p.beta_tilde_linear for p in usable])

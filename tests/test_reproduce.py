@@ -1,0 +1,96 @@
+"""omni reproduce / omni validate: outputs, summary consistent with the predictions, errors."""
+
+import csv
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from identification.dataset import read_dataset
+from omni_sim.cli import main
+
+
+@pytest.fixture(scope="module")
+def reproduced(tmp_path_factory):
+    out = tmp_path_factory.mktemp("rep") / "results"
+    assert main(["reproduce", "--out", str(out)]) == 0
+    return out
+
+
+def _pred(folder, name):
+    with open(folder / "predictions" / f"{name}.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+
+
+def test_outputs(reproduced):
+    names = {p.name for p in reproduced.iterdir()}
+    for f in ("summary.json", "report.md", "params.json", "predictions", "dataset",
+              "fig04_05_inertia_fits.png", "fig06_07_nonlinear_vs_inertia.png",
+              "fig08_alpha_vs_frequency.png", "fig09_10_C_beta_vs_alpha.png", "fig11_12_bode.png",
+              "fig13_time_2p5hz.png", "fig14_step.png", "inertia_truth.png"):
+        assert f in names, f
+    assert len(list((reproduced / "predictions").glob("*.csv"))) == 106
+    s = json.loads((reproduced / "summary.json").read_text())
+    assert set(s["step"]) >= {"median_abs_error_linear_rad", "median_abs_error_alpha_rad",
+                              "alpha_better_poses", "n_poses"}
+    assert set(s["sine"]) >= {"magnitude_p90_linear", "magnitude_p90_alpha",
+                              "phase_p90_linear_deg", "phase_p90_alpha_deg"}
+    assert s["inertia"]["n_poses"] == 25 and s["inertia"]["n_unseen_poses"] == 16
+    assert s["step"]["n_poses"] == 25
+    assert s["run"]["real_time_factor"] > 0
+
+
+def test_summary_matches_predictions(reproduced):
+    """Recompute the step summary from predictions/ and the dataset, independently."""
+    s = json.loads((reproduced / "summary.json").read_text())
+    runs = {r.name: r for r in read_dataset(reproduced / "dataset")}
+    med_lin, med_alp = [], []
+    for name, run in runs.items():
+        p = _pred(reproduced, name)
+        np.testing.assert_array_equal(p["theta"], run.theta)
+        np.testing.assert_array_equal(p["t"], run.t)
+        if run.kind == "step":
+            med_lin.append(np.median(np.abs(p["theta_linear"] - p["theta"])))
+            med_alp.append(np.median(np.abs(p["theta_alpha"] - p["theta"])))
+    assert s["step"]["median_abs_error_linear_rad"] == pytest.approx(np.median(med_lin), rel=1e-12)
+    assert s["step"]["median_abs_error_alpha_rad"] == pytest.approx(np.median(med_alp), rel=1e-12)
+    assert s["step"]["alpha_better_poses"] == sum(a < b for a, b in zip(med_alp, med_lin))
+
+
+def test_validate_reproduces_summary(reproduced, tmp_path):
+    """omni validate on the written dataset + params gives the same scores (one source of truth)."""
+    out = tmp_path / "val"
+    assert main(["validate", str(reproduced / "dataset"), "--params", str(reproduced / "params.json"),
+                 "--out", str(out)]) == 0
+    a = json.loads((reproduced / "summary.json").read_text())
+    b = json.loads((out / "summary.json").read_text())
+    assert b["step"]["median_abs_error_alpha_rad"] == pytest.approx(a["step"]["median_abs_error_alpha_rad"], rel=1e-9)
+    assert b["sine"]["phase_p90_alpha_deg"] == pytest.approx(a["sine"]["phase_p90_alpha_deg"], rel=1e-9)
+
+
+def _cli(args, cwd):
+    return subprocess.run([sys.executable, "-m", "omni_sim", *args], cwd=cwd, capture_output=True, text=True)
+
+
+def test_reproduce_needs_force(reproduced):
+    res = _cli(["reproduce", "--out", str(reproduced)], reproduced.parent)
+    assert res.returncode == 2 and res.stderr.startswith("error:") and len(res.stderr.splitlines()) == 1
+
+
+@pytest.mark.parametrize("case", ["missing", "noalpha", "notjson"])
+def test_validate_errors(reproduced, tmp_path, case):
+    params = tmp_path / "params.json"
+    if case == "noalpha":
+        d = json.loads((reproduced / "params.json").read_text())
+        d["alpha_model"] = {}
+        params.write_text(json.dumps(d))
+    elif case == "notjson":
+        params.write_text("{oops")
+    res = _cli(["validate", str(reproduced / "dataset"), "--params", str(params), "--out",
+                str(tmp_path / "v")], tmp_path)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.startswith("error:") and len(res.stderr.splitlines()) == 1
+    assert not (tmp_path / "v").exists()
