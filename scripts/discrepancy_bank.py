@@ -68,9 +68,9 @@ def main(argv=None) -> int:
         f"{', '.join(str(p) for p in bank.BANK_POSES)} deg) through `omni_sim.experiments.simulate`'s "
         f"reference loop, encoder quantised to 15000 counts/rev plus {bank.BANK_NOISE_RAD:g} rad white "
         "noise that the controller sees. The workflow sees only these runs and the nominal model.", "",
-        "Gaps are held-out RMS replay errors [rad]; ± is the reported 95 % uncertainty (2 x the root-sum-"
+        "Gaps are held-out RMS replay errors [rad]; ± is the reported 95 % uncertainty (the root-sum-"
         "square of the jackknife over folds and the Jacobian estimate with the residual correlation "
-        "time). Pass: the hidden effect is named, every parameter within ±, gap shrinks >= 3x; null case: "
+        "time, times the Student-t factor of the k-fold jackknife). Pass: the hidden effect is named, every parameter within ±, gap shrinks >= 3x; null case: "
         "`none`; outside-library cases: `none` or the nearest candidate with low confidence.", "",
         "| hidden | named | truth | fitted ± 95 % | gap before | gap after | shrink | runner-up | margin | "
         "confidence | result | s |",

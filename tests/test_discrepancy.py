@@ -69,7 +69,7 @@ def test_command_lag_finds_a_delay():
 def _fast_exps():
     return bank.bank_experiments(poses=((65.0, 90.0), (25.0, 115.0)), frequencies_hz=(1.5, 3.5),
                                  amplitudes_rad=(0.04, 0.15), step_amplitudes_rad=(0.05,),
-                                 duration_s=1.5)
+                                 duration_s=1.2)
 
 
 @pytest.mark.parametrize("case_name", ["coulomb_friction", "none"])

@@ -204,7 +204,7 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start
 def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.ndarray,
                 runs: list[ReplayRun], rep: Replayer, gap_start: float, k: int = 5,
                 n_confirm: int = 3, candidates: tuple[str, ...] | None = None,
-                log=None) -> list[Scored]:
+                screen_nfev: int = 4, log=None) -> list[Scored]:
     """Fit and score every candidate not yet accepted; best first.
 
     Parameters
@@ -220,6 +220,9 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
         Folds over runs.
     n_confirm : int
         Candidates refitted exactly per fold after screening.
+    screen_nfev : int
+        Least-squares evaluations of the screening fit (the confirmed candidates are then
+        fitted to convergence).
     candidates : tuple of str, optional
         Library names to try (default: all).
     """
@@ -234,7 +237,7 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
         effects = list(accepted) + [eff]
         prob = Problem(spec, [], effects, runs, rep)
         x0 = np.concatenate([np.asarray(accepted_x, float), fx.nominal_values(eff, spec)])
-        fit = prob.fit(x0, grid_effect_index=len(effects) - 1)
+        fit = prob.fit(x0, grid_effect_index=len(effects) - 1, max_nfev=screen_nfev)
         fold_x = _onestep_folds(prob, fit, folds)
         raw = _heldout(prob, fold_x, folds)
         g = gap(raw)
@@ -248,6 +251,8 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
     for s in scored[:n_confirm]:
         t0 = time.perf_counter()
         prob = Problem(spec, [], s.effects, runs, rep)
+        s.fit = prob.fit(s.fit.x, None, max_nfev=20)  # converge the all-runs fit
+        s.fold_x = _onestep_folds(prob, s.fit, folds)
         s.fold_x = _refit_folds(prob, s.fit, folds, s.fold_x)
         s.heldout_raw = _heldout(prob, s.fold_x, folds)
         s.heldout_gap = gap(s.heldout_raw)
@@ -273,3 +278,9 @@ def uncertainty(spec, s: Scored, runs, rep) -> tuple[np.ndarray, np.ndarray, np.
     prob = Problem(spec, [], s.effects, runs, rep)
     se_jac = jacobian_se(prob, s.fit)
     return np.sqrt(se_jk**2 + se_jac**2), se_jk, se_jac
+
+
+def coverage_factor(k: int) -> float:
+    """Two-sided 95 % Student-t factor for a jackknife over ``k`` folds (k - 1 degrees of freedom)."""
+    from scipy.stats import t
+    return float(t.ppf(0.975, max(k - 1, 1)))

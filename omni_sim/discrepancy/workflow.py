@@ -168,6 +168,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         t0 = time.perf_counter()
         if best_accepted is not None:
             se, se_jk, se_jac = sel.uncertainty(spec, best_accepted, fit_runs, rep)
+            cover = sel.coverage_factor(len(best_accepted.folds))
             theta_after = _heldout_theta(spec, best_accepted, rr, rep)
         else:
             theta_after = theta_before
@@ -199,7 +200,9 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 "description": eff.description,
                 "parameters": {p.name: float(v) for p, v in zip(eff.params, x)},
                 "nominal": {p.name: float(v) for p, v in zip(eff.params, fx.nominal_values(eff, spec))},
-                "uncertainty": {p.name: float(2 * s) for p, s in zip(eff.params, se[sl])},
+                "uncertainty": {p.name: float(cover * s) for p, s in zip(eff.params, se[sl])},
+                "uncertainty_kind": f"95 % half-width: {cover:.2f} x standard error (Student t, "
+                                    f"{len(best_accepted.folds) - 1} dof of the fold jackknife)",
                 "standard_error": {p.name: float(s) for p, s in zip(eff.params, se[sl])},
                 "standard_error_jackknife": {p.name: float(s) for p, s in zip(eff.params, se_jk[sl])},
                 "standard_error_jacobian": {p.name: float(s) for p, s in zip(eff.params, se_jac[sl])},
