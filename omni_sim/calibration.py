@@ -64,7 +64,8 @@ class Parameter:
 PARAMETERS = (
     Parameter("m_upper_arm", "kg", 0.005, 0.15, "link 1 mass; a hollow arm + capstan parts"),
     Parameter("m_forearm", "kg", 0.005, 0.15, "link 2 mass"),
-    Parameter("m_stylus", "kg", 0.005, 0.15, "gimbal + stylus mass (a pen of tens of grams)"),
+    Parameter("m_stylus", "kg", 0.015, 0.15, "gimbal + stylus: a plastic pen with a button and "
+              "the yoke's bearings weighs at least ~15 g (estimate)"),
     Parameter("I_turret", "kg m^2", 1e-5, 3e-3, "turret + motors about the yaw axis"),
     Parameter("yaw_damping", "N m s/rad", 0.0, 0.05, "viscous + back-EMF damping"),
     Parameter("yaw_frictionloss", "N m", 0.0, 0.035, "Coulomb; < 35 mN m back-drive bound (facts)"),
@@ -210,12 +211,16 @@ def _alpha_model_fall(fig: dict) -> float:
     return float(c[0] / c[-1]) if c[-1] > 0 else math.inf
 
 
-def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verbose: int = 1) -> dict:
-    """Fit the parameters by least squares; returns the calibration record (not yet written)."""
+def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verbose: int = 1,
+              start: dict | None = None) -> dict:
+    """Fit the parameters by least squares; returns the calibration record (not yet written).
+
+    ``start`` overrides some starting values (default: the model's current values).
+    """
     from scipy.optimize import least_squares
 
     base = om.load_model(model_path)
-    x0 = current_values(base)
+    x0 = {**current_values(base), **(start or {})}
     lo = np.array([p.lower for p in PARAMETERS])
     hi = np.array([p.upper for p in PARAMETERS])
     scale = np.array([max(abs(x0[n]), 1e-3 * (p.upper - p.lower)) for n, p in zip(NAMES, PARAMETERS)])
@@ -238,7 +243,7 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
     x = np.clip(sol.x * scale, lo, hi)
     vals = dict(zip(NAMES, (float(v) for v in x)))
     fig = evaluate(apply(base, vals), vals["sine_amplitude_rad"], jobs)
-    before = evaluate(base, x0["sine_amplitude_rad"], jobs)
+    before = evaluate(base, ex.SINE_AMPLITUDE_RAD, jobs)
     return {
         "date": _dt.date.today().isoformat(),
         "method": "scipy.optimize.least_squares (trf, bounded), simulation-in-the-loop with the "
@@ -248,6 +253,7 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
         "residual_scales": {"coef_rel": SCALE_COEF_REL, "angle_deg": SCALE_ANGLE_DEG,
                             "C_alpha_rel": SCALE_CALPHA_REL},
         "parameters": {p.name: {"value": vals[p.name], "unit": p.unit, "start": x0[p.name],
+                                "model_before": current_values(base)[p.name],
                                 "bounds": [p.lower, p.upper], "why": p.why} for p in PARAMETERS},
         "fixed": {"beta_bar_N_m_per_V": om.torque_constant(base),
                   "armature_kg_m2": float(base.dof_armature[om.index(base).yaw_dof]),

@@ -26,8 +26,10 @@ def main() -> int:
     ap.add_argument("--dry-run", action="store_true", help="do not modify the model files")
     ap.add_argument("--record", default=str(cal.RECORD), help="where to write the record")
     ap.add_argument("--jobs", type=int, default=None)
+    ap.add_argument("--start", default=None, help="JSON object of starting values (default: the model's)")
     args = ap.parse_args()
-    record = cal.calibrate(max_nfev=args.max_nfev, jobs=args.jobs)
+    record = cal.calibrate(max_nfev=args.max_nfev, jobs=args.jobs,
+                           start=json.loads(args.start) if args.start else None)
     print(json.dumps(record["achieved"], indent=2))
     cal.write_record(record, Path(args.record))
     if not args.dry_run:
