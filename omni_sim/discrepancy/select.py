@@ -39,6 +39,9 @@ TIE_MARGIN = 0.1
 #: Remaining excess over noise above this share of the initial excess: part of the gap stays
 #: unexplained by the library.
 UNEXPLAINED_SHARE = 0.3
+#: A held-out gap left above this many noise standard deviations after the named effects: the
+#: library does not explain the data down to the noise, so no name is given "high" confidence.
+REMAINDER_FACTOR = 3.0
 
 #: What experiment separates two candidates that explain the data alike (unordered pairs).
 SEPARATING_EXPERIMENTS = {

@@ -211,7 +211,8 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 "runner_up": ent["runner_up"],
                 "runner_up_share": ent["runner_up_share"],
                 "margin": ent["margin"],
-                "confidence": _confidence(ent["share"], ent["margin"], unexplained),
+                "confidence": _confidence(ent["share"], ent["margin"],
+                                          unexplained if gap_after <= sel.REMAINDER_FACTOR * noise else 1.0),
             }
             if ent.get("tie"):
                 item["indistinguishable_from"] = ent["runner_up"]
@@ -230,7 +231,8 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         "shrink_factor": gap_before / gap_after if gap_after > 0 else float("inf"),
         "noise_floor_rad": noise,
         "unexplained_share": unexplained,
-        "unexplained": bool(best_accepted is not None and unexplained > sel.UNEXPLAINED_SHARE),
+        "unexplained": bool(best_accepted is not None and (unexplained > sel.UNEXPLAINED_SHARE
+                                                           or gap_after > sel.REMAINDER_FACTOR * noise)),
         "rounds": entries,
         "candidates": [[{"name": s.name, "heldout_gap_rad": s.heldout_gap, "share": s.share,
                          "method": s.method,
