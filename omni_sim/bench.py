@@ -6,7 +6,12 @@ Figures (issue targets in brackets, 2-core machine):
   ``omni generate --campaign paper`` work (simulation + writing the dataset) [>= 100];
 * ``simulate_rtf``: the same, simulation only;
 * ``rollout_ratio``: the campaign's physics steps per second / raw ``mujoco.rollout`` steps per
-  second for the same model, step count and threads with zero controls (the ceiling) [>= 0.8].
+  second for the same model, step count and threads with zero controls (the ceiling) [>= 0.8];
+* ``alpha_simulation.ratio_alpha_to_lsim``: the quasilinear alpha-model simulation of 25 step
+  runs / ``scipy.signal.lsim`` of the linear model over the same runs [<= 3];
+* ``reproduce.real_time_factor``: ``omni reproduce`` as a whole (simulated experiment time /
+  wall time, writing included) [>= 50];
+* ``discrepancy``: wall time of the discrepancy workflow on the demo case [minutes, not hours].
 """
 
 from __future__ import annotations
@@ -38,8 +43,11 @@ def _rollout_ceiling(model: mujoco.MjModel, nbatch: int, nstep: int, nthread: in
     return nbatch * nstep / (time.perf_counter() - t0)
 
 
-def run_bench(jobs: int | None = None, repeats: int = 3) -> dict:
-    """Measure the figures above (best of ``repeats``) and return them as a dict."""
+def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True) -> dict:
+    """Measure the figures above (best of ``repeats``) and return them as a dict.
+
+    ``extended=False`` measures only the campaign figures (fast).
+    """
     from .commands import write_dataset
 
     jobs = max(1, jobs or os.cpu_count() or 1)
@@ -77,4 +85,31 @@ def run_bench(jobs: int | None = None, repeats: int = 3) -> dict:
             "rollout_ratio": round(steps / best_sim / ceil, 3),
         },
     }
+    if extended:
+        from identification.simulate import bench_simulation
+
+        figures["alpha_simulation"] = bench_simulation(repeat=repeats)
+        figures["reproduce"] = _bench_reproduce(jobs)
+        from .discrepancy.command import bench_discrepancy
+
+        figures["discrepancy"] = bench_discrepancy(jobs=jobs)
     return figures
+
+
+def _bench_reproduce(jobs: int) -> dict:
+    import argparse
+    import contextlib
+    import io
+    import json
+
+    from .reproduce import reproduce_command
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "results")
+        t0 = time.perf_counter()
+        with contextlib.redirect_stdout(io.StringIO()):
+            reproduce_command(argparse.Namespace(model=None, out=out, force=False, jobs=jobs))
+        wall = time.perf_counter() - t0
+        with open(os.path.join(out, "summary.json")) as fh:
+            sim = json.load(fh)["run"]["simulated_time_s"]
+    return {"wall_s": round(wall, 2), "simulated_time_s": sim, "real_time_factor": round(sim / wall, 1)}

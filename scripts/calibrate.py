@@ -24,19 +24,19 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--max-nfev", type=int, default=60, help="simulation budget of the optimiser")
     ap.add_argument("--dry-run", action="store_true", help="do not modify the model files")
-    ap.add_argument("--record", default=str(cal.RECORD), help="where to write the record")
+    ap.add_argument("--record", default=str(cal.RECORD), help="where --dry-run writes the record (a real run writes models/calibration.json)")
     ap.add_argument("--jobs", type=int, default=None)
     ap.add_argument("--start", default=None, help="JSON object of starting values (default: the model's)")
     args = ap.parse_args()
     record = cal.calibrate(max_nfev=args.max_nfev, jobs=args.jobs,
                            start=json.loads(args.start) if args.start else None)
     print(json.dumps(record["achieved"], indent=2))
-    cal.write_record(record, Path(args.record))
     if not args.dry_run:
-        values = {k: v["value"] for k, v in record["parameters"].items()}
-        cal.write_model(values)
-        cal.write_amplitude(values["sine_amplitude_rad"])
-        print("wrote models/omni.xml, omni_sim/experiments.py (A_r) and", args.record)
+        figs = cal.finalize(record, Path(__file__).resolve().parent.parent / "docs")
+        print("wrote models/omni.xml, omni_sim/experiments.py (A_r), models/calibration.json and",
+              ", ".join(str(f) for f in figs))
+    else:
+        cal.write_record(record, Path(args.record))
     return 0
 
 
