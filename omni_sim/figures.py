@@ -191,40 +191,35 @@ def _run(res, name):
     return next(r for r in res["runs"] if r.name == name)
 
 
-def fig_time_sine(folder: Path, res: dict) -> None:
-    """Fig. 13: time response at 2.5 Hz at the detail pose (last two cycles)."""
+def _time_figure(folder: Path, res: dict, name: str, keep, title: str, filename: str) -> None:
+    """Measured and both models' yaw angle of one run over the samples ``keep(run)``."""
     plt = _plt()
-    name = f"sine_g{DETAIL_POSE[0]:02d}_{DETAIL_POSE[1]:03d}_f2p50"
     run = _run(res, name)
     pred = res["predictions"][name]
-    keep = run.t >= run.t[-1] - 2 / 2.5
+    k = keep(run)
     fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(run.t[keep], run.r[keep], ":", color="gray", label="reference r")
-    ax.plot(run.t[keep], run.theta[keep], "k-", lw=2, label="virtual Omni")
-    ax.plot(run.t[keep], pred["theta_linear"][keep], "--", label="global linear")
-    ax.plot(run.t[keep], pred["theta_alpha"][keep], "-", label="alpha-invariant")
-    ax.set(xlabel="t [s]", ylabel="yaw [rad]", title="Fig. 13: 2.5 Hz response at (65, 90) deg")
+    ax.plot(run.t[k], run.r[k], ":", color="gray", label="reference r")
+    ax.plot(run.t[k], run.theta[k], "k-", lw=2, label="virtual Omni")
+    ax.plot(run.t[k], pred["theta_linear"][k], "--", label="global linear")
+    ax.plot(run.t[k], pred["theta_alpha"][k], "-", label="alpha-invariant")
+    ax.set(xlabel="t [s]", ylabel="yaw [rad]", title=title)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    _save(fig, folder / "fig13_time_2p5hz.png")
+    _save(fig, folder / filename)
+
+
+def fig_time_sine(folder: Path, res: dict) -> None:
+    """Fig. 13: time response at 2.5 Hz at the detail pose (last two cycles)."""
+    _time_figure(folder, res, f"sine_g{DETAIL_POSE[0]:02d}_{DETAIL_POSE[1]:03d}_f2p50",
+                 lambda run: run.t >= run.t[-1] - 2 / 2.5,
+                 f"Fig. 13: 2.5 Hz response at {DETAIL_POSE} deg", "fig13_time_2p5hz.png")
 
 
 def fig_step(folder: Path, res: dict) -> None:
     """Fig. 14: first second after the negative-to-positive edge at the detail pose."""
-    plt = _plt()
-    name = f"step_g{DETAIL_POSE[0]:02d}_{DETAIL_POSE[1]:03d}"
-    run = _run(res, name)
-    pred = res["predictions"][name]
-    keep = run.t < 1.0
-    fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(run.t[keep], run.r[keep], ":", color="gray", label="reference r")
-    ax.plot(run.t[keep], run.theta[keep], "k-", lw=2, label="virtual Omni")
-    ax.plot(run.t[keep], pred["theta_linear"][keep], "--", label="global linear")
-    ax.plot(run.t[keep], pred["theta_alpha"][keep], "-", label="alpha-invariant")
-    ax.set(xlabel="t [s]", ylabel="yaw [rad]", title="Fig. 14: step response at (65, 90) deg")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    _save(fig, folder / "fig14_step.png")
+    _time_figure(folder, res, f"step_g{DETAIL_POSE[0]:02d}_{DETAIL_POSE[1]:03d}",
+                 lambda run: run.t < 1.0, f"Fig. 14: step response at {DETAIL_POSE} deg",
+                 "fig14_step.png")
 
 
 def write_figures(folder: Path, res: dict) -> list[str]:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 
 from .reproduce import PAPER_STEP_RATIO, _read_csv
 

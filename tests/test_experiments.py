@@ -1,13 +1,10 @@
 """Experiments and datasets: campaign design, fast path vs reference loop, determinism, round
 trip, the physics of Coulomb friction, and the contract's error paths."""
 
-import hashlib
-import json
 import math
 import subprocess
 import sys
 
-import mujoco
 import numpy as np
 import pytest
 

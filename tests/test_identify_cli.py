@@ -2,7 +2,6 @@
 
 import json
 import math
-import shutil
 from importlib import resources
 
 import numpy as np

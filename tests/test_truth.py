@@ -4,7 +4,6 @@ Truth comes from the model itself: MuJoCo's mass matrix (yaw inertia), the joint
 torque constant and the gain -- never from the identification code.
 """
 
-import math
 
 import numpy as np
 import pytest
