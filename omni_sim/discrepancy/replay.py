@@ -169,7 +169,8 @@ class Replayer:
         return x0, data.ctrl.copy()
 
     def simulate(self, models: list[mujoco.MjModel], runs: list[ReplayRun],
-                 pairs: list[tuple[int, int]] | None = None) -> list[np.ndarray]:
+                 pairs: list[tuple[int, int]] | None = None,
+                 measurement: tuple[list[np.ndarray], list[float]] | None = None) -> list[np.ndarray]:
         """Replay runs on models; return the model's yaw angle [rad] per pair.
 
         Parameters
@@ -179,6 +180,12 @@ class Replayer:
         runs : list of ReplayRun
         pairs : list of (model index, run index), optional
             What to simulate (default: every run on every model, model-major).
+        measurement : (list of ndarray, list of float), optional
+            A simulated measurement process ``(noise, step)`` per pair: the controller then sees
+            ``y_k = step * round((theta_k + noise_k) / step)`` (no rounding if ``step`` is 0), as
+            a device with a noisy, quantised encoder, and ``y`` is returned instead of ``theta``
+            (it is what the device would log).  Used to propagate the measurement process
+            through the closed loop (:func:`omni_sim.discrepancy.select.measurement_effect`).
 
         Returns
         -------
@@ -215,9 +222,20 @@ class Replayer:
         sens = np.empty((B, 1, m0.nsensordata))
         datas = [mujoco.MjData(m0) for _ in range(self.nthread)]
         a = ix.yaw_act
+        if measurement is not None:
+            noise_m = np.zeros((B, nmax))
+            qstep = np.zeros(B)
+            for b in range(B):
+                nb = measurement[0][b]
+                noise_m[b, : len(nb)] = nb[:nmax]
+                qstep[b] = measurement[1][b]
+            qdiv = np.where(qstep > 0, qstep, 1.0)
         chunk = max(1, -(-B // self.nthread))  # one task per thread: small batches are overhead-bound
         for k in range(nmax):
             th = x[:, qadr]
+            if measurement is not None:
+                y = th + noise_m[:, k]
+                th = np.where(qstep > 0, np.round(y / qdiv) * qdiv, y)
             theta[:, k] = th
             ctrl[:, 0, a] = np.clip(kp * (rmat[:, k] - th), -vmax, vmax)
             self._pool.rollout(batch_models, datas, x, ctrl, nstep=1, skip_checks=True,

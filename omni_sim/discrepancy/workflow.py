@@ -167,7 +167,8 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         timings["naming_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         if best_accepted is not None:
-            se, se_jk, se_jac = sel.uncertainty(spec, best_accepted, fit_runs, rep)
+            unc = sel.uncertainty(spec, best_accepted, fit_runs, rep)
+            se, bias = unc["se"], unc["measurement_bias"]
             cover = sel.coverage_factor(len(best_accepted.folds))
             theta_after = _heldout_theta(spec, best_accepted, rr, rep)
         else:
@@ -200,12 +201,15 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 "description": eff.description,
                 "parameters": {p.name: float(v) for p, v in zip(eff.params, x)},
                 "nominal": {p.name: float(v) for p, v in zip(eff.params, fx.nominal_values(eff, spec))},
-                "uncertainty": {p.name: float(cover * s) for p, s in zip(eff.params, se[sl])},
+                "uncertainty": {p.name: float(cover * s + abs(b))
+                                for p, s, b in zip(eff.params, se[sl], bias[sl])},
                 "uncertainty_kind": f"95 % half-width: {cover:.2f} x standard error (Student t, "
-                                    f"{len(best_accepted.folds) - 1} dof of the fold jackknife)",
+                                    f"{len(best_accepted.folds) - 1} dof of the fold jackknife) "
+                                    "+ |measurement bias|",
                 "standard_error": {p.name: float(s) for p, s in zip(eff.params, se[sl])},
-                "standard_error_jackknife": {p.name: float(s) for p, s in zip(eff.params, se_jk[sl])},
-                "standard_error_jacobian": {p.name: float(s) for p, s in zip(eff.params, se_jac[sl])},
+                **{f"standard_error_{kind}": {p.name: float(s) for p, s in zip(eff.params, unc[kind][sl])}
+                   for kind in ("jackknife", "jacobian", "measurement")},
+                "measurement_bias": {p.name: float(b) for p, b in zip(eff.params, bias[sl])},
                 "units": {p.name: p.unit for p in eff.params},
                 "share_of_round_gap": ent["share"],
                 "runner_up": ent["runner_up"],
