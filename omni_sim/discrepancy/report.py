@@ -165,14 +165,20 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
         for e in eff:
             for p, v in e["parameters"].items():
                 L.append(f"| {e['name']} | {p} [{e['units'][p]}] | {_fmt(e['nominal'][p], 4)} | {_fmt(v, 4)} | "
-                         f"{_fmt(e['uncertainty'][p], 2)} | {e['runner_up']} | {_fmt(e['margin'], 2)} | "
+                         f"{_fmt(e['uncertainty'][p], 2)} | {e['runner_up'] or '(without it)'} | {_fmt(e['margin'], 2)} | "
                          f"{e['confidence']} |")
         L.append("")
         for e in eff:
             if "separating_experiment" in e:
                 L += [f"*{e['name']} and {e['indistinguishable_from']} explain the data equally well.* "
                       f"To separate them: {e['separating_experiment']}.", ""]
-    if rep["unexplained"]:
+    if rep["unexplained"] and eff[0]["name"] == "none":
+        L += ["**The gap is unexplained**: it stands at "
+              f"{rep['gap_before'] / max(rep['noise_floor_rad'], 1e-300):.0f} x the measurement noise "
+              "floor, but no candidate of the library (alone or, when searched, in pairs) removes a "
+              "clear share of it. `none` here does NOT mean the model is fine: the data hold an effect "
+              "outside the library (or a combination it cannot fit). See where the gap sits below.", ""]
+    elif rep["unexplained"]:
         L += ["**Part of the gap is not explained by the library** (the remaining error stays well "
               "above the noise floor): the named effect is the nearest candidate, not necessarily the "
               "physical cause.", ""]

@@ -252,20 +252,113 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
                 f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
     scored.sort(key=lambda s: s.heldout_gap)
     for s in scored[:n_confirm]:
-        t0 = time.perf_counter()
-        prob = Problem(spec, [], s.effects, runs, rep)
-        s.fit = prob.fit(s.fit.x, None, max_nfev=20)  # converge the all-runs fit
-        s.fold_x = _onestep_folds(prob, s.fit, folds)
-        s.fold_x = _refit_folds(prob, s.fit, folds, s.fold_x)
-        s.heldout_raw = _heldout(prob, s.fold_x, folds)
-        s.heldout_gap = gap(s.heldout_raw)
-        s.share = 1 - s.heldout_gap / gap_start
-        s.method = "refit"
-        s.seconds += time.perf_counter() - t0
-        if log:
-            log(f"  {s.name:18s} refit  held-out gap {s.heldout_gap:.3e} rad (share {s.share:+.2f})")
+        _confirm(spec, s, runs, rep, folds, gap_start, log)
     confirmed = sorted(scored[:n_confirm], key=lambda s: s.heldout_gap)
     return confirmed + scored[n_confirm:]
+
+
+def _confirm(spec, s: Scored, runs, rep, folds, gap_start: float, log=None) -> None:
+    """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
+    t0 = time.perf_counter()
+    prob = Problem(spec, [], s.effects, runs, rep)
+    s.fit = prob.fit(s.fit.x, None, max_nfev=20)  # converge the all-runs fit
+    s.fold_x = _onestep_folds(prob, s.fit, folds)
+    s.fold_x = _refit_folds(prob, s.fit, folds, s.fold_x)
+    s.heldout_raw = _heldout(prob, s.fold_x, folds)
+    s.heldout_gap = gap(s.heldout_raw)
+    s.share = 1 - s.heldout_gap / gap_start
+    s.method = "refit"
+    s.seconds += time.perf_counter() - t0
+    if log:
+        log(f"  {s.name:18s} refit  held-out gap {s.heldout_gap:.3e} rad (share {s.share:+.2f})")
+
+
+#: Samples per run on which the pairs' starting grids are evaluated (a coarse start only).
+PAIR_GRID_SAMPLES = 700
+#: Pairs (best by their grid) fitted and screened; the best ``n_confirm`` of them confirmed.
+PAIR_FITS = 8
+#: Pairs are searched when the best single candidate removes less than this share of the gap.
+PAIR_SEARCH_SHARE = 0.5
+
+
+def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_start: float,
+                k: int = 5, n_confirm: int = 3, n_fit: int = PAIR_FITS,
+                grid_samples: int = PAIR_GRID_SAMPLES, candidates: tuple[str, ...] | None = None,
+                screen_nfev: int = 8, log=None) -> list[Scored]:
+    """Fit and score every *pair* of candidates jointly; best first.
+
+    Two effects can mask each other: a loop delay takes damping away, dry friction adds it, so
+    neither alone explains the data (fitted alone, the delay even stays at zero) while together
+    they explain it down to the noise.  One effect at a time, as :func:`score_round` adds them,
+    cannot find such a pair.  Here every pair starts from the best point of the product of the
+    two effects' grids (one batch per pair, on the first ``grid_samples`` samples of each run),
+    the ``n_fit`` best pairs are fitted on all runs and screened on held-out runs like the single
+    candidates, and the best ``n_confirm`` are confirmed with exact per-fold refits.
+    """
+    import itertools
+    names = candidates or fx.NAMES
+    folds = kfolds(runs, k)
+    grid_runs = [r.truncated(grid_samples) for r in runs]
+    starts = []
+    t0 = time.perf_counter()
+    for a, b in itertools.combinations(names, 2):
+        effects = [fx.get(a), fx.get(b)]
+        prob = Problem(spec, [], effects, grid_runs, rep)
+        ga = effects[0].grid(fx.nominal_values(effects[0], spec))
+        gb = effects[1].grid(fx.nominal_values(effects[1], spec))
+        x0 = np.concatenate([fx.nominal_values(e, spec) for e in effects])
+        pts = [np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
+                                       effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
+               for u in ga for v in gb] + [x0]
+        scores = [gap(raw) for raw in prob.simulate(pts)]
+        i = int(np.argmin(scores))
+        starts.append((scores[i], a, b, pts[i]))
+    starts.sort(key=lambda t: t[0])
+    if log:
+        log(f"  pair grids: {len(starts)} pairs in {time.perf_counter() - t0:.1f} s; best "
+            + ", ".join(f"{a}+{b} ({g:.2e})" for g, a, b, _ in starts[:n_fit]))
+    scored = []
+    for _, a, b, x0 in starts[:n_fit]:
+        t0 = time.perf_counter()
+        effects = [fx.get(a), fx.get(b)]
+        prob = Problem(spec, [], effects, runs, rep)
+        fit = prob.fit(x0, None, max_nfev=screen_nfev)
+        fold_x = _onestep_folds(prob, fit, folds)
+        raw = _heldout(prob, fold_x, folds)
+        g = gap(raw)
+        s = Scored(f"{a}+{b}", effects, fit, g, 1 - g / gap_start, "one-step", raw, fold_x, folds,
+                   time.perf_counter() - t0)
+        scored.append(s)
+        if log:
+            log(f"  {s.name:36s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
+                f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
+    scored.sort(key=lambda s: s.heldout_gap)
+    for s in scored[:n_confirm]:
+        _confirm(spec, s, runs, rep, folds, gap_start, log)
+    confirmed = sorted(scored[:n_confirm], key=lambda s: s.heldout_gap)
+    return confirmed + scored[n_confirm:]
+
+
+def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> list[tuple[str | None, float]]:
+    """For each member of the best pair: the best alternative for it and the margin.
+
+    The alternative is the best other scored pair that keeps the other member (the member
+    replaced by another candidate); without one, the other member alone (the member dropped,
+    runner-up ``None``).  Margin = ``1 - best gap / alternative's gap``.
+    """
+    names = [e.name for e in best.effects]
+    out = []
+    for m, other in ((names[0], names[1]), (names[1], names[0])):
+        alt = [p for p in pairs if p is not best and other in [e.name for e in p.effects]
+               and m not in [e.name for e in p.effects]]
+        if alt:
+            a = min(alt, key=lambda p: p.heldout_gap)
+            out.append(([e.name for e in a.effects if e.name != other][0], 1 - best.heldout_gap / a.heldout_gap))
+            continue
+        single = [s for s in singles if s.name == other]
+        g = single[0].heldout_gap if single else math.inf
+        out.append((None, 1 - best.heldout_gap / g if math.isfinite(g) else 1.0))
+    return out
 
 
 def uncertainty(spec, s: Scored, runs, rep) -> dict:

@@ -131,7 +131,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         noise = sel.noise_floor(res_before)
         log(f"gap before {gap_before:.3e} rad, noise floor {noise:.2e} rad, {len(rr)} runs, "
             f"{total} samples" + (f" (fits use the first {nfit} of each run)" if nfit else ""))
-        accepted, accepted_x, rounds, entries = [], np.zeros(0), [], []
+        accepted, accepted_x, rounds, entries, effect_entries = [], np.zeros(0), [], [], []
         gap_start = fit_before
         best_accepted = None
         t0 = time.perf_counter()
@@ -157,12 +157,48 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 entry["tie"] = True
                 entry["separating_experiment"] = sel.separating_experiment(best.name, runner.name)
             entries.append(entry)
+            if (rnd == 0 and max_effects >= 2 and best.share < sel.PAIR_SEARCH_SHARE
+                    and gap_start >= sel.REMAINDER_FACTOR * noise):
+                # no single effect explains most of the gap: effects that mask each other are
+                # only visible together, so every pair is fitted jointly too
+                log(f"round 1: the best single candidate removes only {best.share:.0%}: scoring pairs")
+                pairs = sel.score_pairs(spec, fit_runs, rep, gap_start, k=k, candidates=candidates,
+                                        log=log)
+                bp = pairs[0]
+                gain = 1 - bp.heldout_gap / best.heldout_gap
+                pair_ok = (bp.share >= sel.MIN_SHARE and gain >= sel.MIN_SHARE
+                           and gap_start >= sel.NOISE_FACTOR * noise)
+                entry["pair_search"] = {"best": bp.name, "share": bp.share,
+                                        "gain_over_best_single": gain, "accepted": bool(pair_ok)}
+                if pair_ok:
+                    rounds.append(pairs)
+                    entry["accepted"] = False
+                    for (eff, (ru, mg)) in zip(bp.effects, sel.pair_runner_up(bp, pairs, scored)):
+                        pe = {"round": 1, "pair": bp.name, "best": eff.name, "share": bp.share,
+                              "runner_up": ru, "runner_up_share": None, "margin": mg,
+                              "gap_start_rad": gap_start, "gap_heldout_rad": bp.heldout_gap,
+                              "accepted": True}
+                        if ru is None:
+                            pe["runner_up_note"] = ("no other scored pair keeps the other member; "
+                                                    "margin is against the other member alone")
+                        if ru is not None and mg < sel.TIE_MARGIN:
+                            pe["tie"] = True
+                            pe["separating_experiment"] = sel.separating_experiment(eff.name, ru)
+                        entries.append(pe)
+                        effect_entries.append(pe)
+                    log(f"round 1: accepted the pair {bp.name} (removes {bp.share:.0%}; "
+                        f"{gain:.0%} of what the best single candidate leaves)")
+                    accepted, accepted_x, best_accepted = bp.effects, bp.fit.x, bp
+                    break
+                log(f"round 1: best pair {bp.name} removes {bp.share:.0%} ({gain:.0%} of what the best "
+                    "single leaves): not accepted")
             if not ok:
                 log(f"round {rnd + 1}: best {best.name} removes {best.share:.0%} of the gap: not accepted")
                 break
             log(f"round {rnd + 1}: accepted {best.name} (removes {best.share:.0%}; runner-up "
                 f"{entry['runner_up']}, margin {margin:.2f})")
             accepted, accepted_x, best_accepted = best.effects, best.fit.x, best
+            effect_entries.append(entry)
             gap_start = best.heldout_gap
         timings["naming_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -186,14 +222,20 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         effects_out.append({"name": "none", "parameters": {}, "uncertainty": {},
                             "best_candidate": e0["best"], "best_share": e0["share"],
                             "runner_up": e0["runner_up"], "margin": e0["margin"],
-                            "reason": ("no candidate removes a clear share of the held-out gap"
-                                       if gap_before >= sel.NOISE_FACTOR * noise else
-                                       "the gap is at the measurement noise floor")})
+                            "reason": (
+                                f"no library candidate removes a clear share of the held-out gap, "
+                                f"which stands at {gap_before / max(noise, 1e-300):.0f} x the noise "
+                                "floor: the gap is UNEXPLAINED (an effect outside the library, or "
+                                "several), the model is not confirmed"
+                                if gap_before >= sel.REMAINDER_FACTOR * noise else
+                                "no candidate removes a clear share of the held-out gap"
+                                if gap_before >= sel.NOISE_FACTOR * noise else
+                                "the gap is at the measurement noise floor")})
         patched = spec.copy()
     else:
         i = 0
         for n_acc, (eff, x) in enumerate(_split(best_accepted.effects, best_accepted.fit.x)):
-            ent = entries[n_acc]
+            ent = effect_entries[n_acc]
             sl = slice(i, i + eff.nparam)
             i += eff.nparam
             item = {
@@ -213,6 +255,9 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 "units": {p.name: p.unit for p in eff.params},
                 "share_of_round_gap": ent["share"],
                 "runner_up": ent["runner_up"],
+                **({"runner_up_note": ent["runner_up_note"]} if "runner_up_note" in ent else {}),
+                **({"fitted_jointly_with": [n for n in ent["pair"].split("+") if n != eff.name]}
+                   if "pair" in ent else {}),
                 "runner_up_share": ent["runner_up_share"],
                 "margin": ent["margin"],
                 "confidence": _confidence(ent["share"], ent["margin"],
@@ -235,8 +280,10 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         "shrink_factor": gap_before / gap_after if gap_after > 0 else float("inf"),
         "noise_floor_rad": noise,
         "unexplained_share": unexplained,
-        "unexplained": bool(best_accepted is not None and (unexplained > sel.UNEXPLAINED_SHARE
-                                                           or gap_after > sel.REMAINDER_FACTOR * noise)),
+        # True whenever the gap left (after the named effects, or with none named) stands well
+        # above the noise floor: the library does not explain the data
+        "unexplained": bool((best_accepted is not None and unexplained > sel.UNEXPLAINED_SHARE)
+                            or gap_after > sel.REMAINDER_FACTOR * noise),
         "rounds": entries,
         "candidates": [[{"name": s.name, "heldout_gap_rad": s.heldout_gap, "share": s.share,
                          "method": s.method,
