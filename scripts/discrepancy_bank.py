@@ -68,9 +68,13 @@ def main(argv=None) -> int:
         f"{', '.join(str(p) for p in bank.BANK_POSES)} deg) through `omni_sim.experiments.simulate`'s "
         f"reference loop, encoder quantised to 15000 counts/rev plus {bank.BANK_NOISE_RAD:g} rad white "
         "noise that the controller sees. The workflow sees only these runs and the nominal model.", "",
-        "Gaps are held-out RMS replay errors [rad]; ± is the reported 95 % uncertainty (the root-sum-"
-        "square of the jackknife over folds and the Jacobian estimate with the residual correlation "
-        "time, times the Student-t factor of the k-fold jackknife). Pass: the hidden effect is named, every parameter within ±, gap shrinks >= 3x; null case: "
+        "Gaps are held-out RMS replay errors [rad]; ± is the reported 95 % uncertainty: the Student-t "
+        "factor of the k-fold jackknife times the root-sum-square of three standard errors (the "
+        "jackknife over folds, the Jacobian estimate with the residual correlation time, and the "
+        "measurement process -- quantised, noisy encoder in the device's loop and a measured start -- "
+        "propagated through the closed loop by a parametric bootstrap), plus the bootstrap's mean "
+        "shift. When no single candidate removes half of a gap far above the noise, every pair is "
+        "also fitted jointly (effects that mask each other, like a delay and friction). Pass: the hidden effect is named, every parameter within ±, gap shrinks >= 3x; null case: "
         "`none`; outside-library cases: `none` or the nearest candidate with low confidence.", "",
         "| hidden | named | truth | fitted ± 95 % | gap before | gap after | shrink | runner-up | margin | "
         "confidence | result | s |",
