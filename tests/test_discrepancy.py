@@ -82,6 +82,42 @@ def test_fast_hidden_cases(case_name):
     assert ok, (why, [e["name"] for e in rep["effects"]], rep["effects"])
 
 
+def _one_pose_exps():
+    return bank.bank_experiments(poses=((65.0, 90.0),), frequencies_hz=(1.5, 3.5),
+                                 amplitudes_rad=(0.04, 0.15), step_amplitudes_rad=(0.05, 0.2),
+                                 duration_s=1.2)
+
+
+def test_fast_masking_pair():
+    """Delay + friction mask each other (neither alone explains the gap): the joint pair search
+    names both (candidates restricted to keep the test fast)."""
+    hidden = bank.case("delay+friction")
+    runs = bank.generate(hidden, _one_pose_exps())
+    rep = run_discrepancy(runs, None, k=5,
+                          candidates=("coulomb_friction", "time_delay")).report
+    assert sorted(e["name"] for e in rep["effects"]) == ["coulomb_friction", "time_delay"], rep["rounds"]
+    assert rep["shrink_factor"] > 3
+    for e in rep["effects"]:
+        assert {"name", "parameters", "uncertainty", "runner_up", "margin"} <= set(e)
+
+
+def test_fast_unexplained_gap_is_flagged(tmp_path):
+    """An effect outside the (here restricted) library leaves a large gap: ``none`` is named and
+    report.json/report.md say the gap is unexplained, not that the model is fine."""
+    from omni_sim.discrepancy import report as rp
+    hidden = bank.case("cogging")
+    runs = bank.generate(hidden, _one_pose_exps())
+    out = run_discrepancy(runs, None, k=5, max_effects=1,
+                          candidates=("viscous_damping", "armature", "time_delay"))
+    rep = out.report
+    assert [e["name"] for e in rep["effects"]] == ["none"]
+    assert rep["unexplained"] is True and "UNEXPLAINED" in rep["effects"][0]["reason"]
+    rp.write(out, tmp_path)
+    md = (tmp_path / "report.md").read_text()
+    assert "The gap is unexplained" in md
+    assert json.loads((tmp_path / "report.json").read_text())["unexplained"] is True
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("case_name", [c.name for c in bank.CASES])
 def test_bank(case_name):
