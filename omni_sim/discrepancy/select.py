@@ -241,15 +241,27 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
         prob = Problem(spec, [], effects, runs, rep)
         x0 = np.concatenate([np.asarray(accepted_x, float), fx.nominal_values(eff, spec)])
         fit = prob.fit(x0, grid_effect_index=len(effects) - 1, max_nfev=screen_nfev)
-        fold_x = _onestep_folds(prob, fit, folds)
-        raw = _heldout(prob, fold_x, folds)
-        g = gap(raw)
-        s = Scored(name, effects, fit, g, 1 - g / gap_start, "one-step", raw, fold_x, folds,
-                   time.perf_counter() - t0)
-        scored.append(s)
-        if log:
-            log(f"  {name:18s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
-                f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
+        scored.append(_screened(name, effects, prob, fit, folds, gap_start, t0, log, width=18))
+    return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
+
+
+def _screened(name: str, effects, prob, fit, folds, gap_start: float, t0: float, log=None,
+              width: int = 18) -> Scored:
+    """Score an all-runs fit on held-out runs with one Gauss-Newton step per fold."""
+    fold_x = _onestep_folds(prob, fit, folds)
+    raw = _heldout(prob, fold_x, folds)
+    g = gap(raw)
+    s = Scored(name, effects, fit, g, 1 - g / gap_start, "one-step", raw, fold_x, folds,
+               time.perf_counter() - t0)
+    if log:
+        log(f"  {name:{width}s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
+            f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
+    return s
+
+
+def _confirm_best(scored: list[Scored], n_confirm: int, spec, runs, rep, folds, gap_start: float,
+                  log=None) -> list[Scored]:
+    """Confirm the ``n_confirm`` best screened candidates with exact refits; best first."""
     scored.sort(key=lambda s: s.heldout_gap)
     for s in scored[:n_confirm]:
         _confirm(spec, s, runs, rep, folds, gap_start, log)
@@ -323,20 +335,8 @@ def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_s
         effects = [fx.get(a), fx.get(b)]
         prob = Problem(spec, [], effects, runs, rep)
         fit = prob.fit(x0, None, max_nfev=screen_nfev)
-        fold_x = _onestep_folds(prob, fit, folds)
-        raw = _heldout(prob, fold_x, folds)
-        g = gap(raw)
-        s = Scored(f"{a}+{b}", effects, fit, g, 1 - g / gap_start, "one-step", raw, fold_x, folds,
-                   time.perf_counter() - t0)
-        scored.append(s)
-        if log:
-            log(f"  {s.name:36s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
-                f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
-    scored.sort(key=lambda s: s.heldout_gap)
-    for s in scored[:n_confirm]:
-        _confirm(spec, s, runs, rep, folds, gap_start, log)
-    confirmed = sorted(scored[:n_confirm], key=lambda s: s.heldout_gap)
-    return confirmed + scored[n_confirm:]
+        scored.append(_screened(f"{a}+{b}", effects, prob, fit, folds, gap_start, t0, log, width=36))
+    return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
 
 
 def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> list[tuple[str | None, float]]:
