@@ -10,7 +10,8 @@ on the virtual Omni and matching what it reports, so the testbed stands in for t
   (interpolated over log alpha among the frequencies up to resonance; scale 20 %; a run with
   scale 5 % is reported in the README: it cannot be met together with Table 3).
 
-Free parameters (bounds from ``../shared`` facts or physics, see :data:`PARAMETERS`): the three
+Free parameters (bounds from the device estimates in models/README.md or physics, see
+:data:`PARAMETERS`): the three
 link masses, the turret's yaw inertia, the yaw viscous damping and Coulomb friction, the arm
 servo gains, and the sine amplitude A_r the paper did not state.  Fixed, with reasons: the
 torque constant beta_bar (the paper's data fix only ratios I/beta_bar, c/beta_bar, Fc/beta_bar;
