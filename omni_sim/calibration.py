@@ -70,7 +70,7 @@ PARAMETERS = (
               "the yoke's bearings weighs at least ~15 g (estimate)"),
     Parameter("I_turret", "kg m^2", 1e-5, 3e-3, "turret + motors about the yaw axis"),
     Parameter("yaw_damping", "N m s/rad", 0.0, 0.05, "viscous + back-EMF damping"),
-    Parameter("yaw_frictionloss", "N m", 0.0, 0.035, "Coulomb; < 35 mN m back-drive bound (facts)"),
+    Parameter("yaw_frictionloss", "N m", 0.0, 0.035, "Coulomb; < 35 mN m back-drive bound (models/README.md)"),
     Parameter("shoulder_kp", "N m/rad", 0.2, 20.0, "arm P servo gain"),
     Parameter("elbow_kp", "N m/rad", 0.2, 20.0, "arm P servo gain"),
     Parameter("sine_amplitude_rad", "rad", 0.03, 0.3, "A_r, not stated in the paper"),

@@ -56,9 +56,9 @@ STEP_DURATION_S = 8.0
 #: then record whole cycles lasting at least SINE_RECORD_S [s] (>= 6 cycles at 1.5 Hz).
 SINE_SETTLE_S = 2.0
 SINE_RECORD_S = 4.0
-#: The Omni's servo period [s] (1 kHz, facts).
+#: The Omni's servo period [s] (1 kHz, models/README.md).
 CONTROL_PERIOD_S = 1e-3
-#: Encoder resolution [rad]: 15000 counts per revolution (facts).
+#: Encoder resolution [rad]: 15000 counts per revolution (models/README.md).
 ENCODER_STEP_RAD = 2 * math.pi / 15000
 CAMPAIGNS = ("paper", "sine", "step")
 

@@ -104,7 +104,7 @@ def test_yaw_inertia_matches_analytic_5(model):
 def test_yaw_inertia_public_signature():
     a = omni_sim.yaw_inertia(65.0, 90.0)
     b = omni_sim.yaw_inertia(65.0, 90.0, model_path=om.DEFAULT_SCENE)
-    assert a == b and 1e-3 < a < 3e-3  # facts: 1-3e-3 kg*m^2
+    assert a == b and 1e-3 < a < 3e-3  # estimate in models/README.md: 1-3e-3 kg*m^2
 
 
 def test_arm_sags_below_set_points(model):
