@@ -143,6 +143,14 @@ def simulate_runs(runs: list[Run], params: Params) -> dict[str, dict]:
     return out
 
 
+def _pose_key(run: Run) -> tuple[float, float]:
+    """Set points [deg] when the metadata has them (they are optional), else actual angles."""
+    g1, g2 = run.meta.get("gamma1_set_deg"), run.meta.get("gamma2_set_deg")
+    if g1 is None or g2 is None:
+        g1, g2 = run.gamma1_deg, run.gamma2_deg
+    return round(float(g1), 2), round(float(g2), 2)
+
+
 def _fundamental(run: Run, theta: np.ndarray) -> tuple[float, float]:
     sim = Run(run.name, run.t, run.r, theta, run.v, run.meta)
     f = fit_run(sim)
@@ -155,9 +163,7 @@ def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict
     by_pose: dict = {}
     for run in runs:
         if run.kind == "sine":
-            key = (round(run.meta.get("gamma1_set_deg", run.gamma1_deg), 2),
-                   round(run.meta.get("gamma2_set_deg", run.gamma2_deg), 2))
-            by_pose.setdefault(key, []).append(run)
+            by_pose.setdefault(_pose_key(run), []).append(run)
     for key, group in sorted(by_pose.items()):
         group.sort(key=lambda r: r.frequency_hz)
         data = [_fundamental(r, r.theta) for r in group]

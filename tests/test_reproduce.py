@@ -94,3 +94,21 @@ def test_validate_errors(reproduced, tmp_path, case):
     assert res.returncode == 2, res.stderr
     assert res.stderr.startswith("error:") and len(res.stderr.splitlines()) == 1
     assert not (tmp_path / "v").exists()
+
+
+def test_validate_real_device_like_runs(reproduced, tmp_path):
+    """Hand-written runs with only the contract's required keys (set points absent or null)."""
+    data = tmp_path / "device"
+    data.mkdir()
+    for i, name in enumerate(("sine_g65_090_f2p00", "sine_g65_090_f3p00", "step_g65_090")):
+        (data / f"{name}.csv").write_bytes((reproduced / "dataset" / f"{name}.csv").read_bytes())
+        meta = json.loads((reproduced / "dataset" / f"{name}.json").read_text())
+        keep = {k: meta[k] for k in ("kind", "gamma1_deg", "gamma2_deg", "kp", "frequency_hz",
+                                     "amplitude_rad")}
+        if i == 0:
+            keep["gamma1_set_deg"] = None
+        (data / f"{name}.json").write_text(json.dumps(keep))
+    out = tmp_path / "v"
+    assert main(["validate", str(data), "--params", str(reproduced / "params.json"), "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["step"]["n_poses"] == 1 and s["sine"]["n_poses"] == 1
