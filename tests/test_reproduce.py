@@ -100,11 +100,14 @@ def test_validate_real_device_like_runs(reproduced, tmp_path):
     """Hand-written runs with only the contract's required keys (set points absent or null)."""
     data = tmp_path / "device"
     data.mkdir()
+    pose = None  # one pose, its actual angles written once for all runs, as a user would
     for i, name in enumerate(("sine_g65_090_f2p00", "sine_g65_090_f3p00", "step_g65_090")):
         (data / f"{name}.csv").write_bytes((reproduced / "dataset" / f"{name}.csv").read_bytes())
         meta = json.loads((reproduced / "dataset" / f"{name}.json").read_text())
         keep = {k: meta[k] for k in ("kind", "gamma1_deg", "gamma2_deg", "kp", "frequency_hz",
                                      "amplitude_rad")}
+        pose = pose or (keep["gamma1_deg"], keep["gamma2_deg"])
+        keep["gamma1_deg"], keep["gamma2_deg"] = pose
         if i == 0:
             keep["gamma1_set_deg"] = None
         (data / f"{name}.json").write_text(json.dumps(keep))
