@@ -34,7 +34,6 @@ from typing import Mapping, Sequence
 import numpy as np
 
 __all__ = [
-    "fit_fundamental",
     "magnitude_phase",
     "wrap_deg",
     "sine_errors",
@@ -49,31 +48,6 @@ __all__ = [
 
 #: Labels of the two step-scoring windows.
 STEP_WINDOWS = ("whole_record", "after_edges")
-
-
-def fit_fundamental(t, y, frequency_hz, offset=False):
-    """Least-squares fundamental (15) of a steady-state record: y ≈ A1·cos ωt + A2·sin ωt.
-
-    Parameters
-    ----------
-    t : array_like [s]
-        Sample times of the steady-state part (select it before calling).
-    y : array_like [rad]
-    frequency_hz : float [Hz]
-        ω = 2π·frequency_hz.
-    offset : bool
-        Also fit a constant (returned third); (15) has none.
-
-    Returns
-    -------
-    A1, A2 : float [rad]
-        (and the offset [rad] if ``offset``)
-    """
-    t = np.asarray(t, dtype=float)
-    w = 2.0 * np.pi * frequency_hz
-    cols = [np.cos(w * t), np.sin(w * t)] + ([np.ones_like(t)] if offset else [])
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols), np.asarray(y, dtype=float), rcond=None)
-    return tuple(float(c) for c in coef)
 
 
 def wrap_deg(x):

@@ -6,7 +6,6 @@ import pytest
 from identification.scoring import (
     abs_error_stats,
     edge_times,
-    fit_fundamental,
     magnitude_phase,
     sine_errors,
     sine_pose_scores,
@@ -20,16 +19,6 @@ from identification.scoring import (
 def test_wrap_deg_half_open_interval():
     np.testing.assert_allclose(wrap_deg([0, 180, -180, 190, -190, 540, 359, -360]),
                                [0, 180, 180, -170, 170, 180, -1, 0])
-
-
-def test_fit_fundamental_recovers_coefficients():
-    t = np.arange(0, 2, 1e-3)
-    w = 2 * np.pi * 2.5
-    y = 0.03 * np.cos(w * t) - 0.02 * np.sin(w * t)
-    A1, A2 = fit_fundamental(t, y, 2.5)
-    assert A1 == pytest.approx(0.03, abs=1e-12) and A2 == pytest.approx(-0.02, abs=1e-12)
-    A1, A2, c = fit_fundamental(t, y + 0.005, 2.5, offset=True)
-    assert c == pytest.approx(0.005, abs=1e-12)
 
 
 def test_magnitude_phase_polar_form_16():

@@ -219,7 +219,7 @@ def test_sine_steady_state_is_a_fixed_point_of_the_model():
     (it is −0.97 1/s at 7 Hz for dt = 1 ms, so 0.2 ms steps keep the residual small).
     """
     from identification.alpha import alpha_sine
-    from identification.scoring import fit_fundamental
+    from identification.sine_fit import fit_sine
 
     model, I, Ar, dt = paper_alpha_model(), 1 / 229.0, 0.05, 2e-4
     fs = np.array([1.5, 3.5, 7.0])
@@ -232,7 +232,8 @@ def test_sine_steady_state_is_a_fixed_point_of_the_model():
     last = slice(-int(round(1.0 / dt)), None)  # the last second: whole cycles of every f
     for j, f in enumerate(fs):
         wj = 2 * np.pi * f
-        A1, A2 = fit_fundamental(t[last], res.theta[j, last], f)
+        fit = fit_sine(t[last], res.theta[j, last], f)
+        A1, A2 = fit.A1, fit.A2
         den = A1**2 + A2 * (A2 - Ar)
         C_data = -wj * Ar * A1 / den + wj**2 * dt / 2                     # (19) + ZOH term
         beta_tilde_data = wj**2 * (A1**2 + A2**2) / den / KP                # (20) / kp
