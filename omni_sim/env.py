@@ -206,7 +206,8 @@ class OmniYawEnv(gym.Env):
         Initial yaw angle, at rest (default as the generator: ``-A`` for the square wave, ``r[0]``
         for an array, else 0).
     friction_scale : float
-        Factor (>= 0) on the yaw joint's ``frictionloss`` and ``damping`` of the model file.
+        Factor (>= 0) on the yaw drive's dry friction (``frictionloss`` and the LuGre levels,
+        :func:`omni_sim.model.scale_yaw_friction`) and viscous ``damping`` of the model file.
     quantize : bool
         Quantise the measured yaw to the encoder's 15000 counts/rev
         (:data:`omni_sim.experiments.ENCODER_STEP_RAD`) as the generator does.
@@ -260,7 +261,7 @@ class OmniYawEnv(gym.Env):
         yaw_j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, "yaw")
         self._yaw_range = (tuple(float(x) for x in self.model.jnt_range[yaw_j])
                            if self.model.jnt_limited[yaw_j] else (-math.pi, math.pi))
-        self._yaw_friction0 = float(self.model.dof_frictionloss[self._ix.yaw_dof])
+        self._model0 = om.load_model(model_path)  # friction levels of the model file
         self._yaw_damping0 = float(self.model.dof_damping[self._ix.yaw_dof])
 
         vlim = np.float32(self.voltage_limit)
@@ -433,7 +434,7 @@ class OmniYawEnv(gym.Env):
         o = self._merge(self._defaults, options) if options else self._defaults
         self._opt = o
         m, d, ix = self.model, self.data, self._ix
-        m.dof_frictionloss[ix.yaw_dof] = self._yaw_friction0 * o.friction_scale
+        om.scale_yaw_friction(m, o.friction_scale, base=self._model0)
         m.dof_damping[ix.yaw_dof] = self._yaw_damping0 * o.friction_scale
 
         self._r, theta0 = self._build_reference(o)

@@ -81,6 +81,12 @@ def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>") -> OmniInd
     if model.actuator_trntype[aid] != mujoco.mjtTrn.mjTRN_JOINT or model.actuator_trnid[aid, 0] != jid["yaw"]:
         raise UserError(f"{path}: actuator {YAW_ACTUATOR!r} must act on joint 'yaw'")
     arm = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in ARM_ACTUATORS]
+    # the code indexes data.ctrl by actuator id: true while passive (input="none") actuators,
+    # which take no control, come after the controlled ones
+    ctrladr = getattr(model, "actuator_ctrladr", None)
+    if ctrladr is not None and any(a >= 0 and ctrladr[a] != a for a in (aid, *arm)):
+        raise UserError(f"{path}: passive actuators must come after {YAW_ACTUATOR!r} and the arm "
+                        "servos in <actuator> (their control index must equal their actuator index)")
     return OmniIndex(
         yaw_qpos=int(model.jnt_qposadr[jid["yaw"]]),
         yaw_dof=int(model.jnt_dofadr[jid["yaw"]]),
@@ -90,6 +96,48 @@ def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>") -> OmniInd
         shoulder_act=int(arm[0]) if arm[0] >= 0 else None,
         elbow_act=int(arm[1]) if arm[1] >= 0 else None,
     )
+
+
+def lugre_actuators(model: mujoco.MjModel) -> list[int]:
+    """Ids of the passive LuGre friction actuators (``dcmotor`` bias) on the yaw joint."""
+    yaw = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "yaw")
+    return [a for a in range(model.nactuator)
+            if model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_DCMOTOR
+            and model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+            and model.actuator_trnid[a, 0] == yaw]
+
+
+def yaw_friction(model: mujoco.MjModel) -> dict:
+    """The yaw drive's dry friction: ``frictionloss`` [N*m] (hard stick) and the LuGre
+    actuators' ``lugre_sigma0`` [N*m/rad], ``lugre_Fc``, ``lugre_Fs`` [N*m] (summed levels;
+    stiffness of the first)."""
+    ix = index(model)
+    acts = lugre_actuators(model)
+    return {
+        "frictionloss": float(model.dof_frictionloss[ix.yaw_dof]),
+        "lugre_sigma0": float(model.actuator_dynprm[acts[0], 5]) if acts else 0.0,
+        "lugre_Fc": float(sum(model.actuator_biasprm[a, 3] for a in acts)),
+        "lugre_Fs": float(sum(model.actuator_biasprm[a, 4] for a in acts)),
+    }
+
+
+def scale_yaw_friction(model: mujoco.MjModel, factor: float, base: mujoco.MjModel | None = None) -> None:
+    """Set the yaw drive's dry-friction levels (``frictionloss`` and LuGre Fc, Fs) to
+    ``factor`` times those of ``base`` (default: ``model`` itself), in place."""
+    base = model if base is None else base
+    ix = index(model)
+    model.dof_frictionloss[ix.yaw_dof] = factor * base.dof_frictionloss[ix.yaw_dof]
+    for a in lugre_actuators(model):
+        model.actuator_biasprm[a, 3:5] = factor * base.actuator_biasprm[a, 3:5]
+
+
+def without_friction(model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy of ``model`` with no dry friction on the yaw axis (viscous damping kept)."""
+    import copy
+
+    m = copy.deepcopy(model)
+    scale_yaw_friction(m, 0.0)
+    return m
 
 
 def torque_constant(model: mujoco.MjModel) -> float:

@@ -35,7 +35,8 @@ def yaw_dynamics(model: mujoco.MjModel, gamma1_deg: float, gamma2_deg: float) ->
     -------
     dict
         ``inertia`` [kg*m^2] (mass matrix, armature included), ``damping`` c [N*m*s/rad],
-        ``frictionloss`` [N*m], ``beta_bar`` [N*m/V], ``C`` = c/I [1/s],
+        ``frictionloss`` [N*m], ``lugre_sigma0`` [N*m/rad], ``lugre_Fc``, ``lugre_Fs`` [N*m]
+        (:func:`omni_sim.model.yaw_friction`), ``beta_bar`` [N*m/V], ``C`` = c/I [1/s],
         ``beta_tilde`` = beta_bar/I [rad/(V*s^2)], ``I_paper`` = I/beta_bar (the paper's units).
     """
     ix = om.index(model)
@@ -45,7 +46,7 @@ def yaw_dynamics(model: mujoco.MjModel, gamma1_deg: float, gamma2_deg: float) ->
     return {
         "inertia": inertia,
         "damping": damping,
-        "frictionloss": float(model.dof_frictionloss[ix.yaw_dof]),
+        **om.yaw_friction(model),
         "beta_bar": beta_bar,
         "C": damping / inertia,
         "beta_tilde": beta_bar / inertia,

@@ -119,12 +119,13 @@ def test_reset_restores_full_state():
     s0 = state()
     _random_rollout(env, seed=3, n=200)
     _random_rollout(env, seed=4, n=100, options={"friction_scale": 0.0, "gamma1_set_deg": 25.0})
-    assert env.model.dof_frictionloss[om.index(env.model).yaw_dof] == 0.0
+    assert om.yaw_friction(env.model) == {**om.yaw_friction(om.load_model()), "frictionloss": 0.0,
+                                          "lugre_Fc": 0.0, "lugre_Fs": 0.0}
     obs1, _ = env.reset(seed=3)
     np.testing.assert_array_equal(state(), s0)
     np.testing.assert_array_equal(obs0, obs1)
     # per-episode options do not leak into the next episode
-    assert env.model.dof_frictionloss[om.index(env.model).yaw_dof] == om.load_model().dof_frictionloss[0]
+    assert om.yaw_friction(env.model) == om.yaw_friction(om.load_model())
 
 
 @pytest.mark.parametrize("bang_bang", [False, True], ids=["random", "bang-bang"])
@@ -240,7 +241,10 @@ def test_friction_scale_and_pose_options():
     base = om.load_model()
     ix = om.index(base)
     obs, _ = env.reset(seed=0)
-    assert env.model.dof_frictionloss[ix.yaw_dof] == 2.0 * base.dof_frictionloss[ix.yaw_dof]
+    f, f0 = om.yaw_friction(env.model), om.yaw_friction(base)
+    for k in ("frictionloss", "lugre_Fc", "lugre_Fs"):
+        assert f[k] == 2.0 * f0[k], k
+    assert f["lugre_sigma0"] == f0["lugre_sigma0"]
     assert env.model.dof_damping[ix.yaw_dof] == 2.0 * base.dof_damping[ix.yaw_dof]
     g1, g2 = om.equilibrium_pose(base, 25.0, 115.0)
     assert obs[3] == pytest.approx(math.radians(g1), abs=1e-12)
