@@ -46,7 +46,7 @@ KP_DEFAULT = 2.0
 #: Sine reference amplitude A_r [rad].  Not stated in the paper; 0.1 rad puts the alpha-invariant
 #: (36) of a linear model with Table 9's coefficients at ~2 at 2 Hz and ~200 near resonance,
 #: the range of Table 7's breakpoints (0, 2.2, 25, 250).  Calibrated in scripts/calibrate.py.
-SINE_AMPLITUDE_RAD = 0.04969
+SINE_AMPLITUDE_RAD = 0.0498256
 #: Section 2.4.3: square wave 0.25 Hz, 0.07 rad, from theta = -0.07 rad at rest.
 STEP_FREQUENCY_HZ = 0.25
 STEP_AMPLITUDE_RAD = 0.07
