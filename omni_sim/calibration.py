@@ -459,7 +459,7 @@ def plot_record(record: dict, folder: Path) -> list[Path]:
     axes[0].set(xlabel="alpha [V^2/s^2]", ylabel="C [1/s]", title="damping vs alpha at 65/90")
     axes[1].plot(d["frequency_hz"], d["alpha"], "o-")
     axes[1].set(xlabel="frequency [Hz]", ylabel="alpha [V^2/s^2]", yscale="log",
-                title="alpha vs frequency at 65/90 (paper Fig. 8: rises to resonance, then falls)")
+                title="alpha vs frequency at 65/90\n(paper Fig. 8: rises to resonance, then falls)")
     for ax in axes:
         ax.grid(alpha=0.3, which="both")
     axes[0].legend(fontsize=8)

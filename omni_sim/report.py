@@ -67,8 +67,9 @@ def format_report(res: dict) -> str:
 
     lines += ["## Global linear model per pose (Table 3) and its truth", "",
               "C_true = c/I and beta_true = kp beta_bar / I are the model's continuous values without "
-              "friction; the identified values absorb the Coulomb friction (its describing-function "
-              "damping and the stick dead band), which is what the paper's method sees on a real device.", "",
+              "dry friction; the identified values absorb the dry friction (its describing-function "
+              "damping, and the stiffness of pre-sliding or the dead band of a hard stick), which is "
+              "what the paper's method sees on a real device.", "",
               "| set pose | actual [deg] | C_linear [1/s] | C_true | beta_linear [1/s^2] | beta_true | "
               "paper C_linear | paper beta~_linear x kp |", "|---|---|---|---|---|---|---|---|"]
     paper = {(int(r["gamma1_set_deg"]), int(r["gamma2_set_deg"])): r
