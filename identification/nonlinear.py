@@ -21,8 +21,8 @@ Outside [α0, α3]
 β̃ outside [ᾱ0, ᾱ1]
     (41) is a straight line through (ᾱ0, β̃0), (ᾱ1, β̃1).  By default (``beta_clamp=True``)
     β̃ is held at its end values outside [ᾱ0, ᾱ1], as C is outside [α0, α3]: the model does
-    not extrapolate beyond the α range it was given.  Measured on the first (hard-stick) virtual Omni's paper
-    campaign: with the line extrapolated, β̃ rose with α without bound, the simulated sine
+    not extrapolate beyond the α range it was given.  Measured on the first (hard-stick)
+    virtual Omni's paper campaign: with the line extrapolated, β̃ rose with α without bound, the simulated sine
     response near resonance jumped to the upper (resonant) branch and stayed there above
     resonance, and the sine-sweep phase p90 error was 43.9 deg; clamped, 17.9 deg (the global
     linear model: 14.2 deg).  ``beta_clamp=False`` gives the line; a falling line would reach
