@@ -139,6 +139,7 @@ def simulate_runs(runs: list[Run], params: Params) -> dict[str, dict]:
             for j, run in enumerate(np.array(group, dtype=object)[sel]):
                 out[run.name] = {"theta_linear": lin.theta[j], "theta_alpha": alp.theta[j],
                                  "n_not_converged": int(alp.n_not_converged[j]),
+                                 "n_bracketed": int(alp.n_bracketed[j]),
                                  "I": float(I[sel][j])}
     return out
 
@@ -212,7 +213,9 @@ def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict
         }
     n_bad = sum(p["n_not_converged"] for p in predictions.values())
     n_steps = sum(len(r.t) for r in runs)
-    summary["alpha_simulation"] = {"steps": n_steps, "steps_not_converged": n_bad}
+    n_brk = sum(p.get("n_bracketed", 0) for p in predictions.values())
+    summary["alpha_simulation"] = {"steps": n_steps, "steps_not_converged": n_bad,
+                                   "steps_solved_by_bisection": n_brk}
     return {"summary": summary, "sine": sine_rows, "step": step_rows}
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from identification.simulate import DEFAULT_MAX_ITER
 
 from .reproduce import PAPER_STEP_RATIO, _read_csv
 
@@ -49,7 +50,11 @@ def format_report(res: dict) -> str:
               f"{sn['phase_p90_linear_deg']:.1f} -> {sn['phase_p90_alpha_deg']:.1f} deg | "
               f"{_met(sn['phase_p90_alpha_deg'] <= 0.5 * sn['phase_p90_linear_deg'])} |",
               f"| quasilinear iteration converges | {s['alpha_simulation']['steps_not_converged']} of "
-              f"{s['alpha_simulation']['steps']} steps did not | "
+              f"{s['alpha_simulation']['steps']} steps did not "
+              f"({s['alpha_simulation'].get('steps_solved_by_bisection', 0)} more did not meet (46) "
+              f"within {DEFAULT_MAX_ITER} iterations, cycling or creeping, and were solved by a bracketed "
+              "bisection: "
+              "identification/simulate.py) | "
               f"{_met(s['alpha_simulation']['steps_not_converged'] == 0)} |", ""]
 
     lines += ["## Ground truth: inertia", "",
