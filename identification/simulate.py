@@ -287,10 +287,14 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
     not_conv = np.zeros(R, dtype=np.int64)
     bracketed = np.zeros(R, dtype=np.int64)
 
+    def coefficients(a, inv_i):
+        """C(α), β̃(α) of the model for inertia 1/inv_i."""
+        return (np.interp(a, breaks, c_inv) * inv_i,
+                np.maximum(b0 + b_slope * (np.clip(a, a_lo, a_hi) - a0), b_floor) * inv_i)
+
     def g(a, v, vd2, kr, ph, inv_i):
         """One application of (44) with Φ̇ from C(α), β̃(α): the map α -> α^(i+1)."""
-        Ca = np.interp(a, breaks, c_inv) * inv_i
-        ba = np.maximum(b0 + b_slope * (np.clip(a, a_lo, a_hi) - a0), b_floor) * inv_i
+        Ca, ba = coefficients(a, inv_i)
         return vd2 - v * (kr - kp * (ba * v - Ca * ph))
 
     for k in range(n):
@@ -307,7 +311,7 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
         hist = [a]
         for i in range(2, max_iter + 1):
             a_new = g(a, v, vd2, kr, ph, invI)
-            done = np.abs(a_new - a) < np.maximum(1e-6, 1e-3 * np.abs(a_new))
+            done = np.abs(a_new - a) < _tolerance(a_new)
             a = np.where(active, a_new, a)
             hist.append(a)
             its = np.where(active, i, its)
@@ -319,8 +323,7 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
             bracketed += solved
             active &= ~solved
         not_conv += active
-        C = np.interp(a, breaks, c_inv) * invI
-        b = np.maximum(b0 + b_slope * (np.clip(a, a_lo, a_hi) - a0), b_floor) * invI
+        C, b = coefficients(a, invI)
         v_out[:, k] = v
         alpha_out[:, k] = a
         C_out[:, k] = C
@@ -335,6 +338,11 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
                    alpha=alpha_out, n_iter=n_iter,
                    n_not_converged=(int(not_conv[0]) if single else not_conv),
                    n_bracketed=(int(bracketed[0]) if single else bracketed))
+
+
+def _tolerance(alpha):
+    """The stopping tolerance of (46) at ``alpha`` [V²/s²]."""
+    return np.maximum(1e-6, 1e-3 * np.abs(alpha))
 
 
 def _bisect_fallback(g, hist, active, args):
@@ -386,7 +394,7 @@ def _bisect_fallback(g, hist, active, args):
     h_lo = np.where(a_n <= a_p, h_n, h_p)
     for _ in range(200):
         mid = 0.5 * (lo + hi)
-        if np.all(~ok | (hi - lo < np.maximum(1e-6, 1e-3 * np.abs(mid)))):
+        if np.all(~ok | (hi - lo < _tolerance(mid))):
             break
         h_mid = h(mid)
         left = h_lo * h_mid <= 0

@@ -27,6 +27,7 @@ voltage to the observation.
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 from dataclasses import dataclass, fields, replace
@@ -261,7 +262,7 @@ class OmniYawEnv(gym.Env):
         yaw_j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, "yaw")
         self._yaw_range = (tuple(float(x) for x in self.model.jnt_range[yaw_j])
                            if self.model.jnt_limited[yaw_j] else (-math.pi, math.pi))
-        self._model0 = om.load_model(model_path)  # friction levels of the model file
+        self._model0 = copy.deepcopy(self.model)  # friction levels of the model file
         self._yaw_damping0 = float(self.model.dof_damping[self._ix.yaw_dof])
 
         vlim = np.float32(self.voltage_limit)
