@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from . import scoring
-from .dataset import Run, atomic_output_dir, read_dataset
+from .dataset import Run
 from .errors import UserError
 from .inertia import InertiaParameters
 from .nonlinear import AlphaModel
@@ -237,27 +237,3 @@ def validate_runs(runs: list[Run], params: Params) -> tuple[dict, dict]:
         raise UserError("dataset has no sine or step runs to score")
     predictions = simulate_runs(runs, params)
     return score(runs, params, predictions), predictions
-
-
-def validate_command(args) -> int:
-    """``omni validate DATA --params FILE --out DIR [--force]``."""
-    params = read_params(args.params)
-    runs = read_dataset(args.data)
-    scores, predictions = validate_runs(runs, params)
-    with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
-        write_predictions(tmp, runs, predictions)
-        (tmp / "summary.json").write_text(json.dumps(scores["summary"], indent=2) + "\n")
-        (tmp / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
-    s = scores["summary"]
-    if s["step"]:
-        st = s["step"]
-        print(f"step: median |error| linear {st['median_abs_error_linear_rad']:.4f} rad, alpha "
-              f"{st['median_abs_error_alpha_rad']:.4f} rad (ratio {st['ratio_of_medians']:.2f}); "
-              f"alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses")
-    if s["sine"]:
-        sn = s["sine"]
-        print(f"sine: magnitude p90 linear {sn['magnitude_p90_linear']:.3f}, alpha "
-              f"{sn['magnitude_p90_alpha']:.3f}; phase p90 linear {sn['phase_p90_linear_deg']:.1f} deg, "
-              f"alpha {sn['phase_p90_alpha_deg']:.1f} deg")
-    print(f"wrote {args.out}/summary.json and predictions/")
-    return 0

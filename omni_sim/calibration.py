@@ -47,7 +47,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from identification.commands import identify_runs
+from identification.identify import identify_runs
 from identification.errors import UserError
 from identification.nonlinear import select_frequencies
 

@@ -25,6 +25,7 @@ import mujoco
 import numpy as np
 from scipy import signal
 
+from . import experiments as ex
 from . import model as om
 
 
@@ -113,3 +114,39 @@ def sampled_linear_truth(C: float, beta_tilde: float, kp: float, frequencies_hz,
     A1, A2 = h.imag, h.real
     w = 2 * math.pi * np.asarray(frequencies_hz, dtype=float)
     return global_coefficients(A1, A2, np.full_like(w, amplitude_rad), w)
+
+
+def inertia_truth(model, inertia_params, poses=None, fitted_poses=None) -> dict:
+    """Identified inertia (6) x beta_bar vs MuJoCo's yaw inertia at the actual (sagged) poses.
+
+    ``poses``: set points [deg] to check (default: Table 2's); ``fitted_poses``: those the
+    identification saw (default: Table 1's).
+    """
+    poses = ex.TABLE2_POSES if poses is None else poses
+    fitted_poses = ex.TABLE1_POSES if fitted_poses is None else fitted_poses
+    beta_bar = om.torque_constant(model)
+    rows = []
+    for g1s, g2s in poses:
+        g1, g2 = om.equilibrium_pose(model, g1s, g2s)
+        true = om.yaw_inertia(g1, g2, model=model)
+        pred = float(inertia_params.inertia(g1, g2)) * beta_bar
+        rows.append({"gamma1_set_deg": g1s, "gamma2_set_deg": g2s, "gamma1_deg": g1,
+                     "gamma2_deg": g2, "true_kg_m2": true, "identified_kg_m2": pred,
+                     "rel_error": pred / true - 1, "fitted_pose": (g1s, g2s) in fitted_poses})
+    errs = np.abs([r["rel_error"] for r in rows])
+    unseen = np.abs([r["rel_error"] for r in rows if not r["fitted_pose"]])
+    return {"max_rel_error": float(errs.max()), "mean_abs_rel_error": float(errs.mean()),
+            "max_rel_error_unseen_poses": float(unseen.max()) if unseen.size else None,
+            "n_poses": len(rows), "n_unseen_poses": int(unseen.size),
+            "beta_bar_N_m_per_V": beta_bar, "poses": rows}
+
+
+def linear_truth(model, ident) -> list[dict]:
+    """Identified C_linear, beta_linear per pose vs the model's true (continuous) values."""
+    rows = []
+    for p in ident.poses:
+        d = yaw_dynamics(model, p.gamma1_deg, p.gamma2_deg)
+        rows.append({"gamma1_deg": p.gamma1_deg, "gamma2_deg": p.gamma2_deg,
+                     "C_linear": p.C_linear, "C_true": d["C"],
+                     "beta_linear": p.beta_linear, "beta_true": p.kp * d["beta_tilde"]})
+    return rows

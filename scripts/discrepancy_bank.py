@@ -21,7 +21,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from omni_sim.discrepancy import bank, demo  # noqa: E402
+from omni_app.discrepancy import demo  # noqa: E402
+from omni_sim.discrepancy import bank  # noqa: E402
 from omni_sim.discrepancy.workflow import run_discrepancy  # noqa: E402
 
 

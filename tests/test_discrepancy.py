@@ -11,7 +11,7 @@ import pytest
 from identification.dataset import read_dataset, write_run
 from omni_sim import experiments as ex
 from omni_sim import model as om
-from omni_sim.cli import main
+from omni_app.cli import main
 from omni_sim.discrepancy import bank
 from omni_sim.discrepancy import effects as fx
 from omni_sim.discrepancy.localise import command_lag
@@ -104,7 +104,7 @@ def test_fast_masking_pair():
 def test_fast_unexplained_gap_is_flagged(tmp_path):
     """An effect outside the (here restricted) library leaves a large gap: ``none`` is named and
     report.json/report.md say the gap is unexplained, not that the model is fine."""
-    from omni_sim.discrepancy import report as rp
+    from omni_app import discrepancy_report as rp
     hidden = bank.case("cogging")
     runs = bank.generate(hidden, _one_pose_exps())
     out = run_discrepancy(runs, None, k=5, max_effects=1,

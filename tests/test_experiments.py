@@ -11,7 +11,7 @@ import pytest
 from identification.dataset import read_dataset
 from omni_sim import experiments as ex
 from omni_sim import model as om
-from omni_sim.cli import main
+from omni_app.cli import main
 
 
 def test_campaign_design():
@@ -133,7 +133,7 @@ def test_user_reference(tmp_path):
 
 
 def _cli(args, cwd):
-    return subprocess.run([sys.executable, "-m", "omni_sim", *args], cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "omni_app", *args], cwd=cwd,
                           capture_output=True, text=True)
 
 

@@ -7,9 +7,9 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from identification.commands import identify_dataset
+from identification.identify import identify_dataset
 from identification.dataset import write_run
-from omni_sim.cli import main
+from omni_app.cli import main
 from test_linear import simulate_sine_run
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from identification.dataset import read_dataset
-from omni_sim.cli import main
+from omni_app.cli import main
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +72,7 @@ def test_validate_reproduces_summary(reproduced, tmp_path):
 
 
 def _cli(args, cwd):
-    return subprocess.run([sys.executable, "-m", "omni_sim", *args], cwd=cwd, capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "omni_app", *args], cwd=cwd, capture_output=True, text=True)
 
 
 def test_reproduce_needs_force(reproduced):

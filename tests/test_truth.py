@@ -8,12 +8,12 @@ torque constant and the gain -- never from the identification code.
 import numpy as np
 import pytest
 
-from identification.commands import identify_runs
+from identification.identify import identify_runs
 from identification.simulate import simulate_linear
 from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim import truth
-from omni_sim.reproduce import inertia_truth
+from omni_sim.truth import inertia_truth
 
 
 def test_sampled_response_matches_time_stepping():

@@ -24,8 +24,8 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from . import experiments as ex
-from . import model as om
+from omni_sim import experiments as ex
+from omni_sim import model as om
 
 
 def _rollout_ceiling(model: mujoco.MjModel, nbatch: int, nstep: int, nthread: int) -> float:
@@ -90,7 +90,7 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True) 
 
         figures["alpha_simulation"] = bench_simulation(repeat=repeats)
         figures["reproduce"] = _bench_reproduce(jobs)
-        from .discrepancy.command import bench_discrepancy
+        from .discrepancy import bench_discrepancy
 
         figures["discrepancy"] = bench_discrepancy(jobs=jobs)
     return figures

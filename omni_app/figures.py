@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.paper import table as _read_csv
+
 #: The pose of the paper's detailed figures (Table 9, Figs. 9-14), set points [deg].
 DETAIL_POSE = (65, 90)
 
@@ -41,8 +43,6 @@ def _detail_pose(ident):
 
 def fig_inertia(folder: Path, res: dict) -> None:
     """Figs. 4-5: C_linear and beta_tilde_linear against the fitted inertia, with the paper's."""
-    from .reproduce import _read_csv
-
     plt = _plt()
     ident = res["ident"]
     params = ident.inertia.params

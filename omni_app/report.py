@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from identification.simulate import DEFAULT_MAX_ITER
 
-from .reproduce import PAPER_STEP_RATIO, _read_csv
+from identification.paper import PAPER_STEP_RATIO
+from identification.paper import table as _read_csv
 
 #: Issue targets, checked and stated in the report (never used to tune anything).
 TARGET_INERTIA_REL = 0.02

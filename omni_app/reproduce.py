@@ -10,63 +10,21 @@ The dataset itself is written to ``dataset/`` so every number can be re-derived 
 
 from __future__ import annotations
 
-import csv
 import json
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
-from identification.commands import identify_runs
 from identification.dataset import atomic_output_dir, write_run
 from identification.errors import UserError
-from identification.report import write_identify_report
+from identification.identify import identify_runs
 from identification.validation import Params, validate_runs, write_predictions
+from omni_sim import experiments as ex
+from omni_sim import model as om
+from omni_sim import truth
 
-from . import experiments as ex
-from . import model as om
-from . import truth
-
-PAPER_DATA = Path(__file__).resolve().parent.parent / "identification" / "data"
-#: The paper's step-response headline: its "Medians" row ratio (a ratio of means, see data/README).
-PAPER_STEP_RATIO = 2.6
-
-
-def _read_csv(name: str) -> list[dict]:
-    with open(PAPER_DATA / name) as fh:
-        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(fh)]
-
-
-def inertia_truth(model, inertia_params, poses=ex.TABLE2_POSES, fitted_poses=ex.TABLE1_POSES) -> dict:
-    """Identified inertia (6) x beta_bar vs MuJoCo's yaw inertia at the actual (sagged) poses."""
-    beta_bar = om.torque_constant(model)
-    rows = []
-    for g1s, g2s in poses:
-        g1, g2 = om.equilibrium_pose(model, g1s, g2s)
-        true = om.yaw_inertia(g1, g2, model=model)
-        pred = float(inertia_params.inertia(g1, g2)) * beta_bar
-        rows.append({"gamma1_set_deg": g1s, "gamma2_set_deg": g2s, "gamma1_deg": g1,
-                     "gamma2_deg": g2, "true_kg_m2": true, "identified_kg_m2": pred,
-                     "rel_error": pred / true - 1, "fitted_pose": (g1s, g2s) in fitted_poses})
-    errs = np.abs([r["rel_error"] for r in rows])
-    unseen = np.abs([r["rel_error"] for r in rows if not r["fitted_pose"]])
-    return {"max_rel_error": float(errs.max()), "mean_abs_rel_error": float(errs.mean()),
-            "max_rel_error_unseen_poses": float(unseen.max()) if unseen.size else None,
-            "n_poses": len(rows), "n_unseen_poses": int(unseen.size),
-            "beta_bar_N_m_per_V": beta_bar, "poses": rows}
-
-
-def linear_truth(model, ident) -> list[dict]:
-    """Identified C_linear, beta_linear per pose vs the model's true (continuous) values."""
-    rows = []
-    for p in ident.poses:
-        d = truth.yaw_dynamics(model, p.gamma1_deg, p.gamma2_deg)
-        rows.append({"gamma1_deg": p.gamma1_deg, "gamma2_deg": p.gamma2_deg,
-                     "C_linear": p.C_linear, "C_true": d["C"],
-                     "beta_linear": p.beta_linear, "beta_true": p.kp * d["beta_tilde"]})
-    return rows
-
+from .identify_report import write_identify_report
 
 def run_reproduce(model_path=None, jobs=None, progress=False) -> dict:
     """Run every stage in memory; returns everything the writers need."""
@@ -90,8 +48,8 @@ def run_reproduce(model_path=None, jobs=None, progress=False) -> dict:
     scores, predictions = validate_runs(runs, params)
     bar.update(1)
     bar.set_description("ground truth")
-    scores["summary"]["inertia"] = inertia_truth(model, ident.inertia.params)
-    lin = linear_truth(model, ident)
+    scores["summary"]["inertia"] = truth.inertia_truth(model, ident.inertia.params)
+    lin = truth.linear_truth(model, ident)
     bar.update(1)
     sim_time = sum(len(r.t) for r in runs) * ex.CONTROL_PERIOD_S
     wall = time.perf_counter() - t0

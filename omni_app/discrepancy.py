@@ -10,9 +10,10 @@ from pathlib import Path
 from identification.dataset import atomic_output_dir, read_dataset, write_run
 from identification.errors import UserError
 
-from . import bank
-from . import report as rp
-from .workflow import run_discrepancy
+from omni_sim.discrepancy import bank
+from omni_sim.discrepancy.workflow import run_discrepancy
+
+from . import discrepancy_report as rp
 
 #: The effect hidden by ``--demo``: a 4 ms loop delay (USB Omnis run their loop at 700-900 Hz).
 DEMO_CASE = "time_delay"

@@ -94,13 +94,13 @@ def _dispatch(args: argparse.Namespace) -> int:
         from .commands import generate
         return generate(args)
     if args.command == "identify":
-        from identification.commands import identify
+        from .commands import identify
         return identify(args)
     if args.command == "fit-inertia":
-        from identification.commands import fit_inertia
+        from .commands import fit_inertia
         return fit_inertia(args)
     if args.command == "validate":
-        from identification.commands import validate
+        from .commands import validate
         return validate(args)
     if args.command == "reproduce":
         from .commands import reproduce

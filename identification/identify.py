@@ -1,6 +1,7 @@
-"""Command entry points ``omni identify``, ``omni fit-inertia`` and ``omni validate``.
+"""Identification of a whole dataset: sine fits, per-pose linear models, inertia and alpha models.
 
-:func:`identify_dataset` is the reusable core: runs in, the ``params.json`` dict out.
+:func:`identify_runs` is the core: runs in, an :class:`Identification` out
+(:meth:`Identification.to_params` gives the ``params.json`` dict of ``omni identify``).
 
 Pose grouping: sine runs are grouped by their set points ``(gamma1_set_deg, gamma2_set_deg)``
 rounded to 0.01° when a run has both, else by the actual angles rounded to 0.01°.  A pose's
@@ -16,14 +17,13 @@ written).  Step and other runs are ignored by ``identify``.
 from __future__ import annotations
 
 import csv
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .dataset import Run, atomic_output_dir, atomic_write_text, read_dataset
+from .dataset import Run
 from .errors import UserError
 from .inertia import MIN_POSES, InertiaFit, fit_inertia_model
 from .linear import PoseLinearModel, fit_pose
@@ -167,21 +167,6 @@ def identify_dataset(runs: list[Run]) -> dict:
     return identify_runs(runs).to_params()
 
 
-def identify(args) -> int:
-    """``omni identify DATA --out DIR [--force]``: writes params.json, report.md, figures."""
-    runs = read_dataset(args.data)
-    ident = identify_runs(runs)
-    params = ident.to_params()
-    with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
-        (tmp / "params.json").write_text(json.dumps(params, indent=2) + "\n")
-        from .report import write_identify_report
-        write_identify_report(ident, tmp, source=str(args.data))
-    print(f"identified {len(ident.poses)} pose(s) from {len(runs)} run(s); wrote {args.out}/params.json")
-    for w in ident.warnings:
-        print(f"warning: {w}")
-    return 0
-
-
 TABLE_COLUMNS = ("gamma1_deg", "gamma2_deg", "C_linear", "beta_tilde_linear")
 
 
@@ -240,38 +225,3 @@ def fit_inertia_table(path) -> tuple[InertiaFit, dict]:
              "beta_tilde_model": float(p.beta_tilde(a, b)), "inertia": float(p.inertia(a, b))}
             for a, b, c, d in zip(*(tab[k] for k in TABLE_COLUMNS))]
     return fit, {"inertia_model": p.to_dict(), "inertia_fit": fit.diagnostics(), "poses": rows}
-
-
-def format_inertia_fit(fit: InertiaFit) -> str:
-    """Readable multi-line summary of an inertia fit."""
-    p = fit.params
-    lines = [f"inertia model (6)-(8) fitted to {fit.n_poses} poses ({fit.dof} degrees of freedom)",
-             f"{'parameter':<16}{'value':>12}   95% interval (approx.)"]
-    for k in ("I_base", "I1", "I2", "I3", "gamma_offs_deg", "C0_bar"):
-        lo, hi = fit.ci95[k]
-        flag = "  poorly determined" if k in fit.poorly_determined else ""
-        lines.append(f"{k:<16}{getattr(p, k):>12.5g}   [{lo:.4g}, {hi:.4g}]{flag}")
-    lines.append(f"C0_bar by simple regression (beta_tilde = C0_bar*C through origin): "
-                 f"{fit.C0_bar_regression:.3f}")
-    lines.append(f"rms relative residual: beta_tilde {fit.rms_rel_beta:.4f}, C {fit.rms_rel_C:.4f}")
-    lines.append(f"scaled Jacobian condition number {fit.condition_number:.3g}; singular values "
-                 + ", ".join(f"{s:.3g}" for s in fit.singular_values))
-    return "\n".join(lines)
-
-
-def fit_inertia(args) -> int:
-    """``omni fit-inertia TABLE.csv [--out FILE]``."""
-    if args.out and Path(args.out).is_dir():
-        raise UserError(f"{args.out}: is a folder; --out takes a file name")
-    fit, result = fit_inertia_table(args.table)
-    print(format_inertia_fit(fit))
-    if args.out:
-        atomic_write_text(args.out, json.dumps(result, indent=2) + "\n")
-        print(f"wrote {args.out}")
-    return 0
-
-
-def validate(args):
-    """``omni validate``: implemented in :mod:`identification.validation`."""
-    from .validation import validate_command
-    return validate_command(args)

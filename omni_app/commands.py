@@ -1,0 +1,151 @@
+"""The ``omni`` subcommands: argparse namespaces in, files and printed summaries out.
+
+Presentation layer: each handler calls the method (:mod:`identification`) or the simulator
+(:mod:`omni_sim`) and writes what they return."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from identification.dataset import atomic_output_dir, atomic_write_text, read_dataset, write_run
+from identification.errors import UserError
+from identification.identify import fit_inertia_table, identify_runs
+from identification.inertia import InertiaFit
+from identification.validation import read_params, validate_runs, write_predictions
+from omni_sim import experiments as ex
+
+
+def _settings(args: argparse.Namespace) -> ex.Settings:
+    noise = float(getattr(args, "noise", 0.0) or 0.0)
+    if not (noise >= 0 and math.isfinite(noise)):
+        raise UserError(f"--noise must be a finite standard deviation >= 0, got {noise}")
+    return ex.Settings(quantize=bool(getattr(args, "quantize", False)), noise_rad=noise,
+                       seed=int(getattr(args, "seed", 0) or 0))
+
+
+def _check_jobs(jobs: int | None) -> int | None:
+    if jobs is not None and jobs < 1:
+        raise UserError(f"--jobs must be >= 1, got {jobs}")
+    return jobs
+
+
+def write_dataset(runs, out, force: bool) -> None:
+    """Write runs into ``out`` atomically (temporary folder, then rename)."""
+    with atomic_output_dir(out, force=force) as tmp:
+        for run in runs:
+            write_run(tmp, run)
+
+
+def generate(args: argparse.Namespace) -> int:
+    """``omni generate``: run a campaign (or one user reference) and write a dataset."""
+    jobs = _check_jobs(args.jobs)
+    settings = _settings(args)
+    out = Path(args.out)
+    if out.is_dir() and any(out.iterdir()) and not args.force:
+        raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
+    if args.reference is not None:
+        exps = [ex.reference_experiment(args.reference, args.gamma1, args.gamma2)]
+    else:
+        exps = ex.campaign(args.campaign)
+    runs = ex.simulate(exps, args.model, settings, jobs=jobs, progress=sys.stderr.isatty())
+    write_dataset(runs, out, args.force)
+    n_sine = sum(r.kind == "sine" for r in runs)
+    n_step = sum(r.kind == "step" for r in runs)
+    print(f"wrote {len(runs)} runs ({n_sine} sine, {n_step} step, "
+          f"{len(runs) - n_sine - n_step} other) to {out}")
+    return 0
+
+
+def bench(args: argparse.Namespace) -> int:
+    """``omni bench``: print (and write) the performance figures."""
+    from .bench import run_bench
+
+    jobs = _check_jobs(args.jobs)
+    figures = run_bench(jobs=jobs)
+    text = json.dumps(figures, indent=2, sort_keys=True)
+    print(text)
+    if args.out:
+        atomic_write_text(args.out, text + "\n")
+    return 0
+
+
+def reproduce(args: argparse.Namespace) -> int:
+    from .reproduce import reproduce_command
+    return reproduce_command(args)
+
+
+def discrepancy(args: argparse.Namespace) -> int:
+    from .discrepancy import discrepancy_command
+    return discrepancy_command(args)
+
+
+def identify(args: argparse.Namespace) -> int:
+    """``omni identify DATA --out DIR [--force]``: writes params.json, report.md, figures."""
+    runs = read_dataset(args.data)
+    ident = identify_runs(runs)
+    params = ident.to_params()
+    with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
+        (tmp / "params.json").write_text(json.dumps(params, indent=2) + "\n")
+        from .identify_report import write_identify_report
+        write_identify_report(ident, tmp, source=str(args.data))
+    print(f"identified {len(ident.poses)} pose(s) from {len(runs)} run(s); wrote {args.out}/params.json")
+    for w in ident.warnings:
+        print(f"warning: {w}")
+    return 0
+
+
+def format_inertia_fit(fit: InertiaFit) -> str:
+    """Readable multi-line summary of an inertia fit."""
+    p = fit.params
+    lines = [f"inertia model (6)-(8) fitted to {fit.n_poses} poses ({fit.dof} degrees of freedom)",
+             f"{'parameter':<16}{'value':>12}   95% interval (approx.)"]
+    for k in ("I_base", "I1", "I2", "I3", "gamma_offs_deg", "C0_bar"):
+        lo, hi = fit.ci95[k]
+        flag = "  poorly determined" if k in fit.poorly_determined else ""
+        lines.append(f"{k:<16}{getattr(p, k):>12.5g}   [{lo:.4g}, {hi:.4g}]{flag}")
+    lines.append(f"C0_bar by simple regression (beta_tilde = C0_bar*C through origin): "
+                 f"{fit.C0_bar_regression:.3f}")
+    lines.append(f"rms relative residual: beta_tilde {fit.rms_rel_beta:.4f}, C {fit.rms_rel_C:.4f}")
+    lines.append(f"scaled Jacobian condition number {fit.condition_number:.3g}; singular values "
+                 + ", ".join(f"{s:.3g}" for s in fit.singular_values))
+    return "\n".join(lines)
+
+
+def fit_inertia(args: argparse.Namespace) -> int:
+    """``omni fit-inertia TABLE.csv [--out FILE]``."""
+    if args.out and Path(args.out).is_dir():
+        raise UserError(f"{args.out}: is a folder; --out takes a file name")
+    fit, result = fit_inertia_table(args.table)
+    print(format_inertia_fit(fit))
+    if args.out:
+        atomic_write_text(args.out, json.dumps(result, indent=2) + "\n")
+        print(f"wrote {args.out}")
+    return 0
+
+
+def validate(args: argparse.Namespace) -> int:
+    """``omni validate DATA --params FILE --out DIR [--force]``."""
+    params = read_params(args.params)
+    runs = read_dataset(args.data)
+    scores, predictions = validate_runs(runs, params)
+    with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
+        write_predictions(tmp, runs, predictions)
+        (tmp / "summary.json").write_text(json.dumps(scores["summary"], indent=2) + "\n")
+        (tmp / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
+    s = scores["summary"]
+    if s["step"]:
+        st = s["step"]
+        print(f"step: median |error| linear {st['median_abs_error_linear_rad']:.4f} rad, alpha "
+              f"{st['median_abs_error_alpha_rad']:.4f} rad (ratio {st['ratio_of_medians']:.2f}); "
+              f"alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses")
+    if s["sine"]:
+        sn = s["sine"]
+        print(f"sine: magnitude p90 linear {sn['magnitude_p90_linear']:.3f}, alpha "
+              f"{sn['magnitude_p90_alpha']:.3f}; phase p90 linear {sn['phase_p90_linear_deg']:.1f} deg, "
+              f"alpha {sn['phase_p90_alpha_deg']:.1f} deg")
+    print(f"wrote {args.out}/summary.json and predictions/")
+    return 0
