@@ -5,7 +5,8 @@ Model (37): θ'' + C(α, I)·θ' = β̃(α, I)·v, with
 * damping C(α, I) tri-linear in α between breakpoints α0 < α1 < α2 < α3 (38)–(39), with the
   values at the breakpoints C_k(I) = 1/(C_k1·I) (40);
 * torque constant β̃(α, I) linear in α through the values β̃_k(I) = 1/(β̃_k1·I) (42) at the
-  predefined ᾱ0, ᾱ1 (41) (paper Table 6: 0 and 250).
+  predefined ᾱ0, ᾱ1 (41) (paper Table 6: 0 and 250); outside [ᾱ0, ᾱ1] held or extrapolated
+  depending on the option ``beta_clamp`` (below).
 
 Units as in the paper (β̄ = 1): C [1/s], β̃ [rad/(V·s²)] (β = kp·β̃ [1/s²]), α [V²/s²], I in the
 paper's units so that β̃_linear = 1/I (7); C_k1 and β̃_k1 are then dimensionless ratios like C̄0.
@@ -19,15 +20,19 @@ Outside [α0, α3]
     instantaneous α of a transient can be negative (e.g. v = cosh t gives α = −1), which this
     also covers.
 β̃ outside [ᾱ0, ᾱ1]
-    (41) is a straight line through (ᾱ0, β̃0), (ᾱ1, β̃1).  By default (``beta_clamp=True``)
+    (41) is a straight line through (ᾱ0, β̃0), (ᾱ1, β̃1).  With the option ``beta_clamp``
     β̃ is held at its end values outside [ᾱ0, ᾱ1], as C is outside [α0, α3]: the model does
-    not extrapolate beyond the α range it was given.  Measured on the first (hard-stick)
-    virtual Omni's paper campaign: with the line extrapolated, β̃ rose with α without bound, the simulated sine
-    response near resonance jumped to the upper (resonant) branch and stayed there above
-    resonance, and the sine-sweep phase p90 error was 43.9 deg; clamped, 17.9 deg (the global
-    linear model: 14.2 deg).  ``beta_clamp=False`` gives the line; a falling line would reach
-    zero and then reverse the actuator, so it is floored at ``beta_floor_fraction`` (default
-    0.1) times min(β̃0, β̃1).
+    not extrapolate beyond the α range it was given.  :func:`fit_alpha_model` sets it by
+    default (``beta_clamp=True``), so an *identified* model is clamped; an
+    :class:`AlphaModel` built directly, including :func:`paper_alpha_model`, has
+    ``beta_clamp=False`` unless its ``options`` say otherwise, and follows the line.
+    Measured on the first (hard-stick) virtual Omni's paper campaign: with the line
+    extrapolated, β̃ rose with α without bound, the simulated sine response near resonance
+    jumped to the upper (resonant) branch and stayed there above resonance, and the sine-sweep
+    phase p90 error was 43.9 deg; clamped, 17.9 deg (the global linear model: 14.2 deg).
+    Unclamped, a falling line would reach zero and then reverse the actuator, so it is floored
+    at ``beta_floor_fraction`` (default 0.1) times min(β̃0, β̃1) (clamped, the floor is
+    inactive since β̃ stays between β̃0 and β̃1).
 Constraints
     C_k ≥ 0 always, and by default C non-increasing in α (C0 ≥ C1 ≥ C2 ≥ C3), via the
     reparameterisation C_k = Σ_{j≥k} p_j, p ≥ 0, solved with :func:`scipy.optimize.nnls`.  An
@@ -68,6 +73,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy.optimize import nnls
 
+from . import paper
 from .errors import UserError
 
 __all__ = [
@@ -84,7 +90,7 @@ __all__ = [
 ]
 
 #: ᾱ0, ᾱ1 of the torque-constant model (41), paper Table 6 [V²/s²].
-PAPER_ALPHA_BAR = (0.0, 250.0)
+PAPER_ALPHA_BAR = tuple(r["alpha_bar"] for r in paper.table6())
 _DEFAULT_OPTIONS = {"beta_floor_fraction": 0.1, "beta_clamp": False}
 
 
@@ -110,8 +116,9 @@ class AlphaModel:
     beta_k1 : ndarray, shape (2,) [-]
         β̃_01, β̃_11 of (42): β̃_k(I) = 1/(β̃_k1·I).
     options : dict
-        Settings: ``beta_floor_fraction`` (see module docstring) and the fitting options that
-        produced the model (kept for provenance).
+        Settings: ``beta_floor_fraction`` (default 0.1) and ``beta_clamp`` (default False;
+        :func:`fit_alpha_model` sets True), see the module docstring, and the fitting options
+        that produced the model (kept for provenance).
     diagnostics : dict
         JSON-safe fit details (per-pose intermediate values, used-frequency masks, grid
         search); empty for a model not produced by :func:`fit_alpha_model`.
@@ -173,7 +180,10 @@ class AlphaModel:
     def beta_tilde(self, alpha, I):
         """Torque constant β̃(α, I) of (41)–(42) [rad/(V·s²)].
 
-        Linear in α everywhere, floored at ``options["beta_floor_fraction"]``·min(β̃0, β̃1).
+        Linear in α on [ᾱ0, ᾱ1].  Outside it: held at β̃0 / β̃1 if ``options["beta_clamp"]``
+        (the default of :func:`fit_alpha_model`), otherwise the line extrapolated (the default
+        of a directly built model).  Either way floored at
+        ``options["beta_floor_fraction"]``·min(β̃0, β̃1).
         """
         b0, b1 = self.beta_inv
         a0, a1 = self.alpha_bar
@@ -239,25 +249,28 @@ def _json_safe(x):
 
 
 def paper_alpha_model(as_printed: bool = False) -> AlphaModel:
-    """The paper's model, Tables 6 and 7.
+    """The paper's model, Tables 6 and 7 (read from :mod:`identification.paper`).
 
     As printed, Table 7 assigns C_01 = 61.733 to α0 = 0 and C_31 = 13.509 to α3 = 250, which
     makes the damping *rise* with α, and Table 6 makes β̃ rise with α; the text (2.3.3, 2.3.4)
     says both fall with α, and Table 10 (γ1 = 65°, γ2 = 90°) lists C0..C3 = 16.955, 10.619,
     6.486, 3.710 and β̃0, β̃1 = 267.6, 170.9, which are exactly 1/(C_k1·I), 1/(β̃_k1·I) with
     I = 0.004366 (Table 10's first value, = 1/229.0, the modelled β̃_linear of Table 9) and
-    the C_k1, β̃_k1 in *reverse* order.  By default the values are therefore assigned in
-    reverse (falling C and β̃ in α, agreeing with the text and Table 10); ``as_printed=True``
-    gives the tables' literal assignment.
+    the C_k1, β̃_k1 in *reverse* order (``identification/data/README.md``).  By default the
+    values are therefore assigned in reverse (falling C and β̃ in α, agreeing with the text
+    and Table 10); ``as_printed=True`` gives the tables' literal assignment.  Breakpoints
+    α0..α3 and ᾱ0, ᾱ1 are the tables' α columns.  ``options`` has no ``beta_clamp``, so β̃
+    follows the line (41) outside [ᾱ0, ᾱ1] (module docstring).
     """
-    C_k1 = np.array([61.733, 35.316, 21.570, 13.509])
-    beta_k1 = np.array([1.3405, 0.8558])
+    t6, t7 = paper.table6(), paper.table7()
+    C_k1 = np.array([r["value"] for r in t7])
+    beta_k1 = np.array([r["value"] for r in t6])
     if not as_printed:
         C_k1, beta_k1 = C_k1[::-1], beta_k1[::-1]
     return AlphaModel(
-        alpha_breaks=np.array([0.0, 2.2, 25.0, 250.0]),
+        alpha_breaks=np.array([r["alpha"] for r in t7]),
         C_k1=C_k1,
-        alpha_bar=np.array(PAPER_ALPHA_BAR),
+        alpha_bar=np.array([r["alpha_bar"] for r in t6]),
         beta_k1=beta_k1,
         options={"source": "paper Tables 6-7" + (" as printed" if as_printed else ", order as Table 10")},
     )

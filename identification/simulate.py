@@ -72,6 +72,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import paper
 from .nonlinear import AlphaModel, paper_alpha_model
 
 __all__ = [
@@ -435,8 +436,9 @@ def bench_simulation(n_runs=25, duration_s=8.0, dt=1e-3, kp=2.0, model=None, rep
 
     The workload is the paper's step campaign: ``n_runs`` square-wave runs (47) (0.25 Hz,
     0.07 rad, θ(0) = −0.07 rad at rest) of ``duration_s`` at 1/``dt`` Hz, with inertias spread
-    over the range of the paper's Table 3 (β̃_linear 149–275) and C_linear = 1/(C̄0·I),
-    C̄0 = 36.693 (Table 4).  The α model defaults to :func:`paper_alpha_model`.
+    over the range of the paper's Table 3 (β̃_linear 149–275, its extremes rounded to integers)
+    and C_linear = 1/(C̄0·I), C̄0 = 36.693 (Table 4); both read from :mod:`identification.paper`.
+    The α model defaults to :func:`paper_alpha_model`.
 
     Returns
     -------
@@ -452,8 +454,9 @@ def bench_simulation(n_runs=25, duration_s=8.0, dt=1e-3, kp=2.0, model=None, rep
     t = np.arange(int(round(duration_s / dt))) * dt
     r1 = square_wave_reference(t, 0.25, 0.07)
     r = np.tile(r1, (n_runs, 1))
-    I = 1.0 / np.linspace(149.0, 275.0, n_runs)
-    C_lin = 1.0 / (36.693 * I)
+    b_table3 = [row["beta_tilde_linear"] for row in paper.table3()]
+    I = 1.0 / np.linspace(float(round(min(b_table3))), float(round(max(b_table3))), n_runs)
+    C_lin = 1.0 / (paper.table4()["C0_bar"] * I)
     b_lin = 1.0 / I
 
     def best(fn):

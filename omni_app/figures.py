@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from identification.paper import table as _read_csv
+from identification import paper as _paper
 
 #: The pose of the paper's detailed figures (Table 9, Figs. 9-14), set points [deg].
-DETAIL_POSE = (65, 90)
+DETAIL_POSE = _paper.TABLE9_10_SET_POSE
 
 
 def _plt():
@@ -46,7 +46,7 @@ def fig_inertia(folder: Path, res: dict) -> None:
     plt = _plt()
     ident = res["ident"]
     params = ident.inertia.params
-    paper = _read_csv("table3_linear_coefficients.csv")
+    paper = _paper.table3()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     I = np.array([ident.pose_inertia(p) for p in ident.poses])
     grid = np.linspace(I.min() * 0.85, I.max() * 1.15, 100)

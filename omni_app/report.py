@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from identification.simulate import DEFAULT_MAX_ITER
+import numpy as np
 
-from identification.paper import PAPER_STEP_RATIO
-from identification.paper import table as _read_csv
+from identification import paper
+from identification.simulate import DEFAULT_MAX_ITER
 
 #: Issue targets, checked and stated in the report (never used to tune anything).
 TARGET_INERTIA_REL = 0.02
@@ -20,13 +20,21 @@ def _met(ok: bool) -> str:
     return "met" if ok else "**not met**"
 
 
+def _run_counts(runs) -> str:
+    """"81 sine runs, 25 square-wave runs" from the runs' ``kind``."""
+    kinds = [r.kind for r in runs]
+    text = f"{kinds.count('sine')} sine runs, {kinds.count('step')} square-wave runs"
+    other = len(kinds) - kinds.count("sine") - kinds.count("step")
+    return text + (f", {other} other runs" if other else "")
+
+
 def format_report(res: dict) -> str:
     s = res["scores"]["summary"]
     ident = res["ident"]
     lines = ["# omni reproduce: the alpha-invariant paper on the virtual Omni", ""]
     run = s["run"]
     lines += [f"Model: `{run['model']}` (sha256 {run['model_sha256']}). Simulated "
-              f"{run['simulated_time_s']:.0f} s of experiments (81 sine runs, 25 square-wave runs). "
+              f"{run['simulated_time_s']:.0f} s of experiments ({_run_counts(res['runs'])}). "
               f"Every number below comes from this run; `dataset/` holds the data, `params.json` "
               f"the identified parameters, `predictions/` both models' simulations.", ""]
 
@@ -35,6 +43,8 @@ def format_report(res: dict) -> str:
     sn = s["sine"]
     whole = st["windows"]["whole_record"]
     after = st["windows"]["after_edges"]
+    t8_avg = paper.table8_average()
+    t11 = paper.table11()
     lines += ["## Targets", "",
               "| target | measured | |", "|---|---|---|",
               f"| identified inertia (6) x beta_bar within 2 % of MuJoCo at all 25 Table 2 poses | "
@@ -43,11 +53,12 @@ def format_report(res: dict) -> str:
               f"{_met(inr['max_rel_error'] <= TARGET_INERTIA_REL)} |",
               f"| alpha model beats linear on the step response at every pose | "
               f"{st['alpha_better_poses']}/{st['n_poses']} | {_met(st['alpha_better_poses'] == st['n_poses'])} |",
-              f"| ratio of medians linear/alpha >= 3 (paper 2.6) | whole record {whole['ratio_of_medians']:.2f}; "
+              f"| ratio of medians linear/alpha >= 3 (paper {paper.PAPER_STEP_RATIO}) | whole record {whole['ratio_of_medians']:.2f}; "
               f"first second after each edge {after['ratio_of_medians']:.2f} | whole record "
               f"{_met(whole['ratio_of_medians'] >= TARGET_STEP_RATIO)}, after edges "
               f"{_met(after['ratio_of_medians'] >= TARGET_STEP_RATIO)} |",
-              f"| alpha model halves the linear model's sine phase p90 error (paper 15.6 -> 5.4 deg) | "
+              f"| alpha model halves the linear model's sine phase p90 error (paper "
+              f"{t8_avg['phase_p90_linear_deg']:.1f} -> {t8_avg['phase_p90_alpha_deg']:.1f} deg) | "
               f"{sn['phase_p90_linear_deg']:.1f} -> {sn['phase_p90_alpha_deg']:.1f} deg | "
               f"{_met(sn['phase_p90_alpha_deg'] <= 0.5 * sn['phase_p90_linear_deg'])} |",
               f"| quasilinear iteration converges | {s['alpha_simulation']['steps_not_converged']} of "
@@ -58,11 +69,13 @@ def format_report(res: dict) -> str:
               "identification/simulate.py) | "
               f"{_met(s['alpha_simulation']['steps_not_converged'] == 0)} |", ""]
 
+    n_fitted = sum(bool(r["fitted_pose"]) for r in inr["poses"])
     lines += ["## Ground truth: inertia", "",
               "The identified minimal inertia model (6), scaled by the model's torque constant "
               f"beta_bar = {inr['beta_bar_N_m_per_V']:.4g} N m/V, against the yaw element of MuJoCo's "
-              "mass matrix at the actual (sagged) pose. `fitted` marks the 9 Table 1 poses whose sine "
-              "sweeps were identified; the other 16 were never seen by the fit.", "",
+              "mass matrix at the actual (sagged) pose. `fitted` marks the "
+              f"{n_fitted} Table 1 poses whose sine sweeps were identified; the other "
+              f"{len(inr['poses']) - n_fitted} were never seen by the fit.", "",
               "| set pose [deg] | actual [deg] | MuJoCo [1e-3 kg m^2] | identified | error | fitted |",
               "|---|---|---|---|---|---|"]
     for r in inr["poses"]:
@@ -78,35 +91,40 @@ def format_report(res: dict) -> str:
               "what the paper's method sees on a real device.", "",
               "| set pose | actual [deg] | C_linear [1/s] | C_true | beta_linear [1/s^2] | beta_true | "
               "paper C_linear | paper beta~_linear x kp |", "|---|---|---|---|---|---|---|---|"]
-    paper = {(int(r["gamma1_set_deg"]), int(r["gamma2_set_deg"])): r
-             for r in _read_csv("table3_linear_coefficients.csv")}
+    p3 = paper.by_set_pose(paper.table3())
+    kp_paper = paper.kp()
     for p, t in zip(ident.poses, res["linear_truth"]):
-        pp = paper.get((int(p.gamma1_set_deg), int(p.gamma2_set_deg)), {})
+        pp = p3.get((int(p.gamma1_set_deg), int(p.gamma2_set_deg)), {})
         lines.append(f"| ({p.gamma1_set_deg:g}, {p.gamma2_set_deg:g}) | ({p.gamma1_deg:.2f}, {p.gamma2_deg:.2f}) | "
                      f"{p.C_linear:.3f} | {t['C_true']:.3f} | {p.beta_linear:.1f} | {t['beta_true']:.1f} | "
-                     f"{_f(pp.get('C_linear'))} | {_f(2 * pp['beta_tilde_linear'] if pp else None, 1)} |")
+                     f"{_f(pp.get('C_linear'))} | {_f(kp_paper * pp['beta_tilde_linear'] if pp else None, 1)} |")
     im = ident.inertia.params
     lines += ["", f"Inertia model (6): I_base = {im.I_base:.4g}, I1 = {im.I1:.4g}, I2 = {im.I2:.4g}, "
               f"I3 = {im.I3:.4g} [V s^2/rad], gamma_offs = {im.gamma_offs_deg:.2f} deg, C0_bar = "
-              f"{im.C0_bar:.2f} (paper Table 4: C0_bar = 36.693). Poorly determined by 9 poses: "
+              f"{im.C0_bar:.2f} (paper Table 4: C0_bar = {paper.table4()['C0_bar']:.3f}). Poorly determined by {len(ident.poses)} poses: "
               f"{', '.join(ident.inertia.poorly_determined) or 'none'}.", "",
               "![Figs. 4-5](fig04_05_inertia_fits.png)", ""]
 
     am = ident.alpha_model
+    t6, t7 = paper.table6(), paper.table7()
+    # Tables 6-7 in the order Table 10 implies (reversed; identification/data/README.md)
+    paper_breaks = ", ".join(f"{r['alpha']:g}" for r in t7)
+    paper_C_k1 = ", ".join(f"{r['value']:.3f}" for r in reversed(t7))
+    paper_beta_k1 = ", ".join(f"{r['value']:.4f}" for r in reversed(t6))
     lines += ["## alpha-invariant model (Tables 6, 7, 10)", "",
               f"Breakpoints alpha_0..3 = {', '.join(f'{a:.3g}' for a in am.alpha_breaks)} V^2/s^2 "
-              f"(grid search; paper Table 7: 0, 2.2, 25, 250). C_k1 = "
+              f"(grid search; paper Table 7: {paper_breaks}). C_k1 = "
               f"{', '.join(f'{c:.2f}' for c in am.C_k1)} (paper, in the order Table 10 implies: "
-              f"13.509, 21.570, 35.316, 61.733). beta~_k1 = {', '.join(f'{b:.3f}' for b in am.beta_k1)} at "
-              f"alpha = {am.alpha_bar[0]:g}, {am.alpha_bar[1]:g} (paper Table 6 reordered: 0.8558, 1.3405). "
+              f"{paper_C_k1}). beta~_k1 = {', '.join(f'{b:.3f}' for b in am.beta_k1)} at "
+              f"alpha = {am.alpha_bar[0]:g}, {am.alpha_bar[1]:g} (paper Table 6 reordered: {paper_beta_k1}). "
               f"Options: {am.options}.", "",
               "![Figs. 6-7](fig06_07_nonlinear_vs_inertia.png)",
               "![Fig. 8](fig08_alpha_vs_frequency.png)",
               "![Figs. 9-10](fig09_10_C_beta_vs_alpha.png)", ""]
 
-    p8 = {(int(r["gamma1_set_deg"]), int(r["gamma2_set_deg"])): r for r in _read_csv("table8_sine_errors.csv")}
+    p8 = paper.by_set_pose(paper.table8())
     lines += ["## Sine sweep (Table 8)", "",
-              "90th percentile over the 9 frequencies of the absolute fundamental magnitude error "
+              f"90th percentile over the {len(res['scores']['sine'][0]['frequencies_hz'])} frequencies of the absolute fundamental magnitude error "
               "(|theta|/A_r) and phase error, per pose.", "",
               "| set pose | linear mag | alpha mag | linear phase [deg] | alpha phase [deg] | paper linear mag / phase | paper alpha mag / phase |",
               "|---|---|---|---|---|---|---|"]
@@ -118,13 +136,19 @@ def format_report(res: dict) -> str:
                      f"{pp['magnitude_p90_linear']:.3f} / {pp['phase_p90_linear_deg']:.1f} | "
                      f"{pp['magnitude_p90_alpha']:.3f} / {pp['phase_p90_alpha_deg']:.1f} |")
     lines += [f"| **mean** | {sn['magnitude_p90_linear']:.3f} | {sn['magnitude_p90_alpha']:.3f} | "
-              f"{sn['phase_p90_linear_deg']:.1f} | {sn['phase_p90_alpha_deg']:.1f} | 0.467 / 15.6 | 0.335 / 5.4 |",
+              f"{sn['phase_p90_linear_deg']:.1f} | {sn['phase_p90_alpha_deg']:.1f} | "
+              f"{t8_avg['magnitude_p90_linear']:.3f} / {t8_avg['phase_p90_linear_deg']:.1f} | "
+              f"{t8_avg['magnitude_p90_alpha']:.3f} / {t8_avg['phase_p90_alpha_deg']:.1f} |",
               "", "![Figs. 11-12](fig11_12_bode.png)", "![Fig. 13](fig13_time_2p5hz.png)", ""]
 
-    p11 = {(int(r["gamma1_set_deg"]), int(r["gamma2_set_deg"])): r for r in _read_csv("table11_step_errors.csv")}
+    p11 = paper.by_set_pose(t11)
+    # the paper's true ratio of medians (its "Medians" row is a row of means: data/README.md)
+    paper_ratio_of_medians = (np.median([r["median_linear_rad"] for r in t11])
+                              / np.median([r["median_alpha_rad"] for r in t11]))
     lines += ["## Step responses (Table 11)", "",
               "Absolute angle error [mrad] over the whole 8 s record and over the first second after "
-              "each edge. `unseen` marks poses with no sine data (16 of 25).", "",
+              f"each edge. `unseen` marks poses with no sine data "
+              f"({sum(not r['fitted_pose'] for r in res['scores']['step'])} of {len(res['scores']['step'])}).", "",
               "| set pose | linear median | alpha median | linear p90 | alpha p90 | after-edge ratio | unseen | paper median lin / alpha |",
               "|---|---|---|---|---|---|---|---|"]
     for r in res["scores"]["step"]:
@@ -138,8 +162,8 @@ def format_report(res: dict) -> str:
     lines += ["", f"Ratio of medians (linear/alpha): whole record {whole['ratio_of_medians']:.2f}, "
               f"after edges {after['ratio_of_medians']:.2f}; ratio of means: whole record "
               f"{whole['ratio_of_means']:.2f}, after edges {after['ratio_of_means']:.2f}. The paper's "
-              f"{PAPER_STEP_RATIO}x is a ratio of its Table 11 column means (its 'Medians' row); its "
-              "ratio of medians is 3.0. Its scoring window is not stated.", "",
+              f"{paper.PAPER_STEP_RATIO}x is a ratio of its Table 11 column means (its 'Medians' row); its "
+              f"ratio of medians is {paper_ratio_of_medians:.1f}. Its scoring window is not stated.", "",
               "![Fig. 14](fig14_step.png)", ""]
     if ident.warnings:
         lines += ["## Warnings", ""] + [f"- {w}" for w in ident.warnings] + [""]

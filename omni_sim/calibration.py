@@ -47,6 +47,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from identification import paper as _paper
 from identification.identify import identify_runs
 from identification.errors import UserError
 from identification.nonlinear import select_frequencies
@@ -54,18 +55,20 @@ from identification.nonlinear import select_frequencies
 from . import experiments as ex
 from . import model as om
 
-PAPER_DATA = Path(__file__).resolve().parent.parent / "identification" / "data"
 RECORD = om.MODELS_DIR / "calibration.json"
-#: Table 10 (reordered): C at alpha = 2.2, 25, 250 V^2/s^2 at gamma1=65, gamma2=90 [1/s].
-TABLE10_ALPHA = (2.2, 25.0, 250.0)
-TABLE10_C = (10.619, 6.486, 3.710)
+#: Table 10 (reordered): C1..C3 [1/s] at Table 7's breakpoints alpha_1..alpha_3 = 2.2, 25,
+#: 250 V^2/s^2 at gamma1=65, gamma2=90 (identification/data/README.md; read from paper.py).
+_T10 = _paper.table10()
+_T7_ALPHA = tuple(r["alpha"] for r in _paper.table7())
+TABLE10_ALPHA = _T7_ALPHA[1:]
+TABLE10_C = (_T10["C1"], _T10["C2"], _T10["C3"])
 #: Residual scales: what counts as "one unit" of misfit for each kind of target.
 SCALE_COEF_REL = 0.05
 SCALE_ANGLE_DEG = 0.75
 SCALE_CALPHA_REL = 0.20
 #: Table 10: C(alpha=0) / C(alpha=250) of the paper's alpha model at 65/90, and the scale of the
 #: log residual of the fitted model's fall (0.4 ~ a factor 1.5).
-TABLE10_FALL = 16.955 / 3.710
+TABLE10_FALL = _T10["C0"] / _T10["C3"]
 SCALE_FALL_LOG = 0.4
 #: Section 2.3 target: the smallest physical margin (see :func:`physical_margin`) at or below
 #: -0.01 (some frequency clearly non-physical); one-sided residual, scale 0.05.
@@ -105,11 +108,14 @@ L_LINK = 0.135   # m (geometry, not calibrated)
 R_TUBE = 0.006   # m
 
 
-def read_table3() -> list[dict]:
-    import csv
+def _alphas_text(alphas, sep=", ") -> str:
+    """Breakpoints as the paper prints them: "2.2, 25, 250"."""
+    return sep.join(f"{a:g}" for a in alphas)
 
-    with open(PAPER_DATA / "table3_linear_coefficients.csv") as fh:
-        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+
+def read_table3() -> list[dict]:
+    """The paper's Table 3 (:func:`identification.paper.table3`)."""
+    return _paper.table3()
 
 
 FRICTION_ACTUATOR = "yaw_friction"
@@ -201,7 +207,7 @@ def evaluate(model: mujoco.MjModel, amplitude_rad: float, jobs: int | None = Non
             "non_physical": [q.frequency_hz for q in pts if not q.used],
             "margin": [physical_margin(q.A1, q.A2, amplitude_rad) for q in pts],
         })
-    detail = next(q for q in poses if q["set"] == [65, 90])
+    detail = next(q for q in poses if tuple(q["set"]) == _paper.TABLE9_10_SET_POSE)
     detail["C_at_table10_alpha"] = c_at_alpha(detail, TABLE10_ALPHA)
     fig = {"poses": poses, "detail": detail}
     fig["C_alpha_fall"] = _alpha_model_fall(fig)
@@ -235,7 +241,7 @@ def residuals(fig: dict) -> np.ndarray:
               (p["gamma2_deg"] - p["gamma2_paper"]) / SCALE_ANGLE_DEG]
     for got, want in zip(fig["detail"]["C_at_table10_alpha"], TABLE10_C):
         r.append((got / want - 1) / SCALE_CALPHA_REL)
-    # Table 10: the alpha model's C falls 16.955 -> 3.710 (4.57x) from alpha = 0 to 250
+    # Table 10: the alpha model's C falls C0 -> C3 (TABLE10_FALL) from alpha = 0 to 250
     fall = fig["C_alpha_fall"]
     r.append(math.log(fall / TABLE10_FALL) / SCALE_FALL_LOG if math.isfinite(fall) and fall > 0
              else 10.0)
@@ -319,10 +325,12 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
         "date": _dt.date.today().isoformat(),
         "method": "scipy.optimize.least_squares (trf, bounded), simulation-in-the-loop with the "
                   "project's own identification (omni_sim/calibration.py)",
-        "targets": "paper Table 3 (C_linear, beta_tilde_linear, actual angles, 9 poses); Table 10 "
-                   "C at alpha = 2.2, 25, 250 (65/90 pose); section 2.3: some frequency with "
+        "targets": f"paper Table 3 (C_linear, beta_tilde_linear, actual angles, {len(read_table3())} "
+                   f"poses); Table 10 C at alpha = {_alphas_text(TABLE10_ALPHA)} (65/90 pose); "
+                   "section 2.3: some frequency with "
                    f"non-physical local coefficients (smallest physical margin <= {MARGIN_TARGET}); "
-                   "Table 10: the alpha model's C fall from alpha = 0 to 250 (4.57x; log scale 0.4)",
+                   f"Table 10: the alpha model's C fall from alpha = {_T7_ALPHA[0]:g} to "
+                   f"{_T7_ALPHA[-1]:g} ({TABLE10_FALL:.2f}x; log scale {SCALE_FALL_LOG:g})",
         "residual_scales": {"coef_rel": SCALE_COEF_REL, "angle_deg": SCALE_ANGLE_DEG,
                             "C_alpha_rel": SCALE_CALPHA_REL, "margin": SCALE_MARGIN,
                             "C_alpha_fall_log": SCALE_FALL_LOG},
@@ -450,12 +458,12 @@ def plot_record(record: dict, folder: Path) -> list[Path]:
     fig.savefig(p1, dpi=100)
     plt.close(fig)
 
-    d = next(p for p in poses if p["set"] == [65, 90])
+    d = next(p for p in poses if tuple(p["set"]) == _paper.TABLE9_10_SET_POSE)
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     axes[0].semilogx(d["alpha"], d["C_data"], "o-", label="virtual Omni C_data (19)")
     for f, a, c in zip(d["frequency_hz"], d["alpha"], d["C_data"]):
         axes[0].annotate(f"{f:g} Hz", (a, c), fontsize=7)
-    axes[0].semilogx(TABLE10_ALPHA, TABLE10_C, "ks", label="paper Table 10 (alpha 2.2, 25, 250)")
+    axes[0].semilogx(TABLE10_ALPHA, TABLE10_C, "ks", label=f"paper Table 10 (alpha {_alphas_text(TABLE10_ALPHA)})")
     axes[0].set(xlabel="alpha [V^2/s^2]", ylabel="C [1/s]", title="damping vs alpha at 65/90")
     axes[1].plot(d["frequency_hz"], d["alpha"], "o-")
     axes[1].set(xlabel="frequency [Hz]", ylabel="alpha [V^2/s^2]", yscale="log",
