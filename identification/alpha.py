@@ -12,6 +12,15 @@ axis, v = kp·(−A1·cos ωt + (Ar − A2)·sin ωt) (35) and (36) gives the cl
 
 Conventions: times in [s], angles in [rad], voltages in [V], angular frequency ω in [rad/s],
 α in [V²/s²].  Arrays are 1-D and uniformly sampled unless stated otherwise.
+
+This module is the single implementation of (33)–(36).  The identification pipeline uses
+:func:`alpha_sine` (36) for every sine frequency (through :func:`identification.linear.alpha_sine`,
+which only reorders the arguments).  :func:`alpha_invariant`, :func:`alpha_from_samples` and
+:func:`alpha_cycle_average` are public tools for users with measured command-voltage records
+(a real device's log, or a non-sinusoidal input where α varies within a cycle); the pipeline
+itself does not need them, since it knows the steady-state sine coefficients.  The quasilinear
+simulation (:mod:`identification.simulate`) evaluates (33) inline inside its vectorised
+per-step iteration (44).
 """
 
 from __future__ import annotations

@@ -25,7 +25,9 @@ Section 3.3 mentions that the paper's Table 9 used 3–4.5 Hz; that choice is no
 
 The α-invariant of the sine input voltage ``v = k_p (r - θ)`` (35) is (36)
 
-    α = k_p² ω² (A1² + (A_r - A2)²)     [V²/s²], with ω in rad/s.
+    α = k_p² ω² (A1² + (A_r - A2)²)     [V²/s²], with ω in rad/s,
+
+computed by :mod:`identification.alpha` (:func:`alpha_sine` here only reorders its arguments).
 
 Units: ω [rad/s], A1, A2, A_r [rad], C [1/s], β [1/s²], k_p [V/rad], β̃ = β/k_p [rad/(V·s²)].
 """
@@ -37,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import alpha as _alpha
 from .errors import UserError
 from .sine_fit import RunSineFit
 
@@ -78,6 +81,10 @@ def local_coefficients(A1, A2, amplitude_rad, omega):
 def alpha_sine(A1, A2, amplitude_rad, omega, kp):
     """α-invariant of the sine input voltage (36): ``k_p² ω² (A1² + (A_r − A2)²)``.
 
+    The formula is :func:`identification.alpha.alpha_sine` (the single implementation of
+    (33)–(36)); this wrapper takes the arguments in this module's order and returns a ``float``
+    for scalar input.
+
     Parameters
     ----------
     A1, A2, amplitude_rad : float or array [rad]
@@ -88,8 +95,7 @@ def alpha_sine(A1, A2, amplitude_rad, omega, kp):
     -------
     alpha : float or array [V²/s²]
     """
-    A1, A2, ar, w, kp = (np.asarray(x, dtype=float) for x in (A1, A2, amplitude_rad, omega, kp))
-    a = kp**2 * w**2 * (A1**2 + (ar - A2) ** 2)
+    a = np.asarray(_alpha.alpha_sine(np.asarray(kp, dtype=float), omega, A1, A2, amplitude_rad))
     return float(a) if a.ndim == 0 else a
 
 
