@@ -219,6 +219,14 @@ def atomic_output_dir(out: str | os.PathLike, force: bool = False) -> Iterator[P
         os.replace(tmp, out)
 
 
+def write_dataset(runs, out: str | os.PathLike, force: bool = False) -> None:
+    """Write ``runs`` as a dataset folder ``out`` atomically (:func:`atomic_output_dir`, then
+    :func:`write_run` for each run)."""
+    with atomic_output_dir(out, force=force) as tmp:
+        for run in runs:
+            write_run(tmp, run)
+
+
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` to ``path`` via a temporary file and rename (never half-written)."""
     path = Path(path)

@@ -48,7 +48,7 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True) 
 
     ``extended=False`` measures only the campaign figures (fast).
     """
-    from .commands import write_dataset
+    from identification.dataset import write_dataset
 
     jobs = max(1, jobs or os.cpu_count() or 1)
     model = om.load_model()

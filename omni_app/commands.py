@@ -11,7 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from identification.dataset import atomic_output_dir, atomic_write_text, read_dataset, write_run
+from identification.dataset import atomic_output_dir, atomic_write_text, read_dataset, write_dataset
 from identification.errors import UserError
 from identification.identify import fit_inertia_table, identify_runs
 from identification.inertia import InertiaFit
@@ -31,13 +31,6 @@ def _check_jobs(jobs: int | None) -> int | None:
     if jobs is not None and jobs < 1:
         raise UserError(f"--jobs must be >= 1, got {jobs}")
     return jobs
-
-
-def write_dataset(runs, out, force: bool) -> None:
-    """Write runs into ``out`` atomically (temporary folder, then rename)."""
-    with atomic_output_dir(out, force=force) as tmp:
-        for run in runs:
-            write_run(tmp, run)
 
 
 def generate(args: argparse.Namespace) -> int:

@@ -1,0 +1,196 @@
+"""Layering of the three packages: omni_app -> omni_sim -> identification, and no import cycles.
+
+The import graph is read from the source with :mod:`ast` (never by importing), including
+imports inside functions, ``if TYPE_CHECKING:`` blocks and ``importlib.import_module("...")``
+calls with a literal name; relative imports are resolved against the importing module.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("identification", "omni_sim", "omni_app")
+#: Never imported by the method layer, directly or through a dependency.
+METHOD_FORBIDDEN = ("matplotlib", "argparse", "mujoco", "omni_sim", "omni_app")
+#: Must not appear in ``sys.modules`` after importing every identification module.
+METHOD_FORBIDDEN_LOADED = ("mujoco", "matplotlib", "omni_sim", "omni_app")
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _modules() -> dict[str, Path]:
+    """Every module of the three packages: dotted name -> source file."""
+    out = {}
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            out[_module_name(path)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _resolve_relative(module: str, is_package: bool, level: int, name: str | None) -> str:
+    """The absolute module named by ``from <level dots><name> import ...`` inside ``module``."""
+    base = module.split(".")
+    if not is_package:
+        base = base[:-1]                      # a module's package
+    if level > 1:
+        base = base[: len(base) - (level - 1)]
+    return ".".join(base + ([name] if name else []))
+
+
+def imports_of(module: str) -> list[tuple[str, int]]:
+    """Absolute names this module imports, with line numbers, from anywhere in its source.
+
+    ``from X import a`` yields ``X.a`` when that is one of our modules, otherwise ``X``.
+    """
+    path = MODULES[module]
+    tree = ast.parse(path.read_text(), filename=str(path))
+    is_package = path.name == "__init__.py"
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [(alias.name, node.lineno) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            target = (_resolve_relative(module, is_package, node.level, node.module)
+                      if node.level else node.module)
+            for alias in node.names:
+                sub = f"{target}.{alias.name}"
+                found.append((sub if sub in MODULES else target, node.lineno))
+        elif (isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant)
+              and isinstance(node.args[0].value, str)
+              and ((isinstance(node.func, ast.Attribute) and node.func.attr == "import_module")
+                   or (isinstance(node.func, ast.Name) and node.func.id in ("import_module", "__import__")))):
+            found.append((node.args[0].value, node.lineno))
+    return found
+
+
+def _internal_target(name: str) -> str | None:
+    """The longest prefix of ``name`` that is one of our modules (None if external)."""
+    parts = name.split(".")
+    for n in range(len(parts), 0, -1):
+        cand = ".".join(parts[:n])
+        if cand in MODULES:
+            return cand
+    return None
+
+
+def import_graph() -> dict[str, set[str]]:
+    graph = {m: set() for m in MODULES}
+    for m in MODULES:
+        for name, _ in imports_of(m):
+            t = _internal_target(name)
+            if t is not None:
+                graph[m].add(t)
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module, or a module importing itself
+    (Tarjan's algorithm, iterative)."""
+    index, low, on_stack, stack, out = {}, {}, set(), [], []
+    counter = 0
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = counter
+        counter += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, it = work[-1]
+            for nxt in it:
+                if nxt not in index:
+                    index[nxt] = low[nxt] = counter
+                    counter += 1
+                    stack.append(nxt)
+                    on_stack.add(nxt)
+                    work.append((nxt, iter(sorted(graph[nxt]))))
+                    break
+                if nxt in on_stack:
+                    low[node] = min(low[node], index[nxt])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    comp = []
+                    while True:
+                        x = stack.pop()
+                        on_stack.discard(x)
+                        comp.append(x)
+                        if x == node:
+                            break
+                    if len(comp) > 1 or node in graph[node]:
+                        out.append(sorted(comp))
+    return out
+
+
+# -- the checker itself --------------------------------------------------------------------------
+def test_cycle_finder_finds_a_cycle_and_a_self_import():
+    g = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": {"e"}, "f": set()}
+    assert sorted(cycles(g)) == [["a", "b", "c"], ["e"]]
+    assert cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_relative_imports_resolve():
+    assert _resolve_relative("omni_sim.discrepancy.bank", False, 1, "fit") == "omni_sim.discrepancy.fit"
+    assert _resolve_relative("omni_sim.discrepancy.bank", False, 2, None) == "omni_sim"
+    assert _resolve_relative("omni_sim.discrepancy", True, 1, "bank") == "omni_sim.discrepancy.bank"
+    assert _resolve_relative("omni_sim.discrepancy", True, 2, "model") == "omni_sim.model"
+    # a relative import of this repository, as the graph sees it
+    assert "identification.paper" in import_graph()["identification.nonlinear"]
+
+
+def test_every_package_was_walked():
+    for pkg in PACKAGES:   # (omni_app has no __init__.py: a namespace package)
+        assert sum(m.startswith(pkg + ".") for m in MODULES) >= 8, pkg
+    assert "omni_sim.discrepancy.bank" in MODULES and "omni_app.report" in MODULES
+
+
+# -- the rules -----------------------------------------------------------------------------------
+def test_no_import_cycles():
+    found = cycles(import_graph())
+    assert not found, "import cycles between modules: " + "; ".join(" <-> ".join(c) for c in found)
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if m.split(".")[0] == "identification"))
+def test_method_layer_imports(module):
+    bad = [f"line {line}: {name}" for name, line in imports_of(module)
+           if name.split(".")[0] in METHOD_FORBIDDEN]
+    assert not bad, f"{module} imports outside the method layer: {bad}"
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if m.split(".")[0] == "omni_sim"))
+def test_simulator_does_not_import_the_app(module):
+    bad = [f"line {line}: {name}" for name, line in imports_of(module)
+           if name.split(".")[0] == "omni_app"]
+    assert not bad, f"{module} imports the presentation layer: {bad}"
+
+
+def test_method_layer_loads_without_simulator_or_plotting():
+    """Importing every identification module pulls in none of MuJoCo, matplotlib, omni_sim."""
+    mods = sorted(m for m in MODULES if m.split(".")[0] == "identification")
+    code = (
+        "import importlib, sys\n"
+        f"for m in {mods!r}:\n"
+        "    importlib.import_module(m)\n"
+        f"bad = [m for m in {METHOD_FORBIDDEN_LOADED!r} if m in sys.modules]\n"
+        "sys.exit('loaded: ' + ', '.join(bad) if bad else 0)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
