@@ -2,11 +2,12 @@
 
 The agent is the yaw controller: every control period it reads the (optionally quantised,
 noisy) encoder and commands the yaw motor's voltage.  The arm (shoulder gamma1, elbow gamma2)
-is held by the model's own P servos, exactly as in the dataset generator
-(:mod:`omni_sim.experiments`), so a P controller acting through this environment reproduces the
-generator's runs (``tests/test_env.py``, "one source of truth").
+is held by the model's own P servos.  The environment is a :class:`omni_sim.device.Device`
+stepped through its closed-loop engine, the same start state, encoder and engine as the dataset
+generator (:mod:`omni_sim.experiments`) and the discrepancy replay, so a P controller acting
+through this environment reproduces the generator's runs (``tests/test_device.py``).
 
-Time convention (the same as :mod:`omni_sim.experiments`): step ``k`` starts at
+Time convention (the project's, :mod:`omni_sim.device`): step ``k`` starts at
 ``t_k = k * dt``.  The observation returned by :meth:`OmniYawEnv.reset` (``k = 0``) or by the
 previous step holds ``theta_k`` measured at ``t_k`` and the reference ``r_k``; the action ``v_k``
 is clipped to the drive's range and held (zero-order hold) over ``[t_k, t_k + dt)``, i.e. for
@@ -42,6 +43,7 @@ from identification.errors import UserError
 
 from . import experiments as ex
 from . import model as om
+from .device import ENCODER_STEP_RAD, Device, Engine, read_encoder
 
 __all__ = ["OmniYawEnv", "AlphaInvariantObservation", "InvalidOptionError", "OBSERVATION_NAMES",
            "VELOCITY_FILTER_HZ"]
@@ -57,9 +59,10 @@ VELOCITY_FILTER_HZ = 20.0
 MAX_NOISE_RAD = 0.05
 REFERENCE_KINDS = ("sine", "square", "steps")
 VELOCITY_MODES = ("exact", "estimated")
-#: Defaults of the reference shapes [Hz], [rad]: sine 2 Hz / 0.1 rad (inside the paper's
-#: sweep, Section 2.4.2, and the generator's SINE_AMPLITUDE_RAD); square 0.25 Hz / 0.07 rad
-#: (Section 2.4.3); random steps 0.1 rad.
+#: Defaults of the reference shapes [Hz], [rad]: sine 2 Hz (inside the paper's sweep, Section
+#: 2.4.2) at the paper campaign's calibrated A_r (``campaigns/paper.toml``, 0.0498 rad); square
+#: 0.25 Hz / 0.07 rad (Section 2.4.3); random steps 0.1 rad (our choice: twice A_r, well inside
+#: the yaw range).
 _DEFAULT_FREQUENCY_HZ = {"sine": 2.0, "square": ex.STEP_FREQUENCY_HZ}
 _DEFAULT_AMPLITUDE_RAD = {"sine": ex.SINE_AMPLITUDE_RAD, "square": ex.STEP_AMPLITUDE_RAD,
                           "steps": 0.1}
@@ -149,8 +152,13 @@ class OmniYawEnv(gym.Env):
     ====  ===============  =====  ===============  ==============================================
 
     ``gamma1``/``gamma2`` follow the paper's convention (:mod:`omni_sim.model`); they sag below
-    the set points under gravity.  A non-finite or out-of-bound observation raises
-    ``RuntimeError`` (divergence) instead of being returned.
+    the set points under gravity.
+
+    **Divergence** -- as gymnasium's MuJoCo environments do, a step whose observation is
+    non-finite or outside its bounds, or in which MuJoCo reset an unstable state (its
+    ``mjWARN_BADQPOS``/``QVEL``/``QACC`` warnings), ends the episode: ``terminated=True``, reward 0,
+    ``info["diverged"] = True`` and ``info["reason"]`` saying which entry left its bound; the
+    returned observation is that one with non-finite entries set to 0 and clipped into the box.
 
     **Reward** -- squared, so that it is smooth for gradient-based and RL controllers::
 
@@ -161,7 +169,7 @@ class OmniYawEnv(gym.Env):
     ``r - theta_true`` [rad], ``"voltage"`` (applied ``v_k``) [V], ``"theta_true"`` [rad] and
     ``"time"`` [s].
 
-    **Episode** -- never terminates; truncated internally (``truncated=True``) after
+    **Episode** -- terminates only on divergence (above); truncated internally (``truncated=True``) after
     ``round(duration_s / dt)`` steps.  The environment is registered without gymnasium's
     ``max_episode_steps`` because the length is a per-episode option.  After the last reference
     sample the reference holds its final value (only visible in the final observation).
@@ -197,7 +205,8 @@ class OmniYawEnv(gym.Env):
     frequency_hz : float [Hz], optional
         Sine / square frequency (> 0; default 2 Hz for the sine, 0.25 Hz for the square).
     amplitude_rad : float [rad], optional
-        Amplitude ``A`` (>= 0; default 0.1 sine, 0.07 square, 0.1 steps).
+        Amplitude ``A`` (>= 0; default: the paper campaign's A_r = 0.0498 rad for the sine,
+        0.07 square, 0.1 steps).
     step_period_s : float [s]
         Hold time of each random step (> 0; default 0.5 s).
     duration_s : float [s], optional
@@ -211,7 +220,7 @@ class OmniYawEnv(gym.Env):
         :func:`omni_sim.model.scale_yaw_friction`) and viscous ``damping`` of the model file.
     quantize : bool
         Quantise the measured yaw to the encoder's 15000 counts/rev
-        (:data:`omni_sim.experiments.ENCODER_STEP_RAD`) as the generator does.
+        (:data:`omni_sim.device.ENCODER_STEP_RAD`) as the generator does.
     noise_rad : float [rad]
         Standard deviation of white measurement noise added before quantisation, drawn from the
         environment's RNG (seeded by ``reset(seed=...)``); ``0 <= noise_rad <= 0.05``.
@@ -226,6 +235,7 @@ class OmniYawEnv(gym.Env):
 
     Attributes
     ----------
+    device : omni_sim.device.Device
     model, data : mujoco.MjModel, mujoco.MjData
     control_period_s : float [s]
     substeps : int
@@ -240,22 +250,22 @@ class OmniYawEnv(gym.Env):
                  render_width: int = 640, render_height: int = 480,
                  camera: str | None = "side", **options):
         try:
-            self.model = om.load_model(model_path)
+            model = om.load_model(model_path)
+            self.device = Device(model, _finite("control_period_s", control_period_s, 0.0,
+                                                lo_open=True))
         except UserError as exc:
+            if isinstance(exc, InvalidOptionError):
+                raise
             raise InvalidOptionError(str(exc)) from None
+        self.model = model
         self.model_path = model_path
         self.data = mujoco.MjData(self.model)
-        self._ix = om.index(self.model)
-        timestep = float(self.model.opt.timestep)
-        n = _finite("control_period_s", control_period_s, 0.0, lo_open=True) / timestep
-        if not (n >= 1 - 1e-9 and abs(n - round(n)) < 1e-9):
-            raise InvalidOptionError(f"control_period_s = {control_period_s} s is not a whole "
-                                     f"multiple of the model's timestep {timestep} s")
-        self.substeps = int(round(n))
+        self._ix = self.device.ix
+        self.substeps = self.device.substeps
         self.control_period_s = float(control_period_s)
         self.metadata = {**type(self).metadata, "render_fps": int(round(1.0 / self.dt))}
 
-        self.voltage_limit = om.voltage_limit(self.model)
+        self.voltage_limit = self.device.voltage_limit
         if not math.isfinite(self.voltage_limit):
             raise InvalidOptionError("the model's yaw_motor needs a ctrlrange (the drive's "
                                      "voltage limit) to bound the action space")
@@ -290,7 +300,8 @@ class OmniYawEnv(gym.Env):
         self._viewer = None
 
         self._defaults = self._merge(_Options(), options)
-        self._eq_cache: dict[tuple[float, float], tuple[float, float]] = {}
+        self._engine: Engine | None = None
+        self._diverged = False
         self._opt = self._defaults
         self._r = np.zeros(1)
         self._noise = np.zeros(2)
@@ -390,13 +401,19 @@ class OmniYawEnv(gym.Env):
 
     # --- measurement -----------------------------------------------------------------------
     def _measure(self) -> float:
-        """Encoder reading at the current time [rad], as ``experiments._measure``."""
-        y = self.data.qpos[self._ix.yaw_qpos] + self._noise[self._k]
-        if self._opt.quantize:
-            y = round(y / ex.ENCODER_STEP_RAD) * ex.ENCODER_STEP_RAD
-        return float(y)
+        """Encoder reading at the current time [rad] (:func:`omni_sim.device.read_encoder`)."""
+        return float(read_encoder(self.data.qpos[self._ix.yaw_qpos], self._noise[self._k],
+                                  ENCODER_STEP_RAD if self._opt.quantize else 0.0))
 
-    def _observe(self, y: float) -> np.ndarray:
+    def _instabilities(self) -> int:
+        """How often MuJoCo has reset this data for a bad qpos, qvel or qacc."""
+        w = self.data.warning
+        return int(sum(w[int(k)].number for k in (mujoco.mjtWarning.mjWARN_BADQPOS,
+                                                 mujoco.mjtWarning.mjWARN_BADQVEL,
+                                                 mujoco.mjtWarning.mjWARN_BADQACC)))
+
+    def _observe(self, y: float) -> tuple[np.ndarray, str | None]:
+        """The observation, and why it is invalid (None when it is finite and in bounds)."""
         if self._opt.velocity == "exact":
             w = float(self.data.qvel[self._ix.yaw_dof])
         else:
@@ -407,11 +424,14 @@ class OmniYawEnv(gym.Env):
         r = self._r[min(self._k, self._r.size - 1)]
         obs = np.array([y, w, r, self.data.qpos[self._ix.shoulder_qpos],
                         self.data.qpos[self._ix.elbow_qpos]], dtype=np.float64)
-        if not (np.all(np.isfinite(obs)) and np.all(obs >= self.observation_space.low)
-                and np.all(obs <= self.observation_space.high)):
-            raise RuntimeError(f"simulation diverged at t = {self.data.time:.6f} s: "
-                               f"observation {dict(zip(OBSERVATION_NAMES, obs))}")
-        return obs
+        box = self.observation_space
+        bad = ~(np.isfinite(obs) & (obs >= box.low) & (obs <= box.high))
+        if not bad.any():
+            return obs, None
+        reason = (f"simulation diverged at t = {self.data.time:.6f} s: "
+                  + ", ".join(f"{OBSERVATION_NAMES[i]} = {obs[i]:g} outside "
+                              f"[{box.low[i]:g}, {box.high[i]:g}]" for i in np.flatnonzero(bad)))
+        return np.clip(np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0), box.low, box.high), reason
 
     def _info(self, v: float) -> dict:
         theta = float(self.data.qpos[self._ix.yaw_qpos])
@@ -435,6 +455,8 @@ class OmniYawEnv(gym.Env):
         o = self._merge(self._defaults, options) if options else self._defaults
         self._opt = o
         m, d, ix = self.model, self.data, self._ix
+        if self._engine is not None:
+            self._engine.close()
         om.scale_yaw_friction(m, o.friction_scale, base=self._model0)
         m.dof_damping[ix.yaw_dof] = self._yaw_damping0 * o.friction_scale
 
@@ -442,25 +464,19 @@ class OmniYawEnv(gym.Env):
         self._n = self._r.size
         self._noise = (self.np_random.normal(0.0, o.noise_rad, self._n + 1) if o.noise_rad > 0
                        else np.zeros(self._n + 1))
-        key = (float(o.gamma1_set_deg), float(o.gamma2_set_deg))
-        if key not in self._eq_cache:
-            self._eq_cache[key] = om.equilibrium_pose(m, *key)
-        g1, g2 = self._eq_cache[key]
-
-        # the start state of experiments._initial_data
-        mujoco.mj_resetData(m, d)
-        d.qpos[ix.yaw_qpos] = theta0
-        d.qpos[ix.shoulder_qpos] = math.radians(g1)
-        d.qpos[ix.elbow_qpos] = math.radians(g2)
-        om.set_arm_setpoints(m, d, o.gamma1_set_deg, o.gamma2_set_deg)
-        mujoco.mj_forward(m, d)
+        # the device's start state and engine, on this environment's MjData
+        self._engine = Engine([self.device], [theta0],
+                              [(float(o.gamma1_set_deg), float(o.gamma2_set_deg))], data=d)
+        self._diverged = False
 
         self._k = 0
         y = self._measure()
         self._y_hist = (y, y)  # at rest before the episode
         self._w_est = 0.0
         self._lp_gain = 1.0 - math.exp(-2 * math.pi * VELOCITY_FILTER_HZ * self.dt)
-        obs = self._observe(y)
+        obs, reason = self._observe(y)
+        if reason is not None:  # the options are validated, so the start state is in bounds
+            raise RuntimeError(reason)
         if self.render_mode == "human":
             self.render()
         return obs, self._info(0.0)
@@ -468,21 +484,30 @@ class OmniYawEnv(gym.Env):
     def step(self, action):
         """Apply voltage ``action[0]`` [V] for one control period; see the class docstring."""
         a = np.asarray(action, dtype=float)
-        if a.shape not in ((1,), ()) or a.size != 1:
+        if a.shape != (1,):
             raise InvalidOptionError(f"action must have shape (1,) (yaw voltage [V]), got shape "
                                      f"{a.shape}")
-        v = float(a.reshape(()))
+        v = float(a[0])
         if not math.isfinite(v):
             raise InvalidOptionError(f"action must be finite, got {v}")
+        if self._engine is None:
+            raise RuntimeError("step() before reset()")
+        if self._diverged:
+            raise RuntimeError("step() after the episode terminated (diverged); call reset()")
         if self._k >= self._n:
             raise RuntimeError("step() after the episode was truncated; call reset()")
-        v = min(max(v, -self.voltage_limit), self.voltage_limit)
-        self.data.ctrl[self._ix.yaw_act] = v
-        for _ in range(self.substeps):
-            mujoco.mj_step(self.model, self.data)
+        bad_before = self._instabilities()
+        v = float(self._engine.apply(v)[0])
         self._k += 1
-        obs = self._observe(self._measure())
+        obs, reason = self._observe(self._measure())
+        if reason is None and self._instabilities() > bad_before:
+            reason = (f"simulation diverged at t = {self.data.time:.6f} s: MuJoCo found a "
+                      "non-finite or huge state and reset it (mjWARN_BADQPOS/QVEL/QACC)")
         info = self._info(v)
+        if reason is not None:
+            self._diverged = True
+            info.update(diverged=True, reason=reason)
+            return obs, 0.0, True, False, info
         reward = -info["tracking_error"] ** 2 - self._opt.effort_weight * v * v
         truncated = self._k >= self._n
         if self.render_mode == "human":
@@ -511,6 +536,8 @@ class OmniYawEnv(gym.Env):
 
     def close(self):
         """Release the renderer and the viewer (safe to call twice)."""
+        if self._engine is not None:
+            self._engine.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None

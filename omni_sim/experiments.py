@@ -1,19 +1,20 @@
-"""The paper's experiments on the virtual Omni: references, campaigns and the runner.
+"""The paper's experiments on the virtual Omni: references, campaign files and the runner.
 
-Time/array convention (used throughout the project): a run is sampled at the servo rate
-(``control_period_s``, 1 ms), sample ``k`` is at ``t_k = k * dt``; ``theta_k`` is the yaw angle
-*measured* at ``t_k`` (before the controller acts), ``v_k = kp * (r_k - theta_k)`` (clipped to
-the drive's limit) is the command voltage held (zero-order hold) over ``[t_k, t_k + dt)``.
+Campaigns are data: ``omni_sim/campaigns/paper.toml`` holds the paper's (Table 1 sine sweeps,
+Table 2 square waves, the calibrated sine amplitude, durations, settling); a user's campaign
+file in the same format runs with ``omni generate --campaign FILE.toml``
+(:func:`load_campaign`).  The time convention is :mod:`omni_sim.device`'s.
 
 Two ways to run the same physics:
 
 * the fast path (default): the yaw P controller is folded into the model's ``yaw_motor``
   (``force = kp*r - kp*theta``, clamped to the voltage limit, times the gear) and all runs go
-  through :func:`mujoco.rollout.rollout` in C over threads. Valid when the physics step equals
+  through :func:`mujoco.rollout.rollout` in C over threads.  Valid when the physics step equals
   the control period, the measurement is exact, and ``yaw_motor`` is a plain motor.
-* the reference path: a Python loop that reads the (optionally quantised and noisy) encoder,
-  computes ``v`` and steps the physics ``substeps`` times per control period. Used for
-  everything else, and in the tests as the slow, obviously correct reference for the fast path.
+* the reference path: the device's closed-loop engine (:func:`omni_sim.device.run_p_loop`),
+  which reads the (optionally quantised and noisy) encoder, computes ``v`` and steps the physics
+  ``substeps`` times per control period.  Used for everything else, and in the tests as the
+  slow, obviously correct reference for the fast path.
 """
 
 from __future__ import annotations
@@ -21,8 +22,9 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-from concurrent.futures import ProcessPoolExecutor
+import tomllib
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 
 import mujoco
@@ -33,34 +35,158 @@ from identification.dataset import Run
 from identification.errors import UserError
 
 from . import model as om
+from .device import (CONTROL_PERIOD_S, ENCODER_STEP_RAD, Device, Encoder,  # noqa: F401 (re-exported)
+                     p_law, run_p_loop, substeps_of)
 
-# --- The paper's experiment design ---------------------------------------------------------
+# --- Campaign files --------------------------------------------------------------------------
+#: The built-in campaigns: ``paper`` is the file ``campaigns/paper.toml``, ``sine`` and ``step``
+#: its two halves.
+CAMPAIGNS = ("paper", "sine", "step")
+#: Keys of a campaign file's groups: required ones, and optional ones with their defaults
+#: (the paper file's values, its comments give their sources).
+_SINE_KEYS = {"poses_deg": None, "frequencies_hz": None, "amplitude_rad": None,
+              "settle_s": None, "record_s": None}
+_STEP_KEYS = {"poses_deg": None, "frequency_hz": None, "amplitude_rad": None, "duration_s": None}
+
+
+def _paper_text() -> bytes:
+    return resources.files("omni_sim").joinpath("campaigns", "paper.toml").read_bytes()
+
+
+def _campaign_error(source: str, key: str, problem: str) -> UserError:
+    return UserError(f"{source}: {key}: {problem}")
+
+
+def _number(source, key, value, positive=True, allow_zero=False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise _campaign_error(source, key, f"must be a finite number, got {value!r}")
+    if positive and not (value > 0 or (allow_zero and value == 0)):
+        raise _campaign_error(source, key, f"must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
+    return value
+
+
+def _groups(source: str, doc: dict, kind: str, keys: dict) -> list[dict]:
+    raw = doc.get(kind, [])
+    raw = [raw] if isinstance(raw, dict) else raw
+    if not isinstance(raw, list) or not all(isinstance(g, dict) for g in raw):
+        raise _campaign_error(source, kind, "must be a table [" + kind + "] or an array of tables [[" + kind + "]]")
+    out = []
+    for i, g in enumerate(raw):
+        where = kind if len(raw) == 1 else f"{kind}[{i}]"
+        for k in g:
+            if k not in keys:
+                raise _campaign_error(source, f"{where}.{k}", f"unknown key (known: {', '.join(keys)})")
+        for k in keys:
+            if k not in g:
+                raise _campaign_error(source, f"{where}.{k}", "missing")
+        poses = g["poses_deg"]
+        if (not isinstance(poses, list) or not poses
+                or not all(isinstance(p, list) and len(p) == 2 for p in poses)):
+            raise _campaign_error(source, f"{where}.poses_deg",
+                                  "must be a non-empty list of [gamma1, gamma2] set points [deg]")
+        for p in poses:
+            for x in p:
+                _number(source, f"{where}.poses_deg", x, positive=False)
+        grp = {"where": where, "poses": tuple(tuple(p) for p in poses)}
+        for k in keys:
+            if k == "poses_deg":
+                continue
+            if k == "frequencies_hz":
+                fs = g[k]
+                if not isinstance(fs, list) or not fs:
+                    raise _campaign_error(source, f"{where}.{k}", "must be a non-empty list of frequencies [Hz]")
+                grp[k] = tuple(_number(source, f"{where}.{k}", f) for f in fs)
+            else:
+                grp[k] = _number(source, f"{where}.{k}", g[k], allow_zero=k in ("amplitude_rad", "settle_s"))
+        out.append(grp)
+    return out
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A campaign file, parsed: sine groups and step groups (see ``campaigns/paper.toml``).
+
+    Attributes
+    ----------
+    source : str
+        The file (or built-in name) it came from, for messages.
+    sine, step : tuple of dict
+        Groups: ``poses`` (set points [deg]) and the group's keys.
+    """
+
+    source: str
+    sine: tuple = ()
+    step: tuple = ()
+
+    def experiments(self, sine_amplitude_rad: float | None = None) -> list["Experiment"]:
+        """Every run: each sine group's poses x frequencies, then each step group's poses.
+
+        ``sine_amplitude_rad`` overrides the sine groups' amplitude (the calibration's search)."""
+        out: list[Experiment] = []
+        for g in self.sine:
+            amp = g["amplitude_rad"] if sine_amplitude_rad is None else sine_amplitude_rad
+            out += [sine_experiment(g1, g2, f, amp, settle_s=g["settle_s"], record_s=g["record_s"])
+                    for g1, g2 in g["poses"] for f in g["frequencies_hz"]]
+        for g in self.step:
+            out += [square_experiment(g1, g2, g["frequency_hz"], g["amplitude_rad"], g["duration_s"])
+                    for g1, g2 in g["poses"]]
+        names = [e.name for e in out]
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise UserError(f"{self.source}: two runs would share the name {dup[0]!r} "
+                            "(same pose and frequency in two groups)")
+        return out
+
+
+def parse_campaign(text: bytes | str, source: str) -> Campaign:
+    """Parse a campaign file's text (UserError naming the key on any problem)."""
+    try:
+        doc = tomllib.loads(text.decode() if isinstance(text, bytes) else text)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"{source}: not a valid TOML file ({exc})") from None
+    for k in doc:
+        if k not in ("sine", "step", "description"):
+            raise _campaign_error(source, k, "unknown key (known: sine, step, description)")
+    sine = _groups(source, doc, "sine", _SINE_KEYS)
+    step = _groups(source, doc, "step", _STEP_KEYS)
+    if not sine and not step:
+        raise UserError(f"{source}: a campaign needs a [sine] or a [step] table")
+    return Campaign(source, tuple(sine), tuple(step))
+
+
+def load_campaign(name_or_path: str | os.PathLike) -> Campaign:
+    """``paper``, ``sine``, ``step`` (the built-in file or its halves) or a campaign file's path."""
+    key = str(name_or_path)
+    if key in CAMPAIGNS:
+        c = parse_campaign(_paper_text(), "campaigns/paper.toml")
+        return Campaign(c.source, c.sine if key != "step" else (), c.step if key != "sine" else ())
+    path = Path(name_or_path)
+    if path.suffix != ".toml" and not path.exists():
+        raise UserError(f"unknown campaign {key!r} (choose from {', '.join(CAMPAIGNS)}, or give "
+                        "a campaign file FILE.toml)")
+    if not path.is_file():
+        raise UserError(f"{path}: campaign file not found")
+    return parse_campaign(path.read_bytes(), str(path))
+
+
+# The paper campaign's numbers, read from campaigns/paper.toml (used as defaults elsewhere).
+_PAPER = load_campaign("paper")
 #: Table 1: set points (gamma1, gamma2) [deg] of the frequency-response experiments.
-TABLE1_POSES = tuple((g1, g2) for g1 in (25, 45, 65) for g2 in (70, 90, 115))
+TABLE1_POSES = _PAPER.sine[0]["poses"]
 #: Section 2.4.2: sine frequencies [Hz].
-TABLE1_FREQUENCIES_HZ = (1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0, 7.0)
+TABLE1_FREQUENCIES_HZ = _PAPER.sine[0]["frequencies_hz"]
 #: Table 2: set points (gamma1, gamma2) [deg] of the step-response experiments.
-TABLE2_POSES = tuple((g1, g2) for g1 in (25, 35, 45, 55, 65) for g2 in (60, 70, 90, 110, 115))
+TABLE2_POSES = _PAPER.step[0]["poses"]
+#: Sine reference amplitude A_r [rad] (calibrated; campaigns/paper.toml says how).
+SINE_AMPLITUDE_RAD = _PAPER.sine[0]["amplitude_rad"]
+SINE_SETTLE_S = _PAPER.sine[0]["settle_s"]
+SINE_RECORD_S = _PAPER.sine[0]["record_s"]
+#: Section 2.4.3: square wave 0.25 Hz, 0.07 rad, from theta = -0.07 rad at rest; 8 s record.
+STEP_FREQUENCY_HZ = _PAPER.step[0]["frequency_hz"]
+STEP_AMPLITUDE_RAD = _PAPER.step[0]["amplitude_rad"]
+STEP_DURATION_S = _PAPER.step[0]["duration_s"]
 #: Yaw P gain [V/rad]: Table 9, beta_linear / beta_tilde_linear = 445.6 / 222.8.
 KP_DEFAULT = 2.0
-#: Sine reference amplitude A_r [rad].  Not stated in the paper; 0.1 rad puts the alpha-invariant
-#: (36) of a linear model with Table 9's coefficients at ~2 at 2 Hz and ~200 near resonance,
-#: the range of Table 7's breakpoints (0, 2.2, 25, 250).  Calibrated in scripts/calibrate.py.
-SINE_AMPLITUDE_RAD = 0.0498256
-#: Section 2.4.3: square wave 0.25 Hz, 0.07 rad, from theta = -0.07 rad at rest.
-STEP_FREQUENCY_HZ = 0.25
-STEP_AMPLITUDE_RAD = 0.07
-#: Square-wave record: two whole periods (four edges) [s].
-STEP_DURATION_S = 8.0
-#: Sine runs: settle for this long [s] (closed-loop time constant 2/C ~ 0.3 s at C ~ 6 1/s),
-#: then record whole cycles lasting at least SINE_RECORD_S [s] (>= 6 cycles at 1.5 Hz).
-SINE_SETTLE_S = 2.0
-SINE_RECORD_S = 4.0
-#: The Omni's servo period [s] (1 kHz, models/README.md).
-CONTROL_PERIOD_S = 1e-3
-#: Encoder resolution [rad]: 15000 counts per revolution (models/README.md).
-ENCODER_STEP_RAD = 2 * math.pi / 15000
-CAMPAIGNS = ("paper", "sine", "step")
 
 
 @dataclass(frozen=True)
@@ -150,17 +276,10 @@ def reference_experiment(path: str | os.PathLike, gamma1_set_deg: float, gamma2_
                       float(np.max(np.abs(r))), theta0_rad=float(r[0]))
 
 
-def campaign(name: str, sine_amplitude_rad: float = SINE_AMPLITUDE_RAD) -> list[Experiment]:
-    """The experiments of a campaign: ``paper`` = ``sine`` (Table 1) + ``step`` (Table 2)."""
-    if name not in CAMPAIGNS:
-        raise UserError(f"unknown campaign {name!r} (choose from {', '.join(CAMPAIGNS)})")
-    out: list[Experiment] = []
-    if name in ("paper", "sine"):
-        out += [sine_experiment(g1, g2, f, sine_amplitude_rad)
-                for g1, g2 in TABLE1_POSES for f in TABLE1_FREQUENCIES_HZ]
-    if name in ("paper", "step"):
-        out += [square_experiment(g1, g2) for g1, g2 in TABLE2_POSES]
-    return out
+def campaign(name: str | os.PathLike, sine_amplitude_rad: float | None = None) -> list[Experiment]:
+    """The experiments of a campaign (:func:`load_campaign`): ``paper`` = ``sine`` (Table 1) +
+    ``step`` (Table 2), or a campaign file; ``sine_amplitude_rad`` overrides the sine amplitude."""
+    return load_campaign(name).experiments(sine_amplitude_rad)
 
 
 # --- The runner ----------------------------------------------------------------------------
@@ -188,14 +307,15 @@ class Settings:
     noise_rad: float = 0.0
     seed: int = 0
 
+    @property
+    def encoder(self) -> Encoder:
+        """The device's encoder with these settings."""
+        return Encoder(quantize=self.quantize, noise_rad=self.noise_rad, seed=self.seed)
+
 
 def substeps(model: mujoco.MjModel, control_period_s: float) -> int:
     """Physics steps per control period (UserError unless it divides exactly)."""
-    n = control_period_s / model.opt.timestep
-    if not (n >= 1 and abs(n - round(n)) < 1e-9):
-        raise UserError(f"control period {control_period_s} s is not a whole multiple of the "
-                        f"physics timestep {model.opt.timestep} s")
-    return int(round(n))
+    return substeps_of(model, control_period_s)
 
 
 def _plain_motor(model: mujoco.MjModel, act: int) -> bool:
@@ -206,23 +326,10 @@ def _plain_motor(model: mujoco.MjModel, act: int) -> bool:
             and getattr(model, "actuator_delay", np.zeros(model.nu))[act] == 0)
 
 
-def fast_path_ok(model: mujoco.MjModel, settings: Settings) -> bool:
-    """True when the rollout fast path gives the same trajectory as the reference loop."""
-    ix = om.index(model)
-    return (substeps(model, settings.control_period_s) == 1 and not settings.quantize
-            and settings.noise_rad == 0 and _plain_motor(model, ix.yaw_act))
-
-
-def _initial_data(model: mujoco.MjModel, exp: Experiment, pose: tuple[float, float]) -> mujoco.MjData:
-    ix = om.index(model)
-    data = mujoco.MjData(model)
-    mujoco.mj_resetData(model, data)
-    data.qpos[ix.yaw_qpos] = exp.theta0_rad
-    data.qpos[ix.shoulder_qpos] = math.radians(pose[0])
-    data.qpos[ix.elbow_qpos] = math.radians(pose[1])
-    om.set_arm_setpoints(model, data, exp.gamma1_set_deg, exp.gamma2_set_deg)
-    mujoco.mj_forward(model, data)
-    return data
+def fast_path_ok(device: Device, settings: Settings) -> bool:
+    """True when the rollout fast path gives the same trajectory as the device's engine."""
+    return (device.substeps == 1 and settings.encoder.exact
+            and _plain_motor(device.model, device.ix.yaw_act))
 
 
 def _servo_model(model: mujoco.MjModel, kp: float) -> mujoco.MjModel:
@@ -249,67 +356,47 @@ def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
     return copy.deepcopy(model)
 
 
-def _stream(seed: int, name: str) -> np.random.Generator:
-    digest = hashlib.sha256(f"{seed}:{name}".encode()).digest()
-    return np.random.default_rng(int.from_bytes(digest[:8], "little"))
+def run_reference(device: Device, exps: list[Experiment], settings: Settings,
+                  nthread: int | None = None) -> list[dict]:
+    """The reference path: the runs through the device's closed-loop engine, in one batch.
+
+    Runs of different lengths share the batch: a shorter run's reference holds its last value
+    after its end and the extra samples are dropped (rows do not interact)."""
+    enc = settings.encoder
+    n = max(len(e.r) for e in exps)
+    r = np.empty((len(exps), n))
+    noise = None if enc.noise_rad == 0 else np.zeros((len(exps), n))
+    for b, e in enumerate(exps):
+        r[b, : len(e.r)] = e.r
+        r[b, len(e.r):] = e.r[-1]
+        if noise is not None:
+            noise[b, : len(e.r)] = enc.noise(e.name, len(e.r))
+    eng = device.engine([e.theta0_rad for e in exps],
+                        [(e.gamma1_set_deg, e.gamma2_set_deg) for e in exps], nthread=nthread)
+    with eng:
+        res = run_p_loop(eng, r, settings.kp, noise, enc.quantum_rad, record_arm=True)
+    return [{k: res[k][b, : len(e.r)].copy() for k in ("theta", "v", "q1", "q2")}
+            for b, e in enumerate(exps)]
 
 
-def _measure(theta: float, settings: Settings, noise: float) -> float:
-    y = theta + noise
-    if settings.quantize:
-        y = round(y / ENCODER_STEP_RAD) * ENCODER_STEP_RAD
-    return y
-
-
-def run_reference_loop(model: mujoco.MjModel, exp: Experiment, settings: Settings,
-                       pose: tuple[float, float]) -> dict:
-    """The reference path: one run, Python loop at the control period (see module doc)."""
-    ix = om.index(model)
-    data = _initial_data(model, exp, pose)
-    n_sub = substeps(model, settings.control_period_s)
-    vmax = om.voltage_limit(model)
-    n = len(exp.r)
-    noise = (_stream(settings.seed, exp.name).normal(0.0, settings.noise_rad, n)
-             if settings.noise_rad > 0 else np.zeros(n))
-    theta = np.empty(n)
-    v = np.empty(n)
-    q1 = np.empty(n)
-    q2 = np.empty(n)
-    kp = settings.kp
-    for k in range(n):
-        y = _measure(data.qpos[ix.yaw_qpos], settings, noise[k])
-        vk = kp * (exp.r[k] - y)
-        vk = min(max(vk, -vmax), vmax)
-        theta[k], v[k] = y, vk
-        q1[k], q2[k] = data.qpos[ix.shoulder_qpos], data.qpos[ix.elbow_qpos]
-        data.ctrl[ix.yaw_act] = vk
-        for _ in range(n_sub):
-            mujoco.mj_step(model, data)
-    if not np.all(np.isfinite(theta)):
-        raise RuntimeError(f"{exp.name}: simulation diverged")
-    return {"theta": theta, "v": v, "q1": q1, "q2": q2}
-
-
-def run_fast(model: mujoco.MjModel, exps: list[Experiment], settings: Settings,
-             poses: list[tuple[float, float]], nthread: int) -> list[dict]:
+def run_fast(device: Device, exps: list[Experiment], settings: Settings,
+             nthread: int) -> list[dict]:
     """The fast path: all runs through ``mujoco.rollout`` with the P loop inside the model."""
-    ix = om.index(model)
+    model, ix = device.model, device.ix
     servo = _servo_model(model, settings.kp)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     nstate = mujoco.mj_stateSize(servo, spec)
     nstep = max(len(e.r) for e in exps)
     x0 = np.empty((len(exps), nstate))
     ctrl = np.zeros((len(exps), nstep, servo.nu))
-    for b, (exp, pose) in enumerate(zip(exps, poses)):
-        data = _initial_data(servo, exp, pose)
-        mujoco.mj_getState(servo, data, x0[b], spec)
-        ctrl[b] = data.ctrl
+    for b, exp in enumerate(exps):
+        x0[b], ctrl[b] = device.start_state(exp.theta0_rad, (exp.gamma1_set_deg, exp.gamma2_set_deg))
         ctrl[b, : len(exp.r), ix.yaw_act] = exp.r
         ctrl[b, len(exp.r):, ix.yaw_act] = exp.r[-1]
     datas = [mujoco.MjData(servo) for _ in range(max(1, nthread))]
     state, _ = rollout.rollout(servo, datas, x0, ctrl, nstep=nstep)
     qoff = 1  # FULLPHYSICS state = [time, qpos, qvel, ...]
-    vmax = om.voltage_limit(model)
+    vmax = device.voltage_limit
     out = []
     for b, exp in enumerate(exps):
         n = len(exp.r)
@@ -317,7 +404,7 @@ def run_fast(model: mujoco.MjModel, exps: list[Experiment], settings: Settings,
         theta = qpos[:, ix.yaw_qpos]
         if not np.all(np.isfinite(theta)):
             raise RuntimeError(f"{exp.name}: simulation diverged")
-        v = np.clip(settings.kp * (exp.r - theta), -vmax, vmax)
+        v = p_law(settings.kp, exp.r, theta, vmax)
         out.append({"theta": theta.copy(), "v": v, "q1": qpos[:, ix.shoulder_qpos].copy(),
                     "q2": qpos[:, ix.elbow_qpos].copy()})
     return out
@@ -356,15 +443,10 @@ def _to_run(exp: Experiment, res: dict, settings: Settings, model_path, digest: 
     return Run(exp.name, t, exp.r.copy(), res["theta"], res["v"], meta)
 
 
-def _loop_worker(args):
-    model, exp, settings, pose = args
-    return run_reference_loop(model, exp, settings, pose)
-
-
 def simulate(exps: list[Experiment], model_path: str | os.PathLike | None = None,
              settings: Settings = Settings(), jobs: int | None = None,
              progress: bool = False, model: mujoco.MjModel | None = None,
-             force_reference: bool = False) -> list[Run]:
+             force_reference: bool = False, device: Device | None = None) -> list[Run]:
     """Run experiments on the virtual Omni and return them as dataset runs.
 
     Parameters
@@ -374,51 +456,39 @@ def simulate(exps: list[Experiment], model_path: str | os.PathLike | None = None
         MJCF file keeping the contract's names (default: the built-in scene).
     settings : Settings
     jobs : int, optional
-        Threads (fast path) or processes (reference path); default: all cores.
+        Threads of the rollouts; default: all cores.
     progress : bool
         Show a progress bar (tqdm) on stderr.
     model : MjModel, optional
         An already compiled model (overrides ``model_path`` for the physics).
     force_reference : bool
-        Use the Python reference loop even where the fast path applies.
+        Use the device's closed-loop engine even where the fast path applies.
+    device : Device, optional
+        An already built device (overrides ``model``; its equilibrium poses are reused).
     """
     from tqdm import tqdm
 
-    in_memory = model is not None and model_path is None
-    if model is None:
-        model = om.load_model(model_path)
+    in_memory = (model is not None or device is not None) and model_path is None
+    if device is None or device.control_period_s != settings.control_period_s:
+        if model is None:
+            model = device.model if device is not None else om.load_model(model_path)
+        device = Device(model, settings.control_period_s)
+    model = device.model
     jobs = max(1, jobs or os.cpu_count() or 1)
-    if settings.noise_rad < 0 or not math.isfinite(settings.noise_rad):
-        raise UserError(f"noise must be a finite standard deviation >= 0, got {settings.noise_rad}")
+    settings.encoder  # validates the noise level
     if not (settings.kp > 0 and math.isfinite(settings.kp)):
         raise UserError(f"kp must be positive, got {settings.kp}")
     for e in exps:
         om.check_pose(model, e.gamma1_set_deg, e.gamma2_set_deg)
-    substeps(model, settings.control_period_s)
-    poses_cache: dict[tuple[float, float], tuple[float, float]] = {}
-    poses = []
-    for e in exps:
-        key = (e.gamma1_set_deg, e.gamma2_set_deg)
-        if key not in poses_cache:
-            poses_cache[key] = om.equilibrium_pose(model, *key)
-        poses.append(poses_cache[key])
     digest = "in-memory model" if in_memory else model_digest(model_path)
     bar = tqdm(total=len(exps), desc="simulating", unit="run", disable=not progress, leave=False)
     results: list[dict] = []
-    if fast_path_ok(model, settings) and not force_reference:
-        chunk = max(jobs * 4, 8)
-        for i in range(0, len(exps), chunk):
-            results += run_fast(model, exps[i:i + chunk], settings, poses[i:i + chunk], jobs)
-            bar.update(len(exps[i:i + chunk]))
-    elif jobs == 1 or len(exps) == 1:
-        for e, p in zip(exps, poses):
-            results.append(run_reference_loop(model, e, settings, p))
-            bar.update(1)
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for res in pool.map(_loop_worker, [(model, e, settings, p) for e, p in zip(exps, poses)]):
-                results.append(res)
-                bar.update(1)
+    fast = fast_path_ok(device, settings) and not force_reference
+    chunk = max(jobs * 4, 8)
+    for i in range(0, len(exps), chunk):
+        part = exps[i:i + chunk]
+        results += (run_fast(device, part, settings, jobs) if fast
+                    else run_reference(device, part, settings, jobs))
+        bar.update(len(part))
     bar.close()
     return [_to_run(e, r, settings, model_path, digest) for e, r in zip(exps, results)]
-

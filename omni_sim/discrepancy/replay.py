@@ -7,11 +7,12 @@ model's equilibrium for them; the yaw starts at rest at the measured ``theta[0]`
 control period the model's yaw angle ``theta_k`` is read, ``v_k = kp (r_k - theta_k)`` clipped
 to the drive's ``ctrlrange`` is written to ``yaw_motor`` and held for the period.
 
-The controller is evaluated in numpy for the whole batch and the physics is advanced one period
-by :class:`mujoco.rollout.Rollout` (C, threads), so any MJCF effect of ``yaw_motor`` -- a filter
-(``dyntype``), a ``delay`` with its ``nsample`` buffer, a ``forcerange`` or a bias -- acts on the
-command exactly as on the device.  One batch holds every (model, run) pair, so the models of a
-finite-difference Jacobian or a parameter grid are simulated together.
+The loop is the device's (:mod:`omni_sim.device`): its start state, encoder, clipped P law and
+closed-loop :class:`~omni_sim.device.Engine`, which advances the whole batch one period at a time
+with :class:`mujoco.rollout.Rollout` (C, threads), so any MJCF effect of ``yaw_motor`` -- a
+filter (``dyntype``), a ``delay`` with its ``nsample`` buffer, a ``forcerange`` or a bias --
+acts on the command exactly as on the device.  One batch holds every (model, run) pair, so the
+models of a finite-difference Jacobian or a parameter grid are simulated together.
 """
 
 from __future__ import annotations
@@ -28,11 +29,11 @@ from identification.dataset import Run
 from identification.errors import UserError
 
 from .. import model as om
+from ..device import Device, Engine, run_p_loop
 
 #: Fewest samples a run needs to be replayed and localised (0.2 s at 1 kHz: one step edge's
 #: transient at the Omni's ~3.4 Hz resonance).
 MIN_SAMPLES = 200
-_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 @dataclass
@@ -135,7 +136,7 @@ class Replayer:
     def __init__(self, nthread: int | None = None):
         self.nthread = max(1, nthread or os.cpu_count() or 1)
         self._pool = rollout.Rollout(nthread=self.nthread)
-        self._eq_cache: dict = {}
+        self._devices: dict = {}
         self.steps = 0  # physics steps simulated so far (for timings)
 
     def __enter__(self):
@@ -147,26 +148,16 @@ class Replayer:
     def close(self) -> None:
         self._pool.close()
 
-    def _pose(self, model: mujoco.MjModel, key: tuple[float, float]) -> tuple[float, float]:
-        ck = (id(model), key)
-        if ck not in self._eq_cache:
-            self._eq_cache[ck] = (om.equilibrium_pose(model, *key), model)  # keep model alive
-        return self._eq_cache[ck][0]
+    def device(self, model: mujoco.MjModel) -> Device:
+        """The device of ``model`` (built once per model object; keeps its equilibrium poses)."""
+        key = id(model)
+        if key not in self._devices:
+            self._devices[key] = (Device(model), model)  # keep the model alive with its id
+        return self._devices[key][0]
 
     def initial_state(self, model: mujoco.MjModel, run: ReplayRun) -> tuple[np.ndarray, np.ndarray]:
         """Full physics state and ctrl vector at the start of ``run`` on ``model``."""
-        ix = om.index(model)
-        pose = self._pose(model, run.gamma_set_deg)
-        data = mujoco.MjData(model)
-        mujoco.mj_resetData(model, data)
-        data.qpos[ix.yaw_qpos] = run.theta[0]
-        data.qpos[ix.shoulder_qpos] = math.radians(pose[0])
-        data.qpos[ix.elbow_qpos] = math.radians(pose[1])
-        om.set_arm_setpoints(model, data, *run.gamma_set_deg)
-        mujoco.mj_forward(model, data)
-        x0 = np.empty(mujoco.mj_stateSize(model, _STATE))
-        mujoco.mj_getState(model, data, x0, _STATE)
-        return x0, data.ctrl.copy()
+        return self.device(model).start_state(float(run.theta[0]), run.gamma_set_deg)
 
     def simulate(self, models: list[mujoco.MjModel], runs: list[ReplayRun],
                  pairs: list[tuple[int, int]] | None = None,
@@ -196,52 +187,29 @@ class Replayer:
             pairs = [(i, j) for i in range(len(models)) for j in range(len(runs))]
         if not pairs:
             return []
-        m0 = models[0]
-        ix = om.index(m0)
-        nstate = mujoco.mj_stateSize(m0, _STATE)
         B = len(pairs)
         lengths = np.array([runs[j].n for _, j in pairs])
         nmax = int(lengths.max())
-        x = np.empty((B, nstate))
-        ctrl = np.empty((B, 1, m0.nu))
         rmat = np.empty((B, nmax))
         kp = np.empty(B)
-        vmax = np.empty(B)
-        batch_models = []
-        for b, (i, j) in enumerate(pairs):
-            m = models[i]
-            x[b], ctrl[b, 0] = self.initial_state(m, runs[j])
+        for b, (_, j) in enumerate(pairs):
             rmat[b, : runs[j].n] = runs[j].r
             rmat[b, runs[j].n:] = runs[j].r[-1]
             kp[b] = runs[j].kp
-            vmax[b] = om.voltage_limit(m)
-            batch_models.append(m)
-        qadr = 1 + ix.yaw_qpos  # FULLPHYSICS = [time, qpos, qvel, act, history, ...]
-        theta = np.empty((B, nmax))
-        state = np.empty((B, 1, nstate))
-        sens = np.empty((B, 1, m0.nsensordata))
-        datas = [mujoco.MjData(m0) for _ in range(self.nthread)]
-        a = ix.yaw_act
+        noise, qstep = None, 0.0
         if measurement is not None:
-            noise_m = np.zeros((B, nmax))
-            qstep = np.zeros(B)
+            noise = np.zeros((B, nmax))
             for b in range(B):
                 nb = measurement[0][b]
-                noise_m[b, : len(nb)] = nb[:nmax]
-                qstep[b] = measurement[1][b]
-            qdiv = np.where(qstep > 0, qstep, 1.0)
-        chunk = max(1, -(-B // self.nthread))  # one task per thread: small batches are overhead-bound
-        for k in range(nmax):
-            th = x[:, qadr]
-            if measurement is not None:
-                y = th + noise_m[:, k]
-                th = np.where(qstep > 0, np.round(y / qdiv) * qdiv, y)
-            theta[:, k] = th
-            ctrl[:, 0, a] = np.clip(kp * (rmat[:, k] - th), -vmax, vmax)
-            self._pool.rollout(batch_models, datas, x, ctrl, nstep=1, skip_checks=True,
-                               state=state, sensordata=sens, chunk_size=chunk)
-            x = state[:, 0, :].copy()
+                noise[b, : len(nb)] = nb[:nmax]
+            qstep = np.asarray(measurement[1], dtype=float)
+        engine = Engine([self.device(models[i]) for i, _ in pairs],
+                        [float(runs[j].theta[0]) for _, j in pairs],
+                        [runs[j].gamma_set_deg for _, j in pairs],
+                        nthread=self.nthread, pool=self._pool)
+        try:
+            theta = run_p_loop(engine, rmat, kp, noise, qstep)["theta"]
+        except RuntimeError:
+            raise RuntimeError("replay diverged (non-finite yaw angle)") from None
         self.steps += B * nmax
-        if not np.all(np.isfinite(theta)):
-            raise RuntimeError("replay diverged (non-finite yaw angle)")
         return [theta[b, : lengths[b]] for b in range(B)]

@@ -1,0 +1,353 @@
+"""The virtual Omni as a device: built once from a model, stepped by one closed-loop engine.
+
+In the spirit of dm_control's ``Physics``: a :class:`Device` is built once per compiled model and
+owns everything that makes the model a *device* rather than a physics model:
+
+* the name index of the contract's joints and actuators (:class:`omni_sim.model.OmniIndex`);
+* the drive's voltage limit and the physics substeps of one control period;
+* the equilibrium (sagged) arm pose of each pair of servo set points (cached);
+* the start state of a run: arm at that pose, yaw at rest at ``theta0``;
+* the encoder (:class:`Encoder`: quantisation, white noise, seeded per-run streams);
+* the clipped P law ``v = clip(kp (r - y), -V, V)`` of the paper's experiments.
+
+:class:`Engine` is the one closed loop every user of the device steps through: the generator's
+reference path (:func:`run_p_loop`, used by :func:`omni_sim.experiments.simulate`), the gymnasium
+environment (:mod:`omni_sim.env`, an agent instead of the P law) and the discrepancy replay
+(:mod:`omni_sim.discrepancy.replay`, many models in one batch).  The ``mujoco.rollout`` fast path
+of :mod:`omni_sim.experiments` (the P law folded into the model) is a shortcut, tested bit for
+bit against it.
+
+Time convention (the whole project): sample ``k`` is at ``t_k = k dt`` with ``dt`` the control
+period; ``y_k`` is the yaw *measured* at ``t_k`` (before the controller acts), the command
+``v_k`` is held (zero-order hold) over ``[t_k, t_k + dt)``, i.e. for ``substeps`` physics steps.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from identification.errors import UserError
+
+from . import model as om
+
+#: The Omni's servo period [s] (1 kHz, models/README.md).
+CONTROL_PERIOD_S = 1e-3
+#: Encoder resolution [rad]: 15000 counts per revolution (models/README.md).
+ENCODER_STEP_RAD = 2 * math.pi / 15000
+#: The physics state the engine carries between control periods.
+STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+@dataclass(frozen=True)
+class Encoder:
+    """How the device measures the yaw angle.
+
+    Attributes
+    ----------
+    quantize : bool
+        Round the reading to the encoder's counts (``step_rad``).
+    noise_rad : float [rad]
+        Standard deviation of white measurement noise, added before quantisation.
+    seed : int
+        Seed of the per-run noise streams (:meth:`noise`).
+    step_rad : float [rad]
+        One count: 2 pi / 15000 (the Omni's encoders).
+    """
+
+    quantize: bool = False
+    noise_rad: float = 0.0
+    seed: int = 0
+    step_rad: float = ENCODER_STEP_RAD
+
+    def __post_init__(self):
+        if not (self.noise_rad >= 0 and math.isfinite(self.noise_rad)):
+            raise UserError(f"noise must be a finite standard deviation >= 0, got {self.noise_rad}")
+
+    @property
+    def exact(self) -> bool:
+        """True when the reading is the true angle."""
+        return not self.quantize and self.noise_rad == 0
+
+    @property
+    def quantum_rad(self) -> float:
+        """The rounding step [rad] (0 when not quantising)."""
+        return self.step_rad if self.quantize else 0.0
+
+    def noise(self, name: str, n: int) -> np.ndarray:
+        """The noise samples [rad] of run ``name``: one stream per (seed, run name), so a run's
+        noise does not depend on which other runs are simulated or in which order."""
+        if self.noise_rad <= 0:
+            return np.zeros(n)
+        digest = hashlib.sha256(f"{self.seed}:{name}".encode()).digest()
+        rng = np.random.default_rng(int.from_bytes(digest[:8], "little"))
+        return rng.normal(0.0, self.noise_rad, n)
+
+
+def read_encoder(theta, noise, quantum_rad):
+    """The encoder's reading of the true yaw ``theta`` [rad]: ``theta + noise``, rounded to
+    ``quantum_rad`` where it is > 0 (elementwise; scalars or arrays).  A count of zero reads
+    +0.0, never -0.0 (as an integer count would)."""
+    y = np.asarray(theta, dtype=float) + noise
+    q = np.asarray(quantum_rad, dtype=float)
+    if not np.any(q > 0):
+        return y
+    qdiv = np.where(q > 0, q, 1.0)
+    return np.where(q > 0, np.round(y / qdiv) * qdiv + 0.0, y)
+
+
+def p_law(kp, r, y, vmax):
+    """The paper's P controller, clipped to the drive: ``clip(kp (r - y), -vmax, vmax)`` [V]."""
+    return np.clip(kp * (r - y), -vmax, vmax)
+
+
+def substeps_of(model: mujoco.MjModel, control_period_s: float) -> int:
+    """Physics steps per control period (UserError unless it divides exactly)."""
+    n = control_period_s / model.opt.timestep
+    if not (n >= 1 - 1e-9 and abs(n - round(n)) < 1e-9):
+        raise UserError(f"control period {control_period_s} s is not a whole multiple of the "
+                        f"physics timestep {model.opt.timestep} s")
+    return int(round(n))
+
+
+class Device:
+    """The virtual Omni built once from a compiled model.
+
+    Parameters
+    ----------
+    model : MjModel
+        A model keeping the contract's names (:func:`omni_sim.model.load_model`).  The device
+        reads it live: a change of a parameter in place (friction scaling, a candidate effect's
+        value) is seen by the next step, but not by the cached equilibrium poses.
+    control_period_s : float [s]
+        Servo period; a whole multiple of the model's timestep.
+
+    Attributes
+    ----------
+    model : MjModel
+    ix : OmniIndex
+        Addresses of the contract's joints and actuators.
+    control_period_s, dt : float [s]
+    substeps : int
+        Physics steps per control period.
+    voltage_limit : float [V]
+        ``ctrlrange`` of ``yaw_motor`` (inf if unlimited).
+    torque_constant : float [N*m/V]
+        ``yaw_motor`` gear (the paper's beta_bar).
+    """
+
+    def __init__(self, model: mujoco.MjModel, control_period_s: float = CONTROL_PERIOD_S):
+        self.model = model
+        self.ix = om.index(model)
+        self.control_period_s = float(control_period_s)
+        self.substeps = substeps_of(model, control_period_s)
+        self.voltage_limit = om.voltage_limit(model)
+        self.torque_constant = float(model.actuator_gear[self.ix.yaw_act, 0])
+        self.nstate = mujoco.mj_stateSize(model, STATE_SPEC)
+        self._eq: dict[tuple[float, float], tuple[float, float]] = {}
+
+    @classmethod
+    def load(cls, path=None, control_period_s: float = CONTROL_PERIOD_S) -> "Device":
+        """Compile an MJCF file (default: the built-in scene) into a device."""
+        return cls(om.load_model(path), control_period_s)
+
+    @property
+    def dt(self) -> float:
+        """Control period [s]: ``timestep * substeps``."""
+        return float(self.model.opt.timestep) * self.substeps
+
+    def equilibrium(self, gamma1_set_deg: float, gamma2_set_deg: float) -> tuple[float, float]:
+        """Actual (sagged) arm angles [deg] for these servo set points (cached per device)."""
+        key = (float(gamma1_set_deg), float(gamma2_set_deg))
+        if key not in self._eq:
+            self._eq[key] = om.equilibrium_pose(self.model, *key)
+        return self._eq[key]
+
+    def start_data(self, theta0_rad: float, gamma_set_deg: tuple[float, float],
+                   data: mujoco.MjData | None = None) -> mujoco.MjData:
+        """The start of a run: arm at the equilibrium of its set points, servos holding them,
+        yaw at rest at ``theta0_rad``; ``mj_forward`` done.  Writes into ``data`` if given."""
+        m, ix = self.model, self.ix
+        g1, g2 = self.equilibrium(*gamma_set_deg)
+        d = mujoco.MjData(m) if data is None else data
+        mujoco.mj_resetData(m, d)
+        d.qpos[ix.yaw_qpos] = theta0_rad
+        d.qpos[ix.shoulder_qpos] = math.radians(g1)
+        d.qpos[ix.elbow_qpos] = math.radians(g2)
+        om.set_arm_setpoints(m, d, *gamma_set_deg)
+        mujoco.mj_forward(m, d)
+        return d
+
+    def start_state(self, theta0_rad: float, gamma_set_deg: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """The start of a run as ``(full physics state, ctrl vector)`` (see :meth:`start_data`)."""
+        d = self.start_data(theta0_rad, gamma_set_deg)
+        x0 = np.empty(self.nstate)
+        mujoco.mj_getState(self.model, d, x0, STATE_SPEC)
+        return x0, d.ctrl.copy()
+
+    def engine(self, theta0_rad, gamma_set_deg, nthread: int | None = None) -> "Engine":
+        """An :class:`Engine` of B runs of this device (``theta0_rad``: B floats,
+        ``gamma_set_deg``: B pairs)."""
+        return Engine([self] * len(theta0_rad), theta0_rad, gamma_set_deg, nthread=nthread)
+
+
+class Engine:
+    """The closed loop of B virtual devices, advanced one control period at a time.
+
+    Row ``b`` is a run on ``devices[b]`` (devices may wrap different models of one size
+    signature, e.g. the candidates of a parameter fit) started by :meth:`Device.start_state`.
+    Each :meth:`apply` clips the commands to each drive's limit, holds them for one control
+    period (``substeps`` physics steps) and advances every row.  One row is stepped with
+    ``mj_step`` on its own ``MjData``; a batch with :func:`mujoco.rollout` on ``pool``'s
+    threads.  Both give the same trajectory bit for bit (``tests/test_device.py``).
+
+    Parameters
+    ----------
+    devices : list of Device
+    theta0_rad : sequence of float [rad]
+    gamma_set_deg : sequence of (float, float) [deg]
+    nthread : int, optional
+        Threads for a batch (default: all cores).
+    pool : mujoco.rollout.Rollout, optional
+        A thread pool of ``nthread`` threads to share between engines (default: the engine
+        makes its own, stopped by :meth:`close`).
+    data : MjData, optional
+        For one row: the ``MjData`` to start and step (e.g. one a viewer shows).
+    """
+
+    def __init__(self, devices: list[Device], theta0_rad, gamma_set_deg,
+                 nthread: int | None = None, pool=None, data: mujoco.MjData | None = None):
+        if not devices:
+            raise ValueError("an engine needs at least one run")
+        d0 = devices[0]
+        if any(d.substeps != d0.substeps or d.nstate != d0.nstate for d in devices):
+            raise ValueError("the devices of one engine need the same substeps and state size")
+        self.devices = devices
+        self.B = len(devices)
+        self.substeps = d0.substeps
+        self.vmax = np.array([d.voltage_limit for d in devices])
+        self._yaw_act = d0.ix.yaw_act
+        self._q = (d0.ix.yaw_qpos, d0.ix.shoulder_qpos, d0.ix.elbow_qpos)
+        self._qadr = 1 + np.array(self._q)  # FULLPHYSICS state = [time, qpos, qvel, act, ...]
+        if self.B == 1:
+            self._data = d0.start_data(float(theta0_rad[0]), tuple(gamma_set_deg[0]), data)
+            self._vmax1 = float(self.vmax[0])
+            self._own_pool = False
+            self.pool = None
+            return
+        self._data = None
+        self.x = np.empty((self.B, d0.nstate))
+        self._ctrl = np.empty((self.B, self.substeps, d0.model.nu))
+        for b, (dev, th0, gs) in enumerate(zip(devices, theta0_rad, gamma_set_deg)):
+            self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), tuple(gs))
+        self._models = [d.model for d in devices]
+        nthread = max(1, nthread or os.cpu_count() or 1)
+        self._own_pool = pool is None
+        self.pool = rollout.Rollout(nthread=nthread) if pool is None else pool
+        self._datas = [mujoco.MjData(d0.model) for _ in range(nthread)]
+        self._state = np.empty((self.B, self.substeps, d0.nstate))
+        self._sens = np.empty((self.B, self.substeps, d0.model.nsensordata))
+        self._chunk = max(1, -(-self.B // len(self._datas)))  # one task per thread
+
+    def close(self) -> None:
+        """Stop the engine's own thread pool (if it made one)."""
+        if self._own_pool and self.pool is not None:
+            self.pool.close()
+            self.pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    @property
+    def data(self) -> mujoco.MjData | None:
+        """The ``MjData`` of a one-row engine (None for a batch)."""
+        return self._data
+
+    def qpos(self) -> np.ndarray:
+        """True ``(yaw, shoulder, elbow)`` angles [rad] of every row, shape ``(B, 3)``."""
+        if self._data is not None:
+            return self._data.qpos[list(self._q)][None, :].copy()
+        return self.x[:, self._qadr].copy()
+
+    def yaw(self) -> np.ndarray:
+        """True yaw angle [rad] of every row, shape ``(B,)``."""
+        if self._data is not None:
+            return np.array([self._data.qpos[self._q[0]]])
+        return self.x[:, self._qadr[0]].copy()
+
+    def apply(self, v) -> np.ndarray:
+        """Hold the commands ``v`` [V] (one per row, clipped to each drive) for one control
+        period and advance the physics; returns the applied (clipped) commands."""
+        if self._data is not None:  # one row: plain floats and mj_step (the env's hot path)
+            vk = float(v[0]) if np.ndim(v) else float(v)
+            vk = min(max(vk, -self._vmax1), self._vmax1)
+            m, d = self.devices[0].model, self._data
+            d.ctrl[self._yaw_act] = vk
+            for _ in range(self.substeps):
+                mujoco.mj_step(m, d)
+            return np.array([vk])
+        v = np.clip(np.asarray(v, dtype=float).reshape(self.B), -self.vmax, self.vmax)
+        self._ctrl[:, :, self._yaw_act] = v[:, None]
+        self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
+                          skip_checks=True, state=self._state, sensordata=self._sens,
+                          chunk_size=self._chunk)
+        self.x = self._state[:, -1, :].copy()
+        return v
+
+
+def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,
+               quantum_rad=0.0, record_arm: bool = False) -> dict:
+    """The paper's experiment: the clipped P law closed around the encoder, for every row.
+
+    Parameters
+    ----------
+    engine : Engine
+        B rows at their start states.
+    r : ndarray, shape (B, n) [rad]
+        References, one sample per control period.
+    kp : float or ndarray (B,) [V/rad]
+    noise : ndarray, shape (B, n), optional [rad]
+        Measurement noise of each sample (:meth:`Encoder.noise`).
+    quantum_rad : float or ndarray (B,) [rad]
+        Encoder rounding step (0: none).
+    record_arm : bool
+        Also return the true shoulder/elbow angles.
+
+    Returns
+    -------
+    dict
+        ``theta`` (measured, what the controller saw) and ``v`` (applied) of shape ``(B, n)``;
+        with ``record_arm`` also ``q1``, ``q2`` [rad].
+    """
+    B, n = r.shape
+    kp = np.broadcast_to(np.asarray(kp, dtype=float), (B,))
+    exact = noise is None and not np.any(np.asarray(quantum_rad) > 0)
+    theta = np.empty((B, n))
+    v = np.empty((B, n))
+    if record_arm:
+        q1 = np.empty((B, n))
+        q2 = np.empty((B, n))
+    for k in range(n):
+        if record_arm:
+            q = engine.qpos()
+            th, q1[:, k], q2[:, k] = q[:, 0], q[:, 1], q[:, 2]
+        else:
+            th = engine.yaw()
+        y = th if exact else read_encoder(th, 0.0 if noise is None else noise[:, k], quantum_rad)
+        theta[:, k] = y
+        v[:, k] = engine.apply(p_law(kp, r[:, k], y, engine.vmax))
+    if not np.all(np.isfinite(theta)):
+        raise RuntimeError("simulation diverged (non-finite yaw angle)")
+    out = {"theta": theta, "v": v}
+    if record_arm:
+        out.update(q1=q1, q2=q2)
+    return out
