@@ -145,7 +145,17 @@ def test_engine_rejects_mixed_devices():
         Engine([a, Device(m)], [0.0, 0.0], [(45, 90), (45, 90)])
 
 
-def test_env_divergence_terminates_with_reason():
+@pytest.fixture
+def quiet_mujoco():
+    """Swallow MuJoCo's warnings (else it appends them to MUJOCO_LOG.TXT in the working folder)."""
+    seen = []
+    old = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(seen.append)
+    yield seen
+    mujoco.set_mju_user_warning(old)
+
+
+def test_env_divergence_terminates_with_reason(quiet_mujoco):
     """A diverging simulation ends the episode (gymnasium's MuJoCo convention), it does not
     raise; info says why, and the observation stays inside its box."""
     env = OmniYawEnv(duration_s=1.0)
@@ -156,6 +166,7 @@ def test_env_divergence_terminates_with_reason():
     assert info["diverged"] and "diverged" in info["reason"]
     assert env.observation_space.contains(obs)
     assert reward == 0.0
+    assert any("unstable" in w for w in quiet_mujoco)  # MuJoCo saw it too
     with pytest.raises(RuntimeError, match="reset"):
         env.step(np.array([0.0]))
     env.reset(seed=0)  # a reset starts a fresh episode
