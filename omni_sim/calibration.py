@@ -30,9 +30,11 @@ stuck point) rather than only damped, which is what drives the paper's C_data an
 and then negative, at low frequency.
 
 The optimiser is :func:`scipy.optimize.least_squares` (trust-region reflective, bounded) on the
-simulation-in-the-loop residuals above.  The result is written back into ``models/omni.xml``
-(numbers only; the comments say which run set them) and recorded in
-``models/calibration.json`` with targets, achieved values and the date.
+simulation-in-the-loop residuals above.  The result is data, never code: the physical numbers
+go into ``models/omni.xml`` (numbers only; the comments say which run set them), the sine
+amplitude into the campaign file ``omni_sim/campaigns/paper.toml`` (its ``[sine]``
+``amplitude_rad`` line), and the record with targets, achieved values and the date into
+``models/calibration.json``.
 """
 
 from __future__ import annotations
@@ -129,8 +131,9 @@ def _friction_actuator(model: mujoco.MjModel) -> int:
     return int(a)
 
 
-def current_values(model: mujoco.MjModel, amplitude_rad: float = ex.SINE_AMPLITUDE_RAD) -> dict:
-    """The calibrated quantities as they are in ``model``."""
+def current_values(model: mujoco.MjModel, amplitude_rad: float | None = None) -> dict:
+    """The calibrated quantities as they are in ``model`` (and the paper campaign's A_r)."""
+    amplitude_rad = ex.load_campaign("sine").sine[0]["amplitude_rad"] if amplitude_rad is None else amplitude_rad
     bid = lambda n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n)  # noqa: E731
     ix = om.index(model)
     return {
@@ -355,7 +358,7 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
 def _sub_once(pattern: str, repl, text: str) -> str:
     new, n = re.subn(pattern, repl, text, count=1, flags=re.S)
     if n != 1:
-        raise RuntimeError(f"calibration: pattern not found in omni.xml: {pattern}")
+        raise RuntimeError(f"calibration: pattern not found (model or campaign file): {pattern}")
     return new
 
 
@@ -399,11 +402,25 @@ def write_model(values: dict, path: Path = om.MODELS_DIR / "omni.xml") -> None:
     path.write_text(text)
 
 
-def write_amplitude(amplitude_rad: float, path: Path = Path(ex.__file__)) -> None:
-    """Set ``SINE_AMPLITUDE_RAD`` in experiments.py to the calibrated A_r."""
-    text = _sub_once(r"(?m)^SINE_AMPLITUDE_RAD = [^\n]*", f"SINE_AMPLITUDE_RAD = {_fmt(amplitude_rad)}",
-                     path.read_text())
-    path.write_text(text)
+#: The paper campaign's file, whose ``[sine]`` amplitude the calibration sets.
+CAMPAIGN_FILE = Path(ex.__file__).resolve().parent / "campaigns" / "paper.toml"
+
+
+def write_amplitude(amplitude_rad: float, path: Path = CAMPAIGN_FILE) -> float:
+    """Set the ``amplitude_rad`` of the campaign file's ``[sine]`` table to the calibrated A_r
+    (that one line; comments and everything else stay); returns the value as written."""
+    text = path.read_text()
+    start = text.index("\n[sine]")
+    end = text.find("\n[", start + 1)
+    end = len(text) if end < 0 else end
+    section = _sub_once(r"(?m)^amplitude_rad = [^\n#]*", f"amplitude_rad = {_fmt(amplitude_rad)}",
+                        text[start:end])
+    new = text[:start] + section + text[end:]
+    written = ex.parse_campaign(new, str(path)).sine[0]["amplitude_rad"]
+    if abs(written - amplitude_rad) > 1e-5 * abs(amplitude_rad):
+        raise RuntimeError(f"calibration: {path} would read A_r = {written}, not {amplitude_rad}")
+    path.write_text(new)
+    return written
 
 
 def write_record(record: dict, path: Path = RECORD) -> None:
@@ -413,16 +430,13 @@ def write_record(record: dict, path: Path = RECORD) -> None:
 def finalize(record: dict, docs: Path) -> list[Path]:
     """Write the calibrated values into the model files, then re-measure the model as written
     (numbers are rounded to 6 significant digits) and record and plot *those* figures."""
-    import importlib
-
     values = {k: v["value"] for k, v in record["parameters"].items()}
     write_model(values)
-    write_amplitude(values["sine_amplitude_rad"])
-    importlib.reload(ex)
-    fig = evaluate(om.load_model(), ex.SINE_AMPLITUDE_RAD)
+    amplitude = write_amplitude(values["sine_amplitude_rad"])
+    fig = evaluate(om.load_model(), amplitude)
     record["achieved"] = summarise(fig)
     record["poses"] = fig["poses"]
-    for name, v in current_values(om.load_model(), ex.SINE_AMPLITUDE_RAD).items():
+    for name, v in current_values(om.load_model(), amplitude).items():
         record["parameters"][name]["value"] = v
     write_record(record)
     return plot_record(record, docs)

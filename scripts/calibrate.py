@@ -5,8 +5,8 @@ Usage: python scripts/calibrate.py [--max-nfev N] [--dry-run] [--record FILE]
 
 Runs the paper's sine campaign on the model, identifies it with the project's own pipeline,
 compares with the paper's Tables 3 and 10, and adjusts the physical parameters by bounded least
-squares. Writes the result into models/omni.xml (numbers only), the sine amplitude into
-omni_sim/experiments.py, and the record (targets, achieved values, date) into
+squares. Writes the result as data: models/omni.xml (numbers only), the sine amplitude into
+the campaign file omni_sim/campaigns/paper.toml, and the record (targets, achieved values, date) into
 models/calibration.json. --dry-run only prints and writes the record to --record.
 """
 
@@ -33,7 +33,7 @@ def main() -> int:
     print(json.dumps(record["achieved"], indent=2))
     if not args.dry_run:
         figs = cal.finalize(record, Path(__file__).resolve().parent.parent / "docs")
-        print("wrote models/omni.xml, omni_sim/experiments.py (A_r), models/calibration.json and",
+        print("wrote models/omni.xml, omni_sim/campaigns/paper.toml (A_r), models/calibration.json and",
               ", ".join(str(f) for f in figs))
     else:
         cal.write_record(record, Path(args.record))

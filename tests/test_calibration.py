@@ -79,3 +79,20 @@ def test_record_matches_model(figures):
     values = cal.current_values(om.load_model(), cal.ex.SINE_AMPLITUDE_RAD)
     for name, p in record["parameters"].items():
         assert values[name] == pytest.approx(p["value"], rel=1e-5), name
+
+
+def test_calibration_writes_data_not_code(tmp_path):
+    """The calibrated A_r goes into the campaign file's [sine] line (data), nothing else moves,
+    and the file reads back with the new value; the sine half runs with it."""
+    src = cal.CAMPAIGN_FILE.read_text()
+    f = tmp_path / "paper.toml"
+    f.write_text(src)
+    written = cal.write_amplitude(0.0612345678, f)
+    new = f.read_text()
+    assert written == pytest.approx(0.0612346, abs=1e-12)  # 6 significant digits, as omni.xml
+    changed = [(a, b) for a, b in zip(src.splitlines(), new.splitlines()) if a != b]
+    assert changed == [(f"amplitude_rad = {cal.ex.SINE_AMPLITUDE_RAD}", "amplitude_rad = 0.0612346")]
+    c = cal.ex.load_campaign(f)
+    assert c.sine[0]["amplitude_rad"] == written
+    assert c.step[0]["amplitude_rad"] == cal.ex.STEP_AMPLITUDE_RAD  # the [step] amplitude stays
+    assert all(e.amplitude_rad == written for e in c.experiments() if e.kind == "sine")
