@@ -39,8 +39,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
 
     p = sub.add_parser("generate", help="run experiments on the virtual Omni and write a dataset")
-    p.add_argument("--campaign", default="paper",
-                   help="paper (Table 1 sines + Table 2 squares), sine, step (default: paper)")
+    p.add_argument("--campaign", default="paper", metavar="{paper,sine,step,FILE.toml}",
+                   help="paper (Table 1 sines + Table 2 squares; the file omni_sim/campaigns/paper.toml), "
+                        "sine or step (its halves), or a campaign file of your own (format: README, "
+                        "'Campaign files'); default: paper")
     p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
     p.add_argument("--out", default="dataset", help="output folder (default: ./dataset)")
     p.add_argument("--seed", type=_positive_int, default=0, help="seed for encoder noise (default: 0)")

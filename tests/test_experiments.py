@@ -194,3 +194,89 @@ def test_substeps_reference_path():
     fine = ex.simulate([exp], model=m)[0]
     coarse = ex.simulate([exp])[0]
     assert 0 < np.max(np.abs(fine.theta - coarse.theta)) < 2e-3
+
+
+# --- campaign files -------------------------------------------------------------------------
+def test_paper_campaign_is_its_file():
+    """--campaign paper, the shipped file by path, and its halves give the same experiments."""
+    from importlib import resources
+
+    path = resources.files("omni_sim") / "campaigns" / "paper.toml"
+    by_name = ex.campaign("paper")
+    by_path = ex.campaign(str(path))
+    assert [e.name for e in by_name] == [e.name for e in by_path]
+    fields = ("name", "kind", "gamma1_set_deg", "gamma2_set_deg", "frequency_hz", "amplitude_rad",
+              "theta0_rad")
+    for a, b in zip(by_name, by_path):
+        assert [getattr(a, k) for k in fields] == [getattr(b, k) for k in fields]
+        assert np.array_equal(a.r, b.r)
+    halves = ex.campaign("sine") + ex.campaign("step")
+    assert [e.name for e in halves] == [e.name for e in by_name]
+    # the file holds the paper's design: Table 1 (9 poses x 9 frequencies), Table 2 (25 poses)
+    assert sum(e.kind == "sine" for e in by_name) == 81
+    assert sum(e.kind == "step" for e in by_name) == 25
+    assert {(e.gamma1_set_deg, e.gamma2_set_deg) for e in by_name if e.kind == "step"} == {
+        (g1, g2) for g1 in (25, 35, 45, 55, 65) for g2 in (60, 70, 90, 110, 115)}
+    steps = [e for e in by_name if e.kind == "step"]
+    assert all(e.amplitude_rad == 0.07 and e.frequency_hz == 0.25 and e.theta0_rad == -0.07
+               for e in steps)  # section 2.4.3, (47)
+
+
+USER_CAMPAIGN = """
+description = "two sine groups and one step"
+[[sine]]
+poses_deg = [[45, 90]]
+frequencies_hz = [2.0]
+amplitude_rad = 0.03
+settle_s = 0.5
+record_s = 0.5
+[[sine]]
+poses_deg = [[45, 90]]
+frequencies_hz = [5.0]
+amplitude_rad = 0.02
+settle_s = 0.5
+record_s = 0.5
+[step]
+poses_deg = [[30, 100]]
+frequency_hz = 1.0
+amplitude_rad = 0.05
+duration_s = 1.0
+"""
+
+
+def test_user_campaign_file(tmp_path):
+    f = tmp_path / "mine.toml"
+    f.write_text(USER_CAMPAIGN)
+    exps = ex.campaign(f)
+    assert [(e.kind, e.frequency_hz, e.amplitude_rad) for e in exps] == [
+        ("sine", 2.0, 0.03), ("sine", 5.0, 0.02), ("step", 1.0, 0.05)]
+    assert len(exps[0].r) == 1000 and len(exps[2].r) == 1000  # settle + whole cycles; duration
+    rc = main(["generate", "--campaign", str(f), "--out", str(tmp_path / "out")])
+    assert rc == 0
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.json")) == sorted(e.name + ".json" for e in exps)
+
+
+@pytest.mark.parametrize("text,key", [
+    ("[sine]\nposes_deg = [[45, 90]]\nfrequencies_hz = [2.0]\namplitude_rad = 0.03\nsettle_s = 1\n", "sine.record_s: missing"),
+    ("[step]\nposes_deg = [[45, 90]]\nfrequency_hz = -1\namplitude_rad = 0.05\nduration_s = 1\n", "step.frequency_hz: must be > 0"),
+    ("[step]\nposes_deg = [45, 90]\nfrequency_hz = 1\namplitude_rad = 0.05\nduration_s = 1\n", "step.poses_deg"),
+    ("[step]\nposes_deg = [[45, 90]]\nfrequency_hz = 1\namplitude = 0.05\nduration_s = 1\n", "step.amplitude: unknown key"),
+    ("kp = 3\n", "kp: unknown key"),
+    ("[sine\n", "not a valid TOML file"),
+    ("description = 'nothing'\n", "needs a [sine] or a [step]"),
+])
+def test_bad_campaign_file_is_one_line_naming_the_key(tmp_path, capsys, text, key):
+    f = tmp_path / "bad.toml"
+    f.write_text(text)
+    out = tmp_path / "out"
+    rc = main(["generate", "--campaign", str(f), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err
+    assert str(f) in err and key in err
+    assert not out.exists()
+
+
+def test_unknown_campaign_name(capsys, tmp_path):
+    assert main(["generate", "--campaign", "papr", "--out", str(tmp_path / "o")]) == 2
+    assert "unknown campaign 'papr'" in capsys.readouterr().err
