@@ -12,14 +12,21 @@ import sys
 from identification.errors import UserError
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0: {text!r}")
-    return value
+def _int_at_least(low: int):
+    """An argparse type: an integer >= ``low``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}: {text!r}")
+        return value
+    return parse
+
+
+_nonnegative_int = _int_at_least(0)
+_positive_int = _int_at_least(1)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -45,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "'Campaign files'); default: paper")
     p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
     p.add_argument("--out", default="dataset", help="output folder (default: ./dataset)")
-    p.add_argument("--seed", type=_positive_int, default=0, help="seed for encoder noise (default: 0)")
+    p.add_argument("--seed", type=_nonnegative_int, default=0, help="seed for encoder noise (default: 0)")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
     p.add_argument("--reference", default=None, metavar="CSV",
                    help="drive one run with a user reference (CSV with columns t, r) instead of a campaign")
@@ -55,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="quantize the measured yaw to the encoder's 15000 counts/rev")
     p.add_argument("--noise", type=float, default=0.0, metavar="RAD",
                    help="standard deviation of white encoder noise [rad] (default 0)")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
 
     p = sub.add_parser("identify", help="fit the paper's models to a dataset; writes DIR/params.json")
     p.add_argument("data", help="dataset folder")
@@ -76,7 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
     p.add_argument("--out", default="reproduce", help="output folder (default: ./reproduce)")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
 
     p = sub.add_parser("discrepancy", help="find, name and fix the effect a model is missing")
     p.add_argument("--measured", default=None, help="measured dataset folder")
@@ -87,7 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("bench", help="print and write the performance figures")
     p.add_argument("--out", default=None, help="write the figures as JSON to this file")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
     return parser
 
 
