@@ -256,12 +256,11 @@ def paper_alpha_model(as_printed: bool = False) -> AlphaModel:
     says both fall with α, and Table 10 (γ1 = 65°, γ2 = 90°) lists C0..C3 = 16.955, 10.619,
     6.486, 3.710 and β̃0, β̃1 = 267.6, 170.9, which are exactly 1/(C_k1·I), 1/(β̃_k1·I) with
     I = 0.004366 (Table 10's first value, = 1/229.04, the modelled β̃_linear of Table 5, 229.0
-    in Table 9) and
-    the C_k1, β̃_k1 in *reverse* order (``identification/data/README.md``).  By default the
-    values are therefore assigned in reverse (falling C and β̃ in α, agreeing with the text
-    and Table 10); ``as_printed=True`` gives the tables' literal assignment.  Breakpoints
-    α0..α3 and ᾱ0, ᾱ1 are the tables' α columns.  ``options`` has no ``beta_clamp``, so β̃
-    follows the line (41) outside [ᾱ0, ᾱ1] (module docstring).
+    in Table 9) and the C_k1, β̃_k1 in *reverse* order (``identification/data/README.md``).
+    By default the values are therefore assigned in reverse (falling C and β̃ in α, agreeing
+    with the text and Table 10); ``as_printed=True`` gives the tables' literal assignment.
+    Breakpoints α0..α3 and ᾱ0, ᾱ1 are the tables' α columns.  ``options`` has no
+    ``beta_clamp``, so β̃ follows the line (41) outside [ᾱ0, ᾱ1] (module docstring).
     """
     t6, t7 = paper.table6(), paper.table7()
     C_k1 = np.array([r["value"] for r in t7])
