@@ -79,9 +79,10 @@ class HiddenCase:
 #: two effects outside the library.  Magnitudes: see the ``note`` of each case.
 CASES: tuple[HiddenCase, ...] = (
     HiddenCase("coulomb_friction", (("coulomb_friction", (0.045,)),), expect=("coulomb_friction",),
-               note="45 mN*m instead of 27 (models/README.md: 5-20 mN*m estimate, < 35 back-drive bound x1.3)"),
+               note="hard-stick frictionloss 45 mN*m on top of the LuGre drive (nominal frictionloss 0; "
+                    "models/README.md: 5-20 mN*m estimate, < 35 back-drive bound x1.3)"),
     HiddenCase("viscous_damping", (("viscous_damping", (0.012,)),), expect=("viscous_damping",),
-               note="1.2e-2 N*m*s/rad instead of 6.5e-3 (models/README.md: 1e-4..1e-3 plus the calibrated share)"),
+               note="1.2e-2 N*m*s/rad instead of the calibrated 6.9e-3 (models/omni.xml, yaw_drive damping)"),
     HiddenCase("joint_stiffness", (("joint_stiffness", (0.06,)),), expect=("joint_stiffness",),
                note="cable spring 0.06 N*m/rad (~6 mN*m at 0.1 rad)"),
     HiddenCase("gravity_tilt", (("gravity_tilt", (0.06, 0.03)),), expect=("gravity_tilt",),
