@@ -180,7 +180,10 @@ class Device:
         d.qpos[ix.yaw_qpos] = theta0_rad
         d.qpos[ix.shoulder_qpos] = math.radians(g1)
         d.qpos[ix.elbow_qpos] = math.radians(g2)
-        om.set_arm_setpoints(m, d, *gamma_set_deg)
+        if ix.shoulder_act is not None:  # the arm servos hold their set points
+            d.ctrl[ix.shoulder_act] = math.radians(gamma_set_deg[0])
+        if ix.elbow_act is not None:
+            d.ctrl[ix.elbow_act] = math.radians(gamma_set_deg[1])
         mujoco.mj_forward(m, d)
         return d
 
