@@ -32,6 +32,7 @@ import numpy as np
 from mujoco import rollout
 
 from identification.dataset import Run
+from identification import paper
 from identification.errors import UserError
 
 from . import model as om
@@ -186,7 +187,7 @@ STEP_FREQUENCY_HZ = _PAPER.step[0]["frequency_hz"]
 STEP_AMPLITUDE_RAD = _PAPER.step[0]["amplitude_rad"]
 STEP_DURATION_S = _PAPER.step[0]["duration_s"]
 #: Yaw P gain [V/rad]: Table 9, beta_linear / beta_tilde_linear = 445.6 / 222.8.
-KP_DEFAULT = 2.0
+KP_DEFAULT = paper.kp()
 
 
 @dataclass(frozen=True)
