@@ -22,8 +22,11 @@ import numpy as np
 
 from identification.errors import UserError
 
-#: Folder of the built-in model files (``models/`` at the project root).
-MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+from omni_sim._resources import models_dir as _models_dir
+
+#: Folder of the built-in model files: the data package ``omni_sim.models`` (the top-level
+#: ``models/`` folder, shipped inside the package; see pyproject.toml), a real folder on disk.
+MODELS_DIR = _models_dir()
 #: The built-in scene (includes ``omni.xml``).
 DEFAULT_SCENE = MODELS_DIR / "scene.xml"
 
