@@ -3,6 +3,7 @@ the workflow on hidden effects (fast representatives; the whole bank is marked s
 command's error paths."""
 
 import json
+import os
 
 import mujoco
 import numpy as np
@@ -17,6 +18,12 @@ from omni_sim.discrepancy import effects as fx
 from omni_sim.discrepancy.localise import command_lag
 from omni_sim.discrepancy.replay import Replayer, ReplayRun, prepare_runs
 from omni_sim.discrepancy.workflow import run_discrepancy
+
+
+#: Rollout threads of the workflow runs: one per xdist worker (the workers already fill the
+#: cores; two threads per worker contend at every control step), all cores otherwise.  The
+#: results do not depend on it (every trajectory is simulated alone).
+JOBS = 1 if os.environ.get("PYTEST_XDIST_WORKER") else None
 
 
 @pytest.fixture(scope="module")
@@ -77,8 +84,8 @@ def _fast_exps():
 def test_fast_hidden_cases(case_name):
     """Representatives of the bank on a smaller experiment set (the whole bank: -m slow)."""
     hidden = bank.case(case_name)
-    runs = bank.generate(hidden, _fast_exps())
-    rep = run_discrepancy(runs, None, k=5).report
+    runs = bank.generate(hidden, _fast_exps(), jobs=JOBS)
+    rep = run_discrepancy(runs, None, k=5, jobs=JOBS).report
     ok, why = bank.assess(hidden, rep)
     assert ok, (why, [e["name"] for e in rep["effects"]], rep["effects"])
 
@@ -93,8 +100,8 @@ def test_fast_masking_pair():
     """Delay + friction mask each other (neither alone explains the gap): the joint pair search
     names both (candidates restricted to keep the test fast)."""
     hidden = bank.case("delay+friction")
-    runs = bank.generate(hidden, _one_pose_exps())
-    rep = run_discrepancy(runs, None, k=5,
+    runs = bank.generate(hidden, _one_pose_exps(), jobs=JOBS)
+    rep = run_discrepancy(runs, None, k=5, jobs=JOBS,
                           candidates=("coulomb_friction", "time_delay")).report
     assert sorted(e["name"] for e in rep["effects"]) == ["coulomb_friction", "time_delay"], rep["rounds"]
     assert rep["shrink_factor"] > 3
@@ -107,8 +114,8 @@ def test_fast_unexplained_gap_is_flagged(tmp_path):
     report.json/report.md say the gap is unexplained, not that the model is fine."""
     from omni_app import discrepancy_report as rp
     hidden = bank.case("cogging")
-    runs = bank.generate(hidden, _one_pose_exps())
-    out = run_discrepancy(runs, None, k=5, max_effects=1,
+    runs = bank.generate(hidden, _one_pose_exps(), jobs=JOBS)
+    out = run_discrepancy(runs, None, k=5, jobs=JOBS, max_effects=1,
                           candidates=("viscous_damping", "armature", "time_delay"))
     rep = out.report
     assert [e["name"] for e in rep["effects"]] == ["none"]

@@ -176,6 +176,12 @@ class Problem:
             self._cache = {k: (f0, J, raws[0])}
         return self._cache[k]
 
+    def seed(self, fit: FitResult) -> None:
+        """Take ``fit``'s residual and Jacobian at ``fit.x`` as this problem's evaluation there
+        (``fit`` must come from a problem with the same spec, effects and runs)."""
+        if fit.jac is not None and fit.resid is not None:
+            self._cache = {self._key(fit.x): (fit.resid, fit.jac, fit.raw_residuals)}
+
     def fun(self, x: np.ndarray) -> np.ndarray:
         return self.evaluate(x)[0]
 

@@ -170,18 +170,14 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start
     """Exact per-fold refits, all folds in lockstep.
 
     Each iteration simulates every fold's current parameters and their finite-difference
-    perturbations on all runs in ONE batch, then each fold takes a bounded Gauss-Newton step on
-    its own training runs only (halving the step while it does not lower the training error).
-    The held-out runs' rows never enter their fold's step.
+    perturbations on that fold's training runs in ONE batch, then each fold takes a bounded
+    Gauss-Newton step on its own training runs only (halving the step while it does not lower
+    the training error).  The held-out runs never enter their fold's step, so they are not
+    simulated.
     """
     runs = problem.runs
-    rows = np.cumsum([0] + [run.n for run in runs])
-    masks = []
-    for idx in folds:
-        keep = np.ones(rows[-1], bool)
-        for j in idx:
-            keep[rows[j]:rows[j + 1]] = False
-        masks.append(keep)
+    # each fold's training runs (in run order); its held-out runs are not simulated at all
+    train = [[j for j in range(len(runs)) if j not in set(idx)] for idx in folds]
     xs = [np.asarray(x, float).copy() for x in start]
     p = len(fit.x)
     lam = [1e-6] * len(folds)
@@ -191,13 +187,22 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start
             st = problem._steps(x)
             steps.append(st)
             batch += [x] + [x + h * e for h, e in zip(st, np.eye(p))]
-        raws = problem.simulate(batch)
-        for f, keep in enumerate(masks):
+        models = [problem.model(x) for x in batch]
+        pairs = [(f * (p + 1) + i, j) for f in range(len(folds)) for i in range(p + 1)
+                 for j in train[f]]
+        th = problem.rep.simulate(models, runs, pairs)
+        problem.nsim += len(batch)
+        raws, b = [], 0
+        for f in range(len(folds)):
+            for i in range(p + 1):
+                raws.append([th[b + k] - runs[j].theta for k, j in enumerate(train[f])])
+                b += len(train[f])
+        for f in range(len(folds)):
             base = f * (p + 1)
-            f0 = problem.weighted(raws[base])
-            J = np.column_stack([(problem.weighted(raws[base + 1 + i]) - f0) / steps[f][i]
+            f0 = problem.weighted(raws[base], train[f])
+            J = np.column_stack([(problem.weighted(raws[base + 1 + i], train[f]) - f0) / steps[f][i]
                                  for i in range(p)])
-            r, Jt = f0[keep], J[keep] * problem.scale
+            r, Jt = f0, J * problem.scale
             A = Jt.T @ Jt
             dz = np.linalg.solve(A + lam[f] * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p), -Jt.T @ r)
             xs[f] = np.clip(xs[f] + dz * problem.scale, problem.lower, problem.upper)
@@ -273,6 +278,9 @@ def _confirm(spec, s: Scored, runs, rep, folds, gap_start: float, log=None) -> N
     """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
     t0 = time.perf_counter()
     prob = Problem(spec, [], s.effects, runs, rep)
+    # the screening fit already simulated its end point (same model, runs and effects): the
+    # converging fit starts there without simulating it again
+    prob.seed(s.fit)
     s.fit = prob.fit(s.fit.x, None, max_nfev=20)  # converge the all-runs fit
     s.fold_x = _onestep_folds(prob, s.fit, folds)
     s.fold_x = _refit_folds(prob, s.fit, folds, s.fold_x)
