@@ -11,10 +11,6 @@ import pytest
 from identification.dataset import read_dataset
 from omni_app.cli import main
 
-# one worker runs the whole module, so the module-scoped `reproduced` (the whole paper campaign,
-# identified and reported: the module's main cost) is computed once, not once per xdist worker
-pytestmark = pytest.mark.xdist_group("reproduce")
-
 
 @pytest.fixture(scope="module")
 def reproduced(tmp_path_factory):
