@@ -27,8 +27,31 @@ from omni_sim._resources import models_dir as _models_dir
 #: Folder of the built-in model files: the data package ``omni_sim.models`` (the top-level
 #: ``models/`` folder, shipped inside the package; see pyproject.toml), a real folder on disk.
 MODELS_DIR = _models_dir()
-#: The built-in scene (includes ``omni.xml``).
+#: The built-in scene (the default friction family; includes ``omni.xml``).
 DEFAULT_SCENE = MODELS_DIR / "scene.xml"
+#: The friction families of the built-in model: one scene each around the shared robot
+#: ``omni.xml`` (README, "Friction families").  ``lugre`` is the default (``scene.xml``).
+FRICTION_FAMILIES = ("coulomb", "lugre")
+DEFAULT_FRICTION = "lugre"
+
+
+def scene_path(friction: str | None = None) -> Path:
+    """The built-in scene of a friction family (None: the default ``scene.xml``)."""
+    if friction is None:
+        return DEFAULT_SCENE
+    if friction not in FRICTION_FAMILIES:
+        raise UserError(f"unknown friction family {friction!r} (choose from "
+                        f"{', '.join(FRICTION_FAMILIES)})")
+    return MODELS_DIR / f"scene_{friction}.xml"
+
+
+def model_path(path: str | os.PathLike | None = None, friction: str | None = None) -> Path:
+    """The model file a command runs: ``path`` if given, else the family's built-in scene.
+    Both at once is a user error (a family names a built-in scene)."""
+    if path is not None and friction is not None:
+        raise UserError("give either a model file or a friction family, not both (the family "
+                        "picks one of the built-in scenes)")
+    return Path(path) if path is not None else scene_path(friction)
 
 JOINTS = ("yaw", "shoulder", "elbow")
 YAW_ACTUATOR = "yaw_motor"
@@ -48,8 +71,9 @@ class OmniIndex:
     elbow_act: int | None
 
 
-def load_model(path: str | os.PathLike | None = None) -> mujoco.MjModel:
-    """Compile an MJCF file (default: the built-in scene) and check the contract's names.
+def load_model(path: str | os.PathLike | None = None, friction: str | None = None) -> mujoco.MjModel:
+    """Compile an MJCF file (default: the built-in scene of the friction family ``friction``,
+    or ``scene.xml``) and check the contract's names.
 
     Raises
     ------
@@ -57,7 +81,7 @@ def load_model(path: str | os.PathLike | None = None) -> mujoco.MjModel:
         The file is missing, does not compile, or lacks the joints ``yaw``, ``shoulder``,
         ``elbow`` or the actuator ``yaw_motor`` acting on ``yaw``.
     """
-    path = Path(path) if path is not None else DEFAULT_SCENE
+    path = model_path(path, friction)
     if not path.is_file():
         raise UserError(f"{path}: model file not found")
     try:

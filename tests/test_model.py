@@ -19,7 +19,10 @@ def model():
     return om.load_model()
 
 
-@pytest.mark.parametrize("name", ["scene.xml", "omni.xml"])
+SCENES = ["scene.xml", "scene_lugre.xml", "scene_coulomb.xml", "omni.xml"]
+
+
+@pytest.mark.parametrize("name", SCENES)
 def test_steps_without_warnings(name):
     m = om.load_model(om.MODELS_DIR / name)
     d = mujoco.MjData(m)
@@ -34,15 +37,41 @@ def test_steps_without_warnings(name):
 
 
 def test_every_element_named_and_home_key():
-    for name in ("omni.xml", "scene.xml"):
+    for name in SCENES + ["stage.xml"]:
         root = ET.parse(om.MODELS_DIR / name).getroot()
         for default in root.iter("default"):  # class defaults are templates, not elements
             default.clear()
-        for tag in ("body", "joint", "geom", "site", "motor", "position", "key", "light", "camera"):
+        for tag in ("body", "joint", "geom", "site", "motor", "position", "dcmotor", "key", "light",
+                    "camera"):
             for el in root.iter(tag):
                 assert el.get("name"), f"{name}: unnamed <{tag}>"
     m = om.load_model()
     assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home") >= 0
+
+
+def test_friction_families():
+    """Each family's scene: the coulomb one has the design card's joint frictionloss and no
+    LuGre element; the lugre one the LuGre drive and no hard stick; scene.xml is lugre; both
+    share the robot (same masses, inertias, servos) and differ only in the yaw drive."""
+    coul = om.load_model(friction="coulomb")
+    lug = om.load_model(friction="lugre")
+    dflt = om.load_model()
+    fc, fl = om.yaw_friction(coul), om.yaw_friction(lug)
+    assert fc["frictionloss"] > 0 and not om.lugre_actuators(coul)
+    assert coul.nactuator == coul.nu  # no passive element at all
+    assert fl["frictionloss"] == 0 and fl["lugre_Fc"] > 0 and len(om.lugre_actuators(lug)) == 1
+    assert om.yaw_friction(dflt) == fl
+    for name in ("body_mass", "body_inertia", "dof_armature", "actuator_gear", "jnt_range"):
+        a, b = getattr(coul, name), getattr(lug, name)
+        n = min(len(a), len(b))  # lugre has one more actuator
+        np.testing.assert_array_equal(a[:n], b[:n], err_msg=name)
+    arm = [om.index(lug).yaw_dof + 1, om.index(lug).yaw_dof + 2]
+    np.testing.assert_array_equal(coul.dof_frictionloss[arm], 0)  # the yaw friction stays on the yaw
+    np.testing.assert_array_equal(coul.dof_damping[arm], lug.dof_damping[arm])
+    with pytest.raises(om.UserError, match="unknown friction family"):
+        om.load_model(friction="dahl")
+    with pytest.raises(om.UserError, match="either"):
+        om.load_model(om.DEFAULT_SCENE, friction="lugre")
 
 
 def test_contract_names(model):

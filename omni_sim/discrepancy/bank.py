@@ -82,7 +82,7 @@ CASES: tuple[HiddenCase, ...] = (
                note="hard-stick frictionloss 45 mN*m on top of the LuGre drive (nominal frictionloss 0; "
                     "models/README.md: 5-20 mN*m estimate, < 35 back-drive bound x1.3)"),
     HiddenCase("viscous_damping", (("viscous_damping", (0.012,)),), expect=("viscous_damping",),
-               note="1.2e-2 N*m*s/rad instead of the calibrated 6.9e-3 (models/omni.xml, yaw_drive damping)"),
+               note="1.2e-2 N*m*s/rad instead of the calibrated 6.9e-3 (models/scene_lugre.xml)"),
     HiddenCase("joint_stiffness", (("joint_stiffness", (0.06,)),), expect=("joint_stiffness",),
                note="cable spring 0.06 N*m/rad (~6 mN*m at 0.1 rad)"),
     HiddenCase("gravity_tilt", (("gravity_tilt", (0.06, 0.03)),), expect=("gravity_tilt",),
