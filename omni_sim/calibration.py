@@ -57,7 +57,11 @@ from identification.nonlinear import select_frequencies
 from . import experiments as ex
 from . import model as om
 
-RECORD = om.MODELS_DIR / "calibration.json"
+#: The calibration record of each friction family (the lugre record also holds the robot's
+#: joint calibration with that family, which set the shared numbers of omni.xml).
+RECORDS = {"lugre": om.MODELS_DIR / "calibration.json",
+           "coulomb": om.MODELS_DIR / "calibration_coulomb.json"}
+RECORD = RECORDS["lugre"]
 #: Table 10 (reordered): C1..C3 [1/s] at Table 7's breakpoints alpha_1..alpha_3 = 2.2, 25,
 #: 250 V^2/s^2 at gamma1=65, gamma2=90 (identification/data/README.md; read from paper.py).
 _T10 = _paper.table10()
@@ -101,11 +105,38 @@ PARAMETERS = (
     Parameter("stribeck_ratio", "-", 1.0, 3.0, "LuGre static level Fs / Fc (1 = no Stribeck peak); "
               "Fs <= 3 Fc, a typical bound for lubricated drives (estimate)"),
     Parameter("stribeck_speed", "rad/s", 0.01, 1.0, "LuGre Stribeck speed vs at the turret"),
+    Parameter("yaw_frictionloss", "N m", 0.0, 0.035, "Coulomb level of the yaw joint's frictionloss "
+              "(hard stick with noslip); < 35 mN m back-drive bound"),
     Parameter("shoulder_kp", "N m/rad", 0.2, 20.0, "arm P servo gain"),
     Parameter("elbow_kp", "N m/rad", 0.2, 20.0, "arm P servo gain"),
     Parameter("sine_amplitude_rad", "rad", 0.03, 0.3, "A_r, not stated in the paper"),
 )
 NAMES = tuple(p.name for p in PARAMETERS)
+_BY_NAME = {p.name: p for p in PARAMETERS}
+#: The robot's numbers (models/omni.xml) and the campaign's A_r: shared by the friction families.
+SHARED = ("m_upper_arm", "m_forearm", "m_stylus", "I_turret", "shoulder_kp", "elbow_kp",
+          "sine_amplitude_rad")
+#: Each friction family's own numbers (its scene file, models/scene_<family>.xml).
+FAMILY_PARAMETERS = {
+    "lugre": ("yaw_damping", "lugre_stiffness", "lugre_friction", "stribeck_ratio", "stribeck_speed"),
+    "coulomb": ("yaw_damping", "yaw_frictionloss"),
+}
+#: What a calibration may move: the family's friction only (the shared robot fixed), or all.
+FREE_CHOICES = ("friction", "all")
+
+
+def family_of(model: mujoco.MjModel) -> str:
+    """The friction family of a compiled model: ``lugre`` if the yaw has a LuGre actuator."""
+    return "lugre" if om.lugre_actuators(model) else "coulomb"
+
+
+def free_names(family: str, free: str = "friction") -> tuple[str, ...]:
+    """The parameters a calibration of ``family`` fits (``free``: see :data:`FREE_CHOICES`)."""
+    if family not in FAMILY_PARAMETERS:
+        raise UserError(f"unknown friction family {family!r}")
+    if free not in FREE_CHOICES:
+        raise UserError(f"free must be one of {FREE_CHOICES}, got {free!r}")
+    return FAMILY_PARAMETERS[family] + (SHARED if free == "all" else ())
 L_LINK = 0.135   # m (geometry, not calibrated)
 R_TUBE = 0.006   # m
 
@@ -132,25 +163,34 @@ def _friction_actuator(model: mujoco.MjModel) -> int:
 
 
 def current_values(model: mujoco.MjModel, amplitude_rad: float | None = None) -> dict:
-    """The calibrated quantities as they are in ``model`` (and the paper campaign's A_r)."""
+    """The calibrated quantities as they are in ``model`` (its family's friction and the shared
+    robot), and the paper campaign's A_r."""
     amplitude_rad = ex.load_campaign("sine").sine[0]["amplitude_rad"] if amplitude_rad is None else amplitude_rad
     bid = lambda n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n)  # noqa: E731
     ix = om.index(model)
-    return {
+    out = {
         "m_upper_arm": float(model.body_mass[bid("upper_arm")]),
         "m_forearm": float(model.body_mass[bid("forearm")]),
         "m_stylus": float(model.body_mass[bid("stylus")]),
         "I_turret": float(model.body_inertia[bid("turret")][2]),
         "yaw_damping": float(model.dof_damping[ix.yaw_dof]),
-        "lugre_stiffness": float(model.actuator_dynprm[_friction_actuator(model), 5]),
-        "lugre_friction": float(model.actuator_biasprm[_friction_actuator(model), 3]),
-        "stribeck_ratio": float(model.actuator_biasprm[_friction_actuator(model), 4]
-                                / max(model.actuator_biasprm[_friction_actuator(model), 3], 1e-12)),
-        "stribeck_speed": float(model.actuator_biasprm[_friction_actuator(model), 5]),
+    }
+    if family_of(model) == "lugre":
+        f = _friction_actuator(model)
+        out.update({
+            "lugre_stiffness": float(model.actuator_dynprm[f, 5]),
+            "lugre_friction": float(model.actuator_biasprm[f, 3]),
+            "stribeck_ratio": float(model.actuator_biasprm[f, 4] / max(model.actuator_biasprm[f, 3], 1e-12)),
+            "stribeck_speed": float(model.actuator_biasprm[f, 5]),
+        })
+    else:
+        out["yaw_frictionloss"] = float(model.dof_frictionloss[ix.yaw_dof])
+    out.update({
         "shoulder_kp": float(model.actuator_gainprm[ix.shoulder_act, 0]),
         "elbow_kp": float(model.actuator_gainprm[ix.elbow_act, 0]),
         "sine_amplitude_rad": float(amplitude_rad),
-    }
+    })
+    return out
 
 
 def _rod_inertia(mass: float) -> tuple[float, float, float]:
@@ -161,30 +201,38 @@ def _rod_inertia(mass: float) -> tuple[float, float, float]:
 
 
 def apply(model: mujoco.MjModel, values: dict) -> mujoco.MjModel:
-    """A copy of ``model`` with the calibrated quantities set (in the compiled model)."""
+    """A copy of ``model`` with the calibrated quantities in ``values`` set (others kept)."""
     import copy
 
     m = copy.deepcopy(model)
     bid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)  # noqa: E731
     ix = om.index(m)
     for body, key in (("upper_arm", "m_upper_arm"), ("forearm", "m_forearm")):
-        b = bid(body)
-        m.body_mass[b] = values[key]
-        m.body_inertia[b] = _rod_inertia(values[key])
-    s = bid("stylus")
-    scale = values["m_stylus"] / m.body_mass[s]
-    m.body_mass[s] = values["m_stylus"]
-    m.body_inertia[s] = m.body_inertia[s] * scale
-    m.body_inertia[bid("turret")][2] = values["I_turret"]
-    m.dof_damping[ix.yaw_dof] = values["yaw_damping"]
-    f = _friction_actuator(m)
-    m.actuator_dynprm[f, 5] = values["lugre_stiffness"]
-    m.actuator_biasprm[f, 3] = values["lugre_friction"]
-    m.actuator_biasprm[f, 4] = values["lugre_friction"] * values["stribeck_ratio"]
-    m.actuator_biasprm[f, 5] = values["stribeck_speed"]
+        if key in values:
+            b = bid(body)
+            m.body_mass[b] = values[key]
+            m.body_inertia[b] = _rod_inertia(values[key])
+    if "m_stylus" in values:
+        s = bid("stylus")
+        scale = values["m_stylus"] / m.body_mass[s]
+        m.body_mass[s] = values["m_stylus"]
+        m.body_inertia[s] = m.body_inertia[s] * scale
+    if "I_turret" in values:
+        m.body_inertia[bid("turret")][2] = values["I_turret"]
+    if "yaw_damping" in values:
+        m.dof_damping[ix.yaw_dof] = values["yaw_damping"]
+    if "yaw_frictionloss" in values:
+        m.dof_frictionloss[ix.yaw_dof] = values["yaw_frictionloss"]
+    if "lugre_friction" in values:
+        f = _friction_actuator(m)
+        m.actuator_dynprm[f, 5] = values["lugre_stiffness"]
+        m.actuator_biasprm[f, 3] = values["lugre_friction"]
+        m.actuator_biasprm[f, 4] = values["lugre_friction"] * values["stribeck_ratio"]
+        m.actuator_biasprm[f, 5] = values["stribeck_speed"]
     for act, key in ((ix.shoulder_act, "shoulder_kp"), (ix.elbow_act, "elbow_kp")):
-        m.actuator_gainprm[act, 0] = values[key]
-        m.actuator_biasprm[act, 1] = -values[key]
+        if key in values:
+            m.actuator_gainprm[act, 0] = values[key]
+            m.actuator_biasprm[act, 1] = -values[key]
     mujoco.mj_setConst(m, mujoco.MjData(m))
     return m
 
@@ -292,39 +340,51 @@ def _alpha_model_fall(fig: dict) -> float:
 
 
 def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verbose: int = 1,
-              start: dict | None = None) -> dict:
+              start: dict | None = None, family: str | None = None, free: str = "friction") -> dict:
     """Fit the parameters by least squares; returns the calibration record (not yet written).
 
-    ``start`` overrides some starting values (default: the model's current values).
+    ``family`` picks the built-in scene of a friction family (default: ``model_path`` or the
+    default scene; the family is then read off the model); ``free`` = ``"friction"`` fits the
+    family's friction with the shared robot and A_r fixed, ``"all"`` fits both (see
+    :func:`free_names`).  Every family is fitted to the same targets with the same residual
+    scales (this module's constants).  ``start`` overrides some starting values (default: the
+    model's current values).
     """
     from scipy.optimize import least_squares
 
-    base = om.load_model(model_path)
-    x0 = {**current_values(base), **(start or {})}
-    lo = np.array([p.lower for p in PARAMETERS])
-    hi = np.array([p.upper for p in PARAMETERS])
-    scale = np.array([max(abs(x0[n]), 1e-3 * (p.upper - p.lower)) for n, p in zip(NAMES, PARAMETERS)])
+    base = om.load_model(model_path, friction=family)
+    family = family_of(base)
+    names = free_names(family, free)
+    params = [_BY_NAME[n] for n in names]
+    now = current_values(base)
+    x0 = {**now, **(start or {})}
+    lo = np.array([p.lower for p in params])
+    hi = np.array([p.upper for p in params])
+    scale = np.array([max(abs(x0[n]), 1e-3 * (p.upper - p.lower)) for n, p in zip(names, params)])
     cache: dict = {}
 
     def fun(z):
         x = np.clip(z * scale, lo, hi)
-        vals = dict(zip(NAMES, x))
+        vals = {**now, **dict(zip(names, x))}
         fig = evaluate(apply(base, vals), vals["sine_amplitude_rad"], jobs)
         res = residuals(fig)
         cache[tuple(z)] = (fig, res)
         if verbose:
-            print(f"  cost {0.5 * float(res @ res):9.3f}  " + " ".join(f"{n}={v:.4g}" for n, v in vals.items()),
+            print(f"  cost {0.5 * float(res @ res):9.3f}  " + " ".join(f"{n}={vals[n]:.4g}" for n in names),
                   flush=True)
         return res
 
-    z0 = np.clip(np.array([x0[n] for n in NAMES]), lo, hi) / scale
+    z0 = np.clip(np.array([x0[n] for n in names]), lo, hi) / scale
     sol = least_squares(fun, z0, bounds=(lo / scale, hi / scale), diff_step=1e-2, x_scale=1.0,
                         max_nfev=max_nfev, method="trf")
     x = np.clip(sol.x * scale, lo, hi)
-    vals = dict(zip(NAMES, (float(v) for v in x)))
+    vals = {**now, **dict(zip(names, (float(v) for v in x)))}
     fig = evaluate(apply(base, vals), vals["sine_amplitude_rad"], jobs)
-    before = evaluate(base, ex.SINE_AMPLITUDE_RAD, jobs)
+    before = evaluate(base, now["sine_amplitude_rad"], jobs)
+    fixed_shared = {n: now[n] for n in SHARED if n not in names}
     return {
+        "family": family,
+        "free": free,
         "date": _dt.date.today().isoformat(),
         "method": "scipy.optimize.least_squares (trf, bounded), simulation-in-the-loop with the "
                   "project's own identification (omni_sim/calibration.py)",
@@ -338,13 +398,17 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
                             "C_alpha_rel": SCALE_CALPHA_REL, "margin": SCALE_MARGIN,
                             "C_alpha_fall_log": SCALE_FALL_LOG},
         "parameters": {p.name: {"value": vals[p.name], "unit": p.unit, "start": x0[p.name],
-                                "model_before": current_values(base)[p.name],
-                                "bounds": [p.lower, p.upper], "why": p.why} for p in PARAMETERS},
+                                "model_before": now[p.name],
+                                "bounds": [p.lower, p.upper], "why": p.why} for p in params},
         "fixed": {"beta_bar_N_m_per_V": om.torque_constant(base),
                   "armature_kg_m2": float(base.dof_armature[om.index(base).yaw_dof]),
-                  "yaw_frictionloss_N_m": float(base.dof_frictionloss[om.index(base).yaw_dof]),
-                  "lugre_sigma1_N_m_s_per_rad": float(base.actuator_dynprm[_friction_actuator(base), 6]),
-                  "L1_m": L_LINK, "L2_m": L_LINK},
+                  **({"yaw_frictionloss_N_m": float(base.dof_frictionloss[om.index(base).yaw_dof]),
+                      "lugre_sigma1_N_m_s_per_rad": float(base.actuator_dynprm[_friction_actuator(base), 6])}
+                     if family == "lugre" else {}),
+                  "L1_m": L_LINK, "L2_m": L_LINK,
+                  **({"shared_robot_and_campaign": fixed_shared,
+                      "shared_from": "models/calibration.json (the robot's joint calibration with "
+                                     "the lugre family, 2026-11-22)"} if fixed_shared else {})},
         "cost_before": 0.5 * float(residuals(before) @ residuals(before)),
         "cost_after": float(sol.cost),
         "nfev": int(sol.nfev),
@@ -366,8 +430,19 @@ def _fmt(x: float) -> str:
     return f"{x:.6g}"
 
 
-def write_model(values: dict, path: Path = om.MODELS_DIR / "omni.xml") -> None:
-    """Write the calibrated numbers into ``omni.xml`` (attributes only; comments stay)."""
+def write_model(values: dict, family: str, folder: Path = om.MODELS_DIR) -> list[Path]:
+    """Write calibrated numbers into the model files (attributes only; comments stay): the
+    robot's (masses, turret, servo gains; if ``values`` has them) into ``omni.xml``, the
+    family's friction into ``scene_<family>.xml``.  Returns the files written."""
+    written = []
+    if any(k in values for k in ("m_upper_arm", "m_forearm", "m_stylus", "I_turret",
+                                 "shoulder_kp", "elbow_kp")):
+        written.append(_write_robot(values, folder / "omni.xml"))
+    written.append(_write_friction(values, family, folder / f"scene_{family}.xml"))
+    return written
+
+
+def _write_robot(values: dict, path: Path) -> Path:
     text = path.read_text()
 
     def inertial(body: str, mass: float, diag) -> None:
@@ -386,20 +461,33 @@ def write_model(values: dict, path: Path = om.MODELS_DIR / "omni.xml") -> None:
     text = _sub_once(r'(<body name="turret".*?diaginertia=")[^"]*(")',
                      lambda mm: mm.group(1) + f"{_fmt(ixx)} {_fmt(iyy)} {_fmt(values['I_turret'])}"
                      + mm.group(2), text)
-    text = _sub_once(r'(<default class="yaw_drive">.*?damping=")[^"]*(")',
-                     lambda mm: mm.group(1) + _fmt(values["yaw_damping"]) + mm.group(2), text)
-    m = re.search(rf'<dcmotor name="{FRICTION_ACTUATOR}"[^>]*?lugre="([^"]*)"', text, re.S)
-    lugre = m.group(1).split()
-    lugre[0] = _fmt(values["lugre_stiffness"])
-    lugre[2] = _fmt(values["lugre_friction"])
-    lugre[3] = _fmt(values["lugre_friction"] * values["stribeck_ratio"])
-    lugre[4] = _fmt(values["stribeck_speed"])
-    text = _sub_once(rf'(<dcmotor name="{FRICTION_ACTUATOR}"[^>]*?lugre=")[^"]*(")',
-                     lambda mm: mm.group(1) + " ".join(lugre) + mm.group(2), text)
     for name, key in (("shoulder_servo", "shoulder_kp"), ("elbow_servo", "elbow_kp")):
         text = _sub_once(rf'(<position name="{name}"[^>]*?kp=")[^"]*(")',
                          lambda mm, k=key: mm.group(1) + _fmt(values[k]) + mm.group(2), text)
     path.write_text(text)
+    return path
+
+
+#: The main-class joint defaults of a family's scene: the yaw's damping and frictionloss.
+_SCENE_JOINT = r'(<default>\s*(?:<!--.*?-->\s*)?<joint damping=")([^"]*)(" frictionloss=")([^"]*)(")'
+
+
+def _write_friction(values: dict, family: str, path: Path) -> Path:
+    text = path.read_text()
+    loss = values.get("yaw_frictionloss") if family == "coulomb" else None
+    text = _sub_once(_SCENE_JOINT, lambda mm: mm.group(1) + _fmt(values["yaw_damping"]) + mm.group(3)
+                     + (mm.group(4) if loss is None else _fmt(loss)) + mm.group(5), text)
+    if family == "lugre":
+        m = re.search(rf'<dcmotor name="{FRICTION_ACTUATOR}"[^>]*?lugre="([^"]*)"', text, re.S)
+        lugre = m.group(1).split()
+        lugre[0] = _fmt(values["lugre_stiffness"])
+        lugre[2] = _fmt(values["lugre_friction"])
+        lugre[3] = _fmt(values["lugre_friction"] * values["stribeck_ratio"])
+        lugre[4] = _fmt(values["stribeck_speed"])
+        text = _sub_once(rf'(<dcmotor name="{FRICTION_ACTUATOR}"[^>]*?lugre=")[^"]*(")',
+                         lambda mm: mm.group(1) + " ".join(lugre) + mm.group(2), text)
+    path.write_text(text)
+    return path
 
 
 #: The paper campaign's file, whose ``[sine]`` amplitude the calibration sets.
@@ -428,21 +516,26 @@ def write_record(record: dict, path: Path = RECORD) -> None:
 
 
 def finalize(record: dict, docs: Path) -> list[Path]:
-    """Write the calibrated values into the model files, then re-measure the model as written
-    (numbers are rounded to 6 significant digits) and record and plot *those* figures."""
+    """Write the calibrated values into the model files (and the campaign's A_r if it was
+    fitted), then re-measure the model as written (numbers are rounded to 6 significant digits)
+    and record and plot *those* figures."""
+    family = record.get("family", "lugre")
     values = {k: v["value"] for k, v in record["parameters"].items()}
-    write_model(values)
-    amplitude = write_amplitude(values["sine_amplitude_rad"])
-    fig = evaluate(om.load_model(), amplitude)
+    write_model(values, family)
+    amplitude = (write_amplitude(values["sine_amplitude_rad"]) if "sine_amplitude_rad" in values
+                 else ex.load_campaign("sine").sine[0]["amplitude_rad"])
+    model = om.load_model(friction=family)
+    fig = evaluate(model, amplitude)
     record["achieved"] = summarise(fig)
     record["poses"] = fig["poses"]
-    for name, v in current_values(om.load_model(), amplitude).items():
-        record["parameters"][name]["value"] = v
-    write_record(record)
-    return plot_record(record, docs)
+    now = current_values(model, amplitude)
+    for name in record["parameters"]:
+        record["parameters"][name]["value"] = now[name]
+    write_record(record, RECORDS[family])
+    return plot_record(record, docs, prefix="calibration" if family == "lugre" else f"calibration_{family}")
 
 
-def plot_record(record: dict, folder: Path) -> list[Path]:
+def plot_record(record: dict, folder: Path, prefix: str = "calibration") -> list[Path]:
     """Figures overlaying the paper's numbers on the calibrated virtual Omni's."""
     import matplotlib
 
@@ -468,7 +561,7 @@ def plot_record(record: dict, folder: Path) -> list[Path]:
     axes[2].set(ylabel="actual angle difference [deg]", xlabel="set pose")
     axes[2].legend(fontsize=8)
     fig.tight_layout()
-    p1 = folder / "calibration_table3.png"
+    p1 = folder / f"{prefix}_table3.png"
     fig.savefig(p1, dpi=100)
     plt.close(fig)
 
@@ -486,7 +579,7 @@ def plot_record(record: dict, folder: Path) -> list[Path]:
         ax.grid(alpha=0.3, which="both")
     axes[0].legend(fontsize=8)
     fig.tight_layout()
-    p2 = folder / "calibration_alpha.png"
+    p2 = folder / f"{prefix}_alpha.png"
     fig.savefig(p2, dpi=100)
     plt.close(fig)
     return [p1, p2]

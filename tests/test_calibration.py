@@ -96,3 +96,31 @@ def test_calibration_writes_data_not_code(tmp_path):
     assert c.sine[0]["amplitude_rad"] == written
     assert c.step[0]["amplitude_rad"] == cal.ex.STEP_AMPLITUDE_RAD  # the [step] amplitude stays
     assert all(e.amplitude_rad == written for e in c.experiments() if e.kind == "sine")
+
+
+@pytest.mark.parametrize("family", ["lugre", "coulomb"])
+def test_write_model_round_trip(tmp_path, family):
+    """Writing a family's current friction values back changes no byte; changed values land in
+    the family's scene (friction) or the robot (shared numbers), compile to what was written,
+    and leave the other family's scene alone."""
+    import shutil
+
+    for f in om.MODELS_DIR.glob("*.xml"):
+        shutil.copy(f, tmp_path / f.name)
+    model = om.load_model(tmp_path / f"scene_{family}.xml")
+    now = cal.current_values(model)
+    before = {f.name: f.read_text() for f in tmp_path.glob("*.xml")}
+    assert cal.write_model({k: now[k] for k in cal.free_names(family)}, family, tmp_path) == [
+        tmp_path / f"scene_{family}.xml"]
+    assert {f.name: f.read_text() for f in tmp_path.glob("*.xml")} == before
+    new = dict(now, yaw_damping=0.0123, m_forearm=0.0777)
+    key = "lugre_friction" if family == "lugre" else "yaw_frictionloss"
+    new[key] = 0.0171
+    written = cal.write_model(new, family, tmp_path)
+    assert sorted(p.name for p in written) == ["omni.xml", f"scene_{family}.xml"]
+    other = "coulomb" if family == "lugre" else "lugre"
+    assert (tmp_path / f"scene_{other}.xml").read_text() == before[f"scene_{other}.xml"]
+    got = cal.current_values(om.load_model(tmp_path / f"scene_{family}.xml"))
+    for k in ("yaw_damping", "m_forearm", key):
+        assert got[k] == pytest.approx(new[k], rel=1e-9), k
+    assert cal.family_of(om.load_model(tmp_path / f"scene_{family}.xml")) == family
