@@ -43,15 +43,18 @@ def _rollout_ceiling(model: mujoco.MjModel, nbatch: int, nstep: int, nthread: in
     return nbatch * nstep / (time.perf_counter() - t0)
 
 
-def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True) -> dict:
+def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
+              friction: str | None = None) -> dict:
     """Measure the figures above (best of ``repeats``) and return them as a dict.
 
-    ``extended=False`` measures only the campaign figures (fast).
+    ``extended=False`` measures only the campaign figures (fast).  ``friction``: the built-in
+    scene of that friction family (default: ``scene.xml``) for the campaign and reproduce
+    figures; the discrepancy figure always runs the demo case on the default scene.
     """
     from identification.dataset import write_dataset
 
     jobs = max(1, jobs or os.cpu_count() or 1)
-    model = om.load_model()
+    model = om.load_model(friction=friction)
     exps = ex.campaign("paper")
     sim_time = sum(len(e.r) for e in exps) * ex.CONTROL_PERIOD_S
     steps = sum(len(e.r) for e in exps) * ex.substeps(model, ex.CONTROL_PERIOD_S)
@@ -71,6 +74,7 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True) 
     ceil = max(ceiling)
     figures = {
         "cores": os.cpu_count(),
+        "friction": friction or om.DEFAULT_FRICTION,
         "jobs": jobs,
         "paper_campaign": {
             "runs": len(exps),
@@ -89,14 +93,14 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True) 
         from identification.simulate import bench_simulation
 
         figures["alpha_simulation"] = bench_simulation(repeat=repeats)
-        figures["reproduce"] = _bench_reproduce(jobs)
+        figures["reproduce"] = _bench_reproduce(jobs, friction)
         from .discrepancy import bench_discrepancy
 
         figures["discrepancy"] = bench_discrepancy(jobs=jobs)
     return figures
 
 
-def _bench_reproduce(jobs: int) -> dict:
+def _bench_reproduce(jobs: int, friction: str | None = None) -> dict:
     import argparse
     import contextlib
     import io
@@ -108,7 +112,8 @@ def _bench_reproduce(jobs: int) -> dict:
         out = os.path.join(tmp, "results")
         t0 = time.perf_counter()
         with contextlib.redirect_stdout(io.StringIO()):
-            reproduce_command(argparse.Namespace(model=None, out=out, force=False, jobs=jobs))
+            reproduce_command(argparse.Namespace(model=None, friction=friction, out=out,
+                                                 force=False, jobs=jobs))
         wall = time.perf_counter() - t0
         with open(os.path.join(out, "summary.json")) as fh:
             sim = json.load(fh)["run"]["simulated_time_s"]

@@ -37,6 +37,17 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+def _friction_option(p: argparse.ArgumentParser, all_: bool = False, what: str = "") -> None:
+    from omni_sim.model import DEFAULT_FRICTION, FRICTION_FAMILIES
+
+    choices = FRICTION_FAMILIES + (("all",) if all_ else ())
+    p.add_argument("--friction", default=None, choices=choices,
+                   help=f"{what}the built-in scene of this friction family (models/scene_FAMILY.xml; "
+                        f"default: scene.xml = {DEFAULT_FRICTION}); not with --model"
+                        + ("; 'all': every family into OUT/FAMILY/ plus OUT/comparison.json, "
+                           "comparison.md and overlay figures" if all_ else ""))
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="omni",
@@ -51,6 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "sine or step (its halves), or a campaign file of your own (format: README, "
                         "'Campaign files'); default: paper")
     p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
+    _friction_option(p)
     p.add_argument("--out", default="dataset", help="output folder (default: ./dataset)")
     p.add_argument("--seed", type=_nonnegative_int, default=0, help="seed for encoder noise (default: 0)")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
@@ -81,6 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("reproduce", help="the main job: generate, identify, validate, report")
     p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
+    _friction_option(p, all_=True)
     p.add_argument("--out", default="reproduce", help="output folder (default: ./reproduce)")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
     p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
@@ -88,12 +101,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("discrepancy", help="find, name and fix the effect a model is missing")
     p.add_argument("--measured", default=None, help="measured dataset folder")
     p.add_argument("--model", default=None, help="MJCF file of the model to test")
+    _friction_option(p, what="the model to test: ")
     p.add_argument("--out", default=None, help="output folder")
     p.add_argument("--demo", action="store_true", help="hide an effect in a copy of the virtual Omni and find it")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
 
     p = sub.add_parser("bench", help="print and write the performance figures")
     p.add_argument("--out", default=None, help="write the figures as JSON to this file")
+    _friction_option(p, what="the campaign and reproduce figures on: ")
     p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
     return parser
 

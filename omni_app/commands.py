@@ -17,6 +17,7 @@ from identification.identify import fit_inertia_table, identify_runs
 from identification.inertia import InertiaFit
 from identification.validation import read_params, validate_runs, write_predictions
 from omni_sim import experiments as ex
+from omni_sim import model as om
 
 
 def _settings(args: argparse.Namespace) -> ex.Settings:
@@ -33,9 +34,20 @@ def _check_jobs(jobs: int | None) -> int | None:
     return jobs
 
 
+def model_arg(args: argparse.Namespace):
+    """The model file of ``--model`` / ``--friction`` (both: a user error), or None for the
+    built-in default scene."""
+    model = getattr(args, "model", None)
+    friction = getattr(args, "friction", None)
+    if model is None and friction is None:
+        return None
+    return str(om.model_path(model, friction))
+
+
 def generate(args: argparse.Namespace) -> int:
     """``omni generate``: run a campaign (or one user reference) and write a dataset."""
     jobs = _check_jobs(args.jobs)
+    model = model_arg(args)
     settings = _settings(args)
     out = Path(args.out)
     if out.is_dir() and any(out.iterdir()) and not args.force:
@@ -44,7 +56,7 @@ def generate(args: argparse.Namespace) -> int:
         exps = [ex.reference_experiment(args.reference, args.gamma1, args.gamma2)]
     else:
         exps = ex.campaign(args.campaign)
-    runs = ex.simulate(exps, args.model, settings, jobs=jobs, progress=sys.stderr.isatty())
+    runs = ex.simulate(exps, model, settings, jobs=jobs, progress=sys.stderr.isatty())
     write_dataset(runs, out, args.force)
     n_sine = sum(r.kind == "sine" for r in runs)
     n_step = sum(r.kind == "step" for r in runs)
@@ -58,7 +70,7 @@ def bench(args: argparse.Namespace) -> int:
     from .bench import run_bench
 
     jobs = _check_jobs(args.jobs)
-    figures = run_bench(jobs=jobs)
+    figures = run_bench(jobs=jobs, friction=getattr(args, "friction", None))
     text = json.dumps(figures, indent=2, sort_keys=True)
     print(text)
     if args.out:

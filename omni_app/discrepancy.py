@@ -10,6 +10,7 @@ from pathlib import Path
 from identification.dataset import atomic_output_dir, read_dataset, write_run
 from identification.errors import UserError
 
+from omni_sim import model as om
 from omni_sim.discrepancy import bank
 from omni_sim.discrepancy.workflow import run_discrepancy
 
@@ -26,17 +27,23 @@ def _log(msg: str) -> None:
 def discrepancy_command(args: argparse.Namespace) -> int:
     """Entry point of ``omni discrepancy`` (see ``omni discrepancy --help``)."""
     if args.demo:
+        if getattr(args, "friction", None) is not None:
+            raise UserError("discrepancy: --demo hides its effect in the default built-in model; "
+                            "--friction applies to --measured runs")
         out = Path(args.out or "discrepancy_demo")
         return demo(out, force=args.force, log=_log)
     if not args.measured:
         raise UserError("discrepancy: --measured DATA is required (or use --demo)")
     if not args.out:
         raise UserError("discrepancy: --out DIR is required")
+    friction = getattr(args, "friction", None)
+    # the nominal model: --model, or the --friction family's built-in scene (both: an error)
+    model = args.model if friction is None else str(om.model_path(args.model, friction))
     out = Path(args.out)
     if out.is_dir() and any(out.iterdir()) and not args.force:
         raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
     runs = read_dataset(args.measured)
-    outcome = run_discrepancy(runs, args.model, log=_log)
+    outcome = run_discrepancy(runs, model, log=_log)
     with atomic_output_dir(out, force=args.force) as tmp:
         rp.write(outcome, tmp)
     _summary(outcome, out)

@@ -93,8 +93,8 @@ class _Options:
 
 
 _OPTION_NAMES = tuple(f.name for f in fields(_Options))
-_MAKE_ONLY = ("model_path", "control_period_s", "render_mode", "render_width", "render_height",
-              "camera")
+_MAKE_ONLY = ("model_path", "friction", "control_period_s", "render_mode", "render_width",
+              "render_height", "camera")
 
 
 def _finite(name: str, value, lo: float = -math.inf, hi: float = math.inf,
@@ -183,6 +183,11 @@ class OmniYawEnv(gym.Env):
     model_path : path, optional
         MJCF file keeping the contract's names (default: the built-in scene).  Make-time only:
         the spaces derive from it.
+    friction : {"coulomb", "lugre"}, optional
+        The built-in scene of this friction family (``models/scene_<friction>.xml``; default
+        ``scene.xml``, the ``lugre`` family).  Make-time only; not together with
+        ``model_path``.  The attribute ``friction`` names the family in use (for a user's
+        file: what its yaw carries, :func:`omni_sim.model.friction_family`).
     control_period_s : float [s]
         Control period (make-time only).
     render_mode : {None, "rgb_array", "human"}
@@ -248,9 +253,9 @@ class OmniYawEnv(gym.Env):
     def __init__(self, model_path: str | os.PathLike | None = None,
                  control_period_s: float = ex.CONTROL_PERIOD_S, render_mode: str | None = None,
                  render_width: int = 640, render_height: int = 480,
-                 camera: str | None = "side", **options):
+                 camera: str | None = "side", friction: str | None = None, **options):
         try:
-            model = om.load_model(model_path)
+            model = om.load_model(model_path, friction)
             self.device = Device(model, _finite("control_period_s", control_period_s, 0.0,
                                                 lo_open=True))
         except UserError as exc:
@@ -259,6 +264,7 @@ class OmniYawEnv(gym.Env):
             raise InvalidOptionError(str(exc)) from None
         self.model = model
         self.model_path = model_path
+        self.friction = om.friction_family(model, om.model_path(model_path, friction))
         self.data = mujoco.MjData(self.model)
         self._ix = self.device.ix
         self.substeps = self.device.substeps

@@ -420,7 +420,8 @@ def model_digest(path: str | os.PathLike | None) -> str:
     return h.hexdigest()[:16]
 
 
-def _to_run(exp: Experiment, res: dict, settings: Settings, model_path, digest: str) -> Run:
+def _to_run(exp: Experiment, res: dict, settings: Settings, model_path, digest: str,
+            friction: str) -> Run:
     dt = settings.control_period_s
     t = np.arange(len(exp.r)) * dt
     meta = {
@@ -436,6 +437,7 @@ def _to_run(exp: Experiment, res: dict, settings: Settings, model_path, digest: 
         "source": "virtual Omni (omni_sim)",
         "model": Path(model_path).name if model_path is not None else "scene.xml (built-in)",
         "model_sha256": digest,
+        "friction": friction,
         "control_period_s": dt,
         "encoder_quantized": settings.quantize,
         "noise_rad": settings.noise_rad,
@@ -492,4 +494,6 @@ def simulate(exps: list[Experiment], model_path: str | os.PathLike | None = None
                     else run_reference(device, part, settings, jobs))
         bar.update(len(part))
     bar.close()
-    return [_to_run(e, r, settings, model_path, digest) for e, r in zip(exps, results)]
+    # a compiled model: what its yaw carries; a file: its family if it is a built-in scene
+    friction = om.friction_family(model, None if in_memory else (model_path or om.DEFAULT_SCENE))
+    return [_to_run(e, r, settings, model_path, digest, friction) for e, r in zip(exps, results)]

@@ -53,6 +53,26 @@ def model_path(path: str | os.PathLike | None = None, friction: str | None = Non
                         "picks one of the built-in scenes)")
     return Path(path) if path is not None else scene_path(friction)
 
+def friction_family(model: mujoco.MjModel, path: str | os.PathLike | None = None) -> str:
+    """The friction family a run's metadata names.
+
+    ``path`` a built-in scene: its family (``scene.xml`` is the default family).  Otherwise
+    (a user's file, or ``path`` None for a compiled model) what the ``model``'s yaw carries:
+    ``"lugre"`` (a LuGre actuator with a non-zero level), ``"coulomb"`` (``frictionloss``),
+    ``"lugre+coulomb"`` or ``"none"``."""
+    if path is not None:
+        resolved = Path(path).resolve()
+        if resolved == DEFAULT_SCENE.resolve():
+            return DEFAULT_FRICTION
+        for fam in FRICTION_FAMILIES:
+            if resolved == scene_path(fam).resolve():
+                return fam
+    f = yaw_friction(model)
+    kinds = [k for k, on in (("lugre", f["lugre_Fc"] > 0 or f["lugre_Fs"] > 0),
+                             ("coulomb", f["frictionloss"] > 0)) if on]
+    return "+".join(kinds) or "none"
+
+
 JOINTS = ("yaw", "shoulder", "elbow")
 YAW_ACTUATOR = "yaw_motor"
 ARM_ACTUATORS = ("shoulder_servo", "elbow_servo")
