@@ -194,6 +194,12 @@ class AlphaModel:
         floor = self.options["beta_floor_fraction"] * min(b0, b1)
         return np.maximum(line, floor) / np.asarray(I, dtype=float)
 
+    def C_fall(self, I) -> float:
+        """The fall of C(α): C at the first breakpoint α0 over C at the last α3, at inertia
+        ``I`` [-] (``inf`` when C3 = 0).  Table 10: 16.955 / 3.710 = 4.6 at γ1 = 65°, γ2 = 90°."""
+        c = self.C(self.alpha_breaks, I)
+        return float(c[0] / c[-1]) if c[-1] > 0 else math.inf
+
     # -- serialisation ------------------------------------------------------------------------
     def to_dict(self) -> dict:
         """JSON-safe dict (``inf`` in C_k1 is written as ``null``)."""

@@ -26,20 +26,45 @@ from omni_sim import truth
 
 from .identify_report import write_identify_report
 
-def run_reproduce(model_path=None, jobs=None, progress=False) -> dict:
-    """Run every stage in memory; returns everything the writers need."""
+def _model_label(model_path) -> str:
+    """``built-in scene_coulomb.xml`` for a built-in scene (where it is installed says
+    nothing), else the path as given."""
+    if model_path is None:
+        return "built-in scene.xml"
+    p = Path(model_path)
+    if p.resolve().parent == om.MODELS_DIR.resolve():
+        return f"built-in {p.name}"
+    return str(model_path)
+
+
+def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
+                  campaign="paper") -> dict:
+    """Run every stage in memory; returns everything the writers need.
+
+    ``model``: an already compiled (possibly modified) model to run instead of the file
+    ``model_path`` (e.g. the friction study's scaled models); ``campaign``: the campaign to
+    generate (name or file, :func:`omni_sim.experiments.campaign`).
+
+    Raises
+    ------
+    UserError
+        The model or campaign is bad, or identification failed (no inertia or alpha model).
+    """
     from tqdm import tqdm
 
-    model = om.load_model(model_path)
+    in_memory = model is not None and model_path is None
+    if model is None:
+        model = om.load_model(model_path)
     t0 = time.perf_counter()
     bar = tqdm(total=5, disable=not progress, unit="stage", leave=False)
     bar.set_description("simulating the paper campaign")
-    exps = ex.campaign("paper")
+    exps = ex.campaign(campaign)
     runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
     bar.update(1)
     bar.set_description("identifying")
     ident = identify_runs(runs)
     if ident.inertia is None or ident.alpha_model is None:
+        bar.close()
         raise UserError("identification failed on the generated campaign: " + "; ".join(ident.warnings))
     params_dict = ident.to_params()
     bar.update(1)
@@ -53,53 +78,107 @@ def run_reproduce(model_path=None, jobs=None, progress=False) -> dict:
     bar.update(1)
     sim_time = sum(len(r.t) for r in runs) * ex.CONTROL_PERIOD_S
     wall = time.perf_counter() - t0
-    scores["summary"]["run"] = {"simulated_time_s": sim_time, "wall_s_before_writing": wall,
-                                "model": str(model_path) if model_path else "built-in scene.xml",
-                                "model_sha256": ex.model_digest(model_path)}
+    scores["summary"]["run"] = {
+        "simulated_time_s": sim_time, "wall_s_before_writing": wall,
+        "model": ("in-memory model" if in_memory else _model_label(model_path)),
+        "model_sha256": "in-memory model" if in_memory else ex.model_digest(model_path),
+        "friction": runs[0].meta["friction"]}
     return {"model": model, "runs": runs, "ident": ident, "params": params_dict, "scores": scores,
             "predictions": predictions, "linear_truth": lin, "bar": bar}
 
 
-def reproduce_command(args) -> int:
-    """``omni reproduce [--model PATH] [--out DIR] [--force] [--jobs N]``."""
-    out = Path(args.out)
-    if out.is_dir() and any(out.iterdir()) and not args.force:
+def write_reproduce(folder: Path, res: dict, t0: float) -> None:
+    """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
+    params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
+    (perf_counter), for the real-time factor."""
+    (folder / "dataset").mkdir()
+    for run in res["runs"]:
+        write_run(folder / "dataset", run)
+    write_predictions(folder, res["runs"], res["predictions"])
+    (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
+    (folder / "identify").mkdir()
+    write_identify_report(res["ident"], folder / "identify", source="dataset/")
+    from .figures import write_figures
+    write_figures(folder, res)
+    summary = res["scores"]["summary"]
+    summary["run"]["wall_s_total"] = time.perf_counter() - t0
+    summary["run"]["real_time_factor"] = summary["run"]["simulated_time_s"] / summary["run"]["wall_s_total"]
+    (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    (folder / "scores.json").write_text(json.dumps(res["scores"], indent=2) + "\n")
+    from .report import format_report
+    (folder / "report.md").write_text(format_report(res))
+
+
+def _print_summary(res: dict, label: str = "") -> None:
+    s = res["scores"]["summary"]
+    st, sn, inr = s["step"], s["sine"], s["inertia"]
+    print(f"{label}inertia model vs MuJoCo at {inr['n_poses']} Table 2 poses: max error "
+          f"{100 * inr['max_rel_error']:.1f} %")
+    print(f"{label}step: alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses; median |error| "
+          f"linear {1e3 * st['median_abs_error_linear_rad']:.2f} mrad, alpha "
+          f"{1e3 * st['median_abs_error_alpha_rad']:.2f} mrad (ratio {st['ratio_of_medians']:.2f})")
+    print(f"{label}sine: phase p90 linear {sn['phase_p90_linear_deg']:.1f} deg, alpha "
+          f"{sn['phase_p90_alpha_deg']:.1f} deg; magnitude p90 linear {sn['magnitude_p90_linear']:.3f}, "
+          f"alpha {sn['magnitude_p90_alpha']:.3f}")
+
+
+def _check_out(out: Path, force: bool) -> None:
+    if out.is_dir() and any(out.iterdir()) and not force:
         raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
+
+
+def reproduce_command(args) -> int:
+    """``omni reproduce [--model PATH | --friction {coulomb,lugre,all}] [--out DIR] [--force]
+    [--jobs N]``."""
+    out = Path(args.out)
+    friction = getattr(args, "friction", None)
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be >= 1, got {args.jobs}")
+    if friction == "all":
+        if args.model is not None:
+            om.model_path(args.model, friction)  # raises: a model file and a family
+        return reproduce_all(out, force=args.force, jobs=args.jobs)
+    model_path = None if (args.model is None and friction is None) else om.model_path(args.model, friction)
+    _check_out(out, args.force)
     t0 = time.perf_counter()
-    res = run_reproduce(args.model, args.jobs, progress=sys.stderr.isatty())
+    res = run_reproduce(model_path, args.jobs, progress=sys.stderr.isatty())
     bar = res["bar"]
     bar.set_description("writing report and figures")
     with atomic_output_dir(out, force=args.force) as tmp:
-        (tmp / "dataset").mkdir()
-        for run in res["runs"]:
-            write_run(tmp / "dataset", run)
-        write_predictions(tmp, res["runs"], res["predictions"])
-        (tmp / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
-        (tmp / "identify").mkdir()
-        write_identify_report(res["ident"], tmp / "identify", source="dataset/")
-        from .figures import write_figures
-        write_figures(tmp, res)
-        summary = res["scores"]["summary"]
-        summary["run"]["wall_s_total"] = time.perf_counter() - t0
-        summary["run"]["real_time_factor"] = summary["run"]["simulated_time_s"] / summary["run"]["wall_s_total"]
-        (tmp / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-        (tmp / "scores.json").write_text(json.dumps(res["scores"], indent=2) + "\n")
-        from .report import format_report
-        (tmp / "report.md").write_text(format_report(res))
+        write_reproduce(tmp, res, t0)
     bar.update(1)
     bar.close()
-    s = res["scores"]["summary"]
-    st, sn, inr = s["step"], s["sine"], s["inertia"]
-    print(f"inertia model vs MuJoCo at {inr['n_poses']} Table 2 poses: max error "
-          f"{100 * inr['max_rel_error']:.1f} %")
-    print(f"step: alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses; median |error| "
-          f"linear {1e3 * st['median_abs_error_linear_rad']:.2f} mrad, alpha "
-          f"{1e3 * st['median_abs_error_alpha_rad']:.2f} mrad (ratio {st['ratio_of_medians']:.2f})")
-    print(f"sine: phase p90 linear {sn['phase_p90_linear_deg']:.1f} deg, alpha "
-          f"{sn['phase_p90_alpha_deg']:.1f} deg; magnitude p90 linear {sn['magnitude_p90_linear']:.3f}, "
-          f"alpha {sn['magnitude_p90_alpha']:.3f}")
+    _print_summary(res)
     print(f"wrote {out}/report.md, summary.json, figures and predictions/ "
-          f"(real-time factor {s['run']['real_time_factor']:.0f})")
+          f"(real-time factor {res['scores']['summary']['run']['real_time_factor']:.0f})")
+    return 0
+
+
+def reproduce_all(out: Path, force: bool = False, jobs: int | None = None,
+                  campaign: str = "paper") -> int:
+    """``omni reproduce --friction all``: the reproduction of every friction family into
+    ``out/<family>/`` and their comparison (``out/comparison.json``, ``comparison.md``,
+    overlay figures; :mod:`omni_app.comparison`).  ``campaign``: the paper's (the command's),
+    or a smaller one (tests)."""
+    from .comparison import write_comparison
+
+    _check_out(out, force)
+    results, starts = {}, {}
+    for fam in om.FRICTION_FAMILIES:
+        starts[fam] = time.perf_counter()
+        results[fam] = run_reproduce(om.scene_path(fam), jobs, progress=sys.stderr.isatty(),
+                                     campaign=campaign)
+        results[fam]["bar"].close()
+    with atomic_output_dir(out, force=force) as tmp:
+        for fam, res in results.items():
+            (tmp / fam).mkdir()
+            write_reproduce(tmp / fam, res, starts[fam])
+        comparison = write_comparison(tmp, results)
+    for fam, res in results.items():
+        _print_summary(res, label=f"{fam}: ")
+    for fam, c in comparison["families"].items():
+        print(f"{fam}: Table 3 worst error C {100 * c['table3']['C_linear_worst_rel_error']:+.1f} %, "
+              f"beta~ {100 * c['table3']['beta_tilde_linear_worst_rel_error']:+.1f} %; resonance "
+              f"{c['resonance_hz_65_90']:.2f} Hz; C(alpha) fall {c['C_alpha_fall']:.2f}x")
+    print(f"wrote {out}/<family>/ for {', '.join(results)} and {out}/comparison.json, comparison.md")
     return 0
