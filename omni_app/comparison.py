@@ -260,7 +260,7 @@ def format_markdown(comp: dict) -> str:
                  lambda d: f"{d['C_alpha_fall']:.2f}x"),
              row("alpha breakpoints [V^2/s^2]", ", ".join(f"{r['alpha']:g}" for r in paper.table7()),
                  lambda d: ", ".join(f"{a:.3g}" for a in d["alpha_breaks"])),
-             row("inertia (6) vs MuJoCo: max |error| (worst signed)", "-",
+             row("inertia (6) vs MuJoCo: max abs error (worst signed)", "-",
                  lambda d: f"{100 * d['inertia']['max_rel_error']:.1f} % ({pct(d['inertia']['worst_signed_rel_error'])})"),
              row("step ratio of medians linear/alpha, whole record", f"{P['step_ratio']} (ratio of means)",
                  lambda d: f"{d['step']['ratio_of_medians_whole_record']:.2f}"),
