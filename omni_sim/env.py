@@ -446,6 +446,20 @@ class OmniYawEnv(gym.Env):
                 "voltage": v}
 
     # --- gymnasium API -----------------------------------------------------------------------
+    def _apply_friction_scale(self, o: _Options) -> None:
+        """Scale the model's yaw dry friction and viscous damping to the episode's option."""
+        om.scale_yaw_friction(self.model, o.friction_scale, base=self._model0)
+        self.model.dof_damping[self._ix.yaw_dof] = self._yaw_damping0 * o.friction_scale
+
+    def _episode(self, o: _Options) -> tuple[np.ndarray, float, np.ndarray]:
+        """An episode's random draws from ``self.np_random``, in this order: the reference and
+        initial yaw [rad], then the encoder noise [rad] (one sample per control period + 1).
+        The vector environment draws each sub-environment's episode with this too."""
+        r, theta0 = self._build_reference(o)
+        noise = (self.np_random.normal(0.0, o.noise_rad, r.size + 1) if o.noise_rad > 0
+                 else np.zeros(r.size + 1))
+        return r, theta0, noise
+
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode: arm at its equilibrium pose, yaw at ``theta0_rad`` at rest.
 
@@ -460,19 +474,14 @@ class OmniYawEnv(gym.Env):
         super().reset(seed=seed)
         o = self._merge(self._defaults, options) if options else self._defaults
         self._opt = o
-        m, d, ix = self.model, self.data, self._ix
         if self._engine is not None:
             self._engine.close()
-        om.scale_yaw_friction(m, o.friction_scale, base=self._model0)
-        m.dof_damping[ix.yaw_dof] = self._yaw_damping0 * o.friction_scale
-
-        self._r, theta0 = self._build_reference(o)
+        self._apply_friction_scale(o)
+        self._r, theta0, self._noise = self._episode(o)
         self._n = self._r.size
-        self._noise = (self.np_random.normal(0.0, o.noise_rad, self._n + 1) if o.noise_rad > 0
-                       else np.zeros(self._n + 1))
         # the device's start state and engine, on this environment's MjData
         self._engine = Engine([self.device], [theta0],
-                              [(float(o.gamma1_set_deg), float(o.gamma2_set_deg))], data=d)
+                              [(float(o.gamma1_set_deg), float(o.gamma2_set_deg))], data=self.data)
         self._diverged = False
 
         self._k = 0
