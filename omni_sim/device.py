@@ -102,6 +102,11 @@ def read_encoder(theta, noise, quantum_rad):
     return np.where(q > 0, np.round(y / qdiv) * qdiv + 0.0, y)
 
 
+# np.clip of a float array with both bounds is this ufunc (numpy/_core/_methods.py: _clip);
+# called directly in the engine's per-period loop to skip np.clip's Python dispatch
+_clip = getattr(getattr(getattr(np, "_core", None), "umath", None), "clip", None) or np.clip
+
+
 def p_law(kp, r, y, vmax):
     """The paper's P controller, clipped to the drive: ``clip(kp (r - y), -vmax, vmax)`` [V]."""
     return np.clip(kp * (r - y), -vmax, vmax)
@@ -151,6 +156,7 @@ class Device:
         self.torque_constant = float(model.actuator_gear[self.ix.yaw_act, 0])
         self.nstate = mujoco.mj_stateSize(model, STATE_SPEC)
         self._eq: dict[tuple[float, float], tuple[float, float]] = {}
+        self._scratch: mujoco.MjData | None = None  # start_state's MjData (made on first use)
 
     @classmethod
     def load(cls, path=None, control_period_s: float = CONTROL_PERIOD_S) -> "Device":
@@ -188,8 +194,13 @@ class Device:
         return d
 
     def start_state(self, theta0_rad: float, gamma_set_deg: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-        """The start of a run as ``(full physics state, ctrl vector)`` (see :meth:`start_data`)."""
-        d = self.start_data(theta0_rad, gamma_set_deg)
+        """The start of a run as ``(full physics state, ctrl vector)`` (see :meth:`start_data`).
+
+        Computed in one scratch ``MjData`` of the device (``mj_resetData`` first, as a new one
+        is), so a batch of many runs does not allocate an ``MjData`` per run."""
+        if self._scratch is None:
+            self._scratch = mujoco.MjData(self.model)
+        d = self.start_data(theta0_rad, gamma_set_deg, self._scratch)
         x0 = np.empty(self.nstate)
         mujoco.mj_getState(self.model, d, x0, STATE_SPEC)
         return x0, d.ctrl.copy()
@@ -252,7 +263,9 @@ class Engine:
         self._models = [d.model for d in devices]
         nthread = max(1, nthread or os.cpu_count() or 1)
         self._own_pool = pool is None
-        self.pool = rollout.Rollout(nthread=nthread) if pool is None else pool
+        # one thread: the calling thread steps the batch (no hand-off to a pool thread at
+        # every control period); same trajectories either way
+        self.pool = rollout.Rollout(nthread=nthread if nthread > 1 else 0) if pool is None else pool
         self._datas = [mujoco.MjData(d0.model) for _ in range(nthread)]
         self._state = np.empty((self.B, self.substeps, d0.nstate))
         self._sens = np.empty((self.B, self.substeps, d0.model.nsensordata))
@@ -299,12 +312,16 @@ class Engine:
                 mujoco.mj_step(m, d)
             return np.array([vk])
         v = np.clip(np.asarray(v, dtype=float).reshape(self.B), -self.vmax, self.vmax)
+        self._advance(v)
+        return v
+
+    def _advance(self, v: np.ndarray) -> None:
+        """A batch's :meth:`apply` after the clip: ``v`` (B,) already within each drive's limit."""
         self._ctrl[:, :, self._yaw_act] = v[:, None]
         self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
                           skip_checks=True, state=self._state, sensordata=self._sens,
                           chunk_size=self._chunk)
         self.x = self._state[:, -1, :].copy()
-        return v
 
 
 def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,
@@ -339,6 +356,25 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     if record_arm:
         q1 = np.empty((B, n))
         q2 = np.empty((B, n))
+    if engine.data is None:  # a batch: the same steps as below, without the per-call overheads
+        _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v,
+                      (q1, q2) if record_arm else None)
+    else:
+        _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v,
+                        (q1, q2) if record_arm else None)
+    if not np.all(np.isfinite(theta)):
+        raise RuntimeError("simulation diverged (non-finite yaw angle)")
+    out = {"theta": theta, "v": v}
+    if record_arm:
+        out.update(q1=q1, q2=q2)
+    return out
+
+
+def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm) -> None:
+    n = r.shape[1]
+    record_arm = arm is not None
+    if record_arm:
+        q1, q2 = arm
     for k in range(n):
         if record_arm:
             q = engine.qpos()
@@ -348,9 +384,36 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
         y = th if exact else read_encoder(th, 0.0 if noise is None else noise[:, k], quantum_rad)
         theta[:, k] = y
         v[:, k] = engine.apply(p_law(kp, r[:, k], y, engine.vmax))
-    if not np.all(np.isfinite(theta)):
-        raise RuntimeError("simulation diverged (non-finite yaw angle)")
-    out = {"theta": theta, "v": v}
-    if record_arm:
-        out.update(q1=q1, q2=q2)
-    return out
+
+
+def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm) -> None:
+    """:func:`run_p_loop` on a batch engine, operation for operation: the yaw read from the
+    state, :func:`read_encoder` (its arrays made once), :func:`p_law` (the clip ufunc on a
+    fresh array) and :meth:`Engine.apply` (whose second clip leaves a clipped command as it
+    is)."""
+    n = r.shape[1]
+    vmax = engine.vmax
+    neg_vmax = -vmax
+    qa = engine._qadr
+    q = np.asarray(quantum_rad, dtype=float)
+    rounds = bool(np.any(q > 0))
+    if rounds:
+        qpos = q > 0
+        qdiv = np.where(qpos, q, 1.0)
+    for k in range(n):
+        x = engine.x
+        th = x[:, qa[0]]
+        if arm is not None:
+            arm[0][:, k] = x[:, qa[1]]
+            arm[1][:, k] = x[:, qa[2]]
+        if noise is None and not rounds:
+            y = th
+        else:  # read_encoder
+            y = th + (0.0 if noise is None else noise[:, k])
+            if rounds:
+                y = np.where(qpos, np.round(y / qdiv) * qdiv + 0.0, y)
+        theta[:, k] = y
+        u = kp * (r[:, k] - y)
+        _clip(u, neg_vmax, vmax, out=u)
+        v[:, k] = u
+        engine._advance(u)

@@ -17,8 +17,10 @@ models of a finite-difference Jacobian or a parameter grid are simulated togethe
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import mujoco
@@ -34,6 +36,10 @@ from ..device import Device, Engine, run_p_loop
 #: Fewest samples a run needs to be replayed and localised (0.2 s at 1 kHz: one step edge's
 #: transient at the Omni's ~3.4 Hz resonance).
 MIN_SAMPLES = 200
+#: Samples of replayed trajectories a :class:`Replayer` keeps (8 bytes each), so a (model, run)
+#: pair replayed again (a grid point that is also the fit's start, a fit's end point scored
+#: again) is not simulated twice.
+CACHE_SAMPLES = 4_000_000
 
 
 @dataclass
@@ -135,9 +141,15 @@ class Replayer:
 
     def __init__(self, nthread: int | None = None):
         self.nthread = max(1, nthread or os.cpu_count() or 1)
-        self._pool = rollout.Rollout(nthread=self.nthread)
+        # one thread: rollouts run on the calling thread (Rollout(nthread=0)), not handed to a
+        # one-thread pool at every control period; the trajectories are the same
+        self._pool = rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0)
         self._devices: dict = {}
         self.steps = 0  # physics steps simulated so far (for timings)
+        # replayed trajectories by (model content, run content), least recently used first
+        self._traj: OrderedDict = OrderedDict()
+        self._traj_samples = 0
+        self._runs: dict = {}
 
     def __enter__(self):
         return self
@@ -150,10 +162,34 @@ class Replayer:
 
     def device(self, model: mujoco.MjModel) -> Device:
         """The device of ``model`` (built once per model object; keeps its equilibrium poses)."""
+        return self._entry(model)[0]
+
+    def _entry(self, model: mujoco.MjModel) -> list:
         key = id(model)
         if key not in self._devices:
-            self._devices[key] = (Device(model), model)  # keep the model alive with its id
-        return self._devices[key][0]
+            # [device, model (kept alive with its id), content digest (made when first needed)]
+            self._devices[key] = [Device(model), model, None]
+        return self._devices[key]
+
+    def _model_key(self, model: mujoco.MjModel) -> bytes:
+        """Digest of everything the compiled model holds (``mj_saveModel``'s bytes): two
+        models with the same digest simulate alike, bit for bit."""
+        e = self._entry(model)
+        if e[2] is None:
+            buf = np.empty(mujoco.mj_sizeModel(model), np.uint8)
+            mujoco.mj_saveModel(model, None, buf)
+            e[2] = hashlib.blake2b(buf, digest_size=20).digest()
+        return e[2]
+
+    def _run_key(self, run: ReplayRun) -> tuple:
+        """What the replay of ``run`` depends on: start angle, set points, kp, reference."""
+        e = self._runs.get(id(run))
+        if e is None or e[1] is not run or len(run.r) != e[2]:
+            r = np.ascontiguousarray(run.r, dtype=float)
+            key = (float(run.theta[0]), tuple(float(g) for g in run.gamma_set_deg), float(run.kp),
+                   len(r), hashlib.blake2b(r, digest_size=20).digest())
+            e = self._runs[id(run)] = (key, run, len(run.r))  # the run kept alive with its id
+        return e[0]
 
     def initial_state(self, model: mujoco.MjModel, run: ReplayRun) -> tuple[np.ndarray, np.ndarray]:
         """Full physics state and ctrl vector at the start of ``run`` on ``model``."""
@@ -187,9 +223,42 @@ class Replayer:
             pairs = [(i, j) for i in range(len(models)) for j in range(len(runs))]
         if not pairs:
             return []
+        lengths = [runs[j].n for _, j in pairs]
+        nmax = max(lengths)
+        if measurement is not None:  # a simulated measurement process: never reused
+            theta = self._simulate(models, runs, pairs, nmax, measurement)
+            return [theta[b, : n] for b, n in enumerate(lengths)]
+        # every pair is simulated for nmax samples (a shorter run's reference holds its last
+        # value, as in one batch of all pairs); a trajectory kept from an earlier batch of at
+        # least nmax samples is the same trajectory, and a pair repeated in this batch is
+        # simulated once
+        keys = [(self._model_key(models[i]), self._run_key(runs[j])) for i, j in pairs]
+        todo: dict = {}
+        for b, key in enumerate(keys):
+            hit = self._traj.get(key)
+            if (hit is None or len(hit) < nmax) and key not in todo:
+                todo[key] = b
+        if todo:
+            rows = list(todo.values())
+            theta = self._simulate(models, runs, [pairs[b] for b in rows], nmax, None)
+            for key, th in zip(todo, theta):
+                old = self._traj.pop(key, None)
+                if old is not None:
+                    self._traj_samples -= len(old)
+                self._traj[key] = th.copy()
+                self._traj_samples += nmax
+            while self._traj_samples > CACHE_SAMPLES and len(self._traj) > 1:
+                self._traj_samples -= len(self._traj.popitem(last=False)[1])
+        out = []
+        for key, n in zip(keys, lengths):
+            th = self._traj[key]
+            self._traj.move_to_end(key)
+            out.append(th[:n].copy())
+        return out
+
+    def _simulate(self, models, runs, pairs, nmax: int, measurement) -> np.ndarray:
+        """One batch of ``pairs`` through the device engine for ``nmax`` samples, shape (B, nmax)."""
         B = len(pairs)
-        lengths = np.array([runs[j].n for _, j in pairs])
-        nmax = int(lengths.max())
         rmat = np.empty((B, nmax))
         kp = np.empty(B)
         for b, (_, j) in enumerate(pairs):
@@ -212,4 +281,4 @@ class Replayer:
         except RuntimeError:
             raise RuntimeError("replay diverged (non-finite yaw angle)") from None
         self.steps += B * nmax
-        return [theta[b, : lengths[b]] for b in range(B)]
+        return theta
