@@ -389,11 +389,23 @@ def test_friction_study_records_failures(tmp_path, monkeypatch):
     from identification.errors import UserError
 
     def fail(**kw):
-        raise UserError("identification failed on the generated campaign: no alpha model")
+        raise UserError("identification failed on the generated campaign: sine_a: 2 Hz gives "
+                        "non-physical local coefficients C_data=-1; sine_b: 1.5 Hz gives non-physical "
+                        "local coefficients C_data=-2; alpha-invariant model not fitted: no pose has a "
+                        "usable frequency")
 
     monkeypatch.setattr(rp, "run_reproduce", fail)
     row = study.run_level(om.load_model(friction="coulomb"), 0.0, "paper", 1)
-    assert row["ok"] is False and "no alpha model" in row["reason"]
+    assert row["ok"] is False
+    assert row["reason"].startswith("alpha-invariant model not fitted: no pose has a usable frequency")
+    assert "(2 sine run(s) with non-physical" in row["reason"]
+
+    def diverge(**kw):
+        raise RuntimeError("sine_a: simulation diverged")
+
+    monkeypatch.setattr(rp, "run_reproduce", diverge)
+    row = study.run_level(om.load_model(friction="coulomb"), 3.0, "paper", 1)
+    assert row == {**row, "ok": False, "reason": "RuntimeError: sine_a: simulation diverged"}
 
 
 @pytest.mark.parametrize("args, match", [
