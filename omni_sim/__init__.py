@@ -18,4 +18,5 @@ __all__ = ["DEFAULT_SCENE", "FRICTION_FAMILIES", "MODELS_DIR", "Device", "Encode
 
 import gymnasium as _gym  # register the environment (omni_sim/env.py) once per process
 if "omni_sim/OmniYaw-v0" not in _gym.registry:
-    _gym.register(id="omni_sim/OmniYaw-v0", entry_point="omni_sim.env:OmniYawEnv")
+    _gym.register(id="omni_sim/OmniYaw-v0", entry_point="omni_sim.env:OmniYawEnv",
+                  vector_entry_point="omni_sim.vector_env:OmniYawVectorEnv")

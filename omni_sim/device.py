@@ -300,6 +300,28 @@ class Engine:
             return np.array([self._data.qpos[self._q[0]]])
         return self.x[:, self._qadr[0]].copy()
 
+    def yaw_velocity(self) -> np.ndarray:
+        """True yaw velocity [rad/s] of every row, shape ``(B,)``."""
+        dof = self.devices[0].ix.yaw_dof
+        if self._data is not None:
+            return np.array([self._data.qvel[dof]])
+        return self.x[:, 1 + self.devices[0].model.nq + dof].copy()
+
+    def time(self) -> np.ndarray:
+        """Simulated time [s] of every row since its start, shape ``(B,)``."""
+        if self._data is not None:
+            return np.array([self._data.time])
+        return self.x[:, 0].copy()
+
+    def reset_rows(self, rows, theta0_rad, gamma_set_deg) -> None:
+        """Start rows ``rows`` again from :meth:`Device.start_state` (the others go on)."""
+        for b, th0, gs in zip(rows, theta0_rad, gamma_set_deg):
+            dev = self.devices[b]
+            if self._data is not None:
+                dev.start_data(float(th0), tuple(gs), self._data)
+            else:
+                self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), tuple(gs))
+
     def apply(self, v) -> np.ndarray:
         """Hold the commands ``v`` [V] (one per row, clipped to each drive) for one control
         period and advance the physics; returns the applied (clipped) commands."""
