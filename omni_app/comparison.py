@@ -299,12 +299,12 @@ def format_markdown(comp: dict) -> str:
     return "\n".join(lines)
 
 
-def _finite(x):
+def json_safe(x):
     """JSON-safe: non-finite floats (an infinite C(alpha) fall) become null."""
     if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
+        return {k: json_safe(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
+        return [json_safe(v) for v in x]
     if isinstance(x, float) and not math.isfinite(x):
         return None
     return x
@@ -314,7 +314,7 @@ def write_comparison(folder: Path, results: dict) -> dict:
     """Write comparison.json, comparison.md and the overlay figures into ``folder``."""
     folder = Path(folder)
     comp = compare(results)
-    (folder / "comparison.json").write_text(json.dumps(_finite(comp), indent=2) + "\n")
+    (folder / "comparison.json").write_text(json.dumps(json_safe(comp), indent=2) + "\n")
     (folder / "comparison.md").write_text(format_markdown(comp))
     for fn in (fig_C_alpha, fig_bode, fig_step):
         fn(folder, results)

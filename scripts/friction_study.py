@@ -233,7 +233,9 @@ def main(argv: list[str] | None = None) -> int:
             write_figure(Path(tmp), result)
             import json
 
-            atomic_write_text(out / FILES[0], json.dumps(_finite(result), indent=2) + "\n")
+            from omni_app.comparison import json_safe
+
+            atomic_write_text(out / FILES[0], json.dumps(json_safe(result), indent=2) + "\n")
             os.replace(tmp, out / FILES[1])
         finally:
             if os.path.exists(tmp):
@@ -253,16 +255,6 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{fam} x{r['scale']:g}: failed: {r['reason']}")
     print(f"wrote {out / FILES[0]} and {out / FILES[1]}")
     return 0
-
-
-def _finite(x):
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
 
 
 if __name__ == "__main__":
