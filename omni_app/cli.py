@@ -110,6 +110,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="write the figures as JSON to this file")
     _friction_option(p, what="the campaign and reproduce figures on: ")
     p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
+
+    p = sub.add_parser("sweep", help="a study of many model variants on Dask (local or a cluster)")
+    p.add_argument("spec", nargs="?", default=None, metavar="SPEC.toml",
+                   help="study file (base model, pipeline, parameters to vary; see --example)")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="output folder: results.csv, variants/<id>/; rerun to resume")
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="local worker processes (default: all cores)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="an existing Dask scheduler, e.g. tcp://host:8786 (instead of a local cluster)")
+    p.add_argument("--example", action="store_true", help="print a small runnable study file")
+    p.add_argument("--plot", default=None, metavar="DIR",
+                   help="draw each figure of DIR/results.csv against each varied parameter (PNG into DIR)")
     return parser
 
 
@@ -135,6 +148,9 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "bench":
         from .commands import bench
         return bench(args)
+    if args.command == "sweep":
+        from .sweep import sweep_command
+        return sweep_command(args)
     raise AssertionError(args.command)
 
 
