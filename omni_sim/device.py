@@ -197,7 +197,8 @@ class Device:
         """The start of a run as ``(full physics state, ctrl vector)`` (see :meth:`start_data`).
 
         Computed in one scratch ``MjData`` of the device (``mj_resetData`` first, as a new one
-        is), so a batch of many runs does not allocate an ``MjData`` per run."""
+        is), so a batch of many runs does not allocate an ``MjData`` per run; so one device's
+        ``start_state`` is not for concurrent calls from several threads."""
         if self._scratch is None:
             self._scratch = mujoco.MjData(self.model)
         d = self.start_data(theta0_rad, gamma_set_deg, self._scratch)
