@@ -78,6 +78,8 @@ from .nonlinear import AlphaModel, paper_alpha_model
 __all__ = [
     "SimResult",
     "simulate_alpha",
+    "simulate_alpha_batch",
+    "simulate_alpha_reference",
     "simulate_linear",
     "zoh_coefficients",
     "square_wave_reference",
@@ -236,9 +238,13 @@ def simulate_linear(C_linear, beta_tilde_linear, r, dt, kp, theta0=0.0, phi0=0.0
     return _finish(single, theta=theta, phi=phi, v=v, C=Cs, beta_tilde=bs)
 
 
-def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_linear, theta0=0.0,
-                   phi0=0.0, r_dot=None, r_ddot=None, max_iter=DEFAULT_MAX_ITER) -> SimResult:
+def simulate_alpha_reference(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_linear,
+                             theta0=0.0, phi0=0.0, r_dot=None, r_ddot=None,
+                             max_iter=DEFAULT_MAX_ITER) -> SimResult:
     """α-invariant model (37) by the quasilinear iteration (43)–(46) with exact ZOH steps.
+
+    The straightforward implementation (one convergence test per iteration), kept as the
+    reference of :func:`simulate_alpha`, which gives the same numbers bit for bit.
 
     Parameters
     ----------
@@ -339,6 +345,254 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
                    alpha=alpha_out, n_iter=n_iter,
                    n_not_converged=(int(not_conv[0]) if single else not_conv),
                    n_bracketed=(int(bracketed[0]) if single else bracketed))
+
+
+#: Iteration indices i of (44) computed together (without a convergence test in between) by
+#: :func:`simulate_alpha`; inclusive ranges covering 2..max_iter.
+_CHUNKS = ((2, 4), (5, 7), (8, 10), (11, 14), (15, 19), (20, 26), (27, 35), (36, 50))
+
+try:  # np.interp without its Python wrapper (same C function, same numbers)
+    from numpy._core.multiarray import interp as _interp
+except ImportError:  # pragma: no cover - other numpy layouts
+    _interp = np.interp
+
+
+def _chunks(max_iter):
+    out, lo = [], 2
+    for a, b in _CHUNKS:
+        if lo > max_iter:
+            break
+        hi = min(b, max_iter)
+        out.append((lo, hi))
+        lo = hi + 1
+    if lo <= max_iter:
+        out.append((lo, max_iter))
+    return out
+
+
+def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_linear, theta0=0.0,
+                   phi0=0.0, r_dot=None, r_ddot=None, max_iter=DEFAULT_MAX_ITER) -> SimResult:
+    """α-invariant model (37) by the quasilinear iteration (43)–(46) with exact ZOH steps.
+
+    Same arguments and numbers (bit for bit) as :func:`simulate_alpha_reference`; faster: the
+    iterations (44) of a step are computed in blocks for all runs at once and the stopping rule
+    (46) is applied to a block afterwards (module docstring).
+
+    Parameters
+    ----------
+    model : AlphaModel
+        C(α, I) and β̃(α, I).
+    I : float or array_like (n_runs,) [paper units]
+        Inertia of each run (from the inertia model (6)).
+    r : array_like (n_samples,) or (n_runs, n_samples) [rad]
+        Reference, uniformly sampled.
+    dt : float [s]
+        Sample period.
+    kp : float [V/rad]
+    C_linear, beta_tilde_linear : float or array_like (n_runs,)
+        Global linear model of each run ((24)–(26)), used only by the first iterate (45').
+    theta0, phi0 : float or array_like (n_runs,) [rad], [rad/s]
+        Initial state.
+    r_dot, r_ddot : array_like, optional [rad/s], [rad/s²]
+        Reference derivatives, same shape as ``r``; numerical if omitted (module docstring).
+    max_iter : int
+        Bound on the iteration index i of (44).
+
+    Returns
+    -------
+    SimResult
+    """
+    if max_iter < 2:
+        raise ValueError(f"max_iter must be at least 2 (the rule (46) compares two iterates), got {max_iter}")
+    single, r2, rd, rdd, (I, Cl, bl, th, ph) = _prepare(
+        r, dt, r_dot, r_ddot, I, C_linear, beta_tilde_linear, theta0, phi0)
+    res = simulate_alpha_batch(model, I, list(r2), dt, kp, C_linear=Cl, beta_tilde_linear=bl,
+                               theta0=th, phi0=ph, r_dot=list(rd), r_ddot=list(rdd),
+                               max_iter=max_iter)
+    arrays = {k: np.stack([getattr(x, k) for x in res]) for k in
+              ("theta", "phi", "v", "C", "beta_tilde", "alpha", "n_iter")}
+    nc = np.array([x.n_not_converged for x in res], dtype=np.int64)
+    nb = np.array([x.n_bracketed for x in res], dtype=np.int64)
+    return _finish(single, **arrays, n_not_converged=(int(nc[0]) if single else nc),
+                   n_bracketed=(int(nb[0]) if single else nb))
+
+
+def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_linear,
+                         theta0=0.0, phi0=0.0, r_dot=None, r_ddot=None, groups=None,
+                         max_iter=DEFAULT_MAX_ITER) -> list[SimResult]:
+    """:func:`simulate_alpha` of runs of different lengths (and gains) in one time loop.
+
+    Parameters
+    ----------
+    r : list of array_like (n_samples_j,) [rad]
+        Reference of each run (lengths may differ); ``r_dot``, ``r_ddot`` likewise (or None).
+    kp, I, C_linear, beta_tilde_linear, theta0, phi0 : float or array_like (n_runs,)
+        Per run.
+    groups : array_like of int (n_runs,), optional
+        The runs that :func:`simulate_alpha_reference` would simulate as one batch (default:
+        all one batch).  The bisection fallback of a step stops when all the runs of a batch
+        meet its tolerance, so the batch decides the last bits of a bisected α; with the
+        groups given, each run's numbers are those of its own batch's reference call.
+
+    Returns
+    -------
+    list of SimResult
+        One single-run result per run, in the order of ``r``.
+    """
+    if max_iter < 2:
+        raise ValueError(f"max_iter must be at least 2 (the rule (46) compares two iterates), got {max_iter}")
+    if not dt > 0:
+        raise ValueError(f"dt must be positive, got {dt}")
+    rs = [np.asarray(x, dtype=float) for x in r]
+    R = len(rs)
+    if R == 0:
+        return []
+    lens = np.array([x.size for x in rs])
+    if any(x.ndim != 1 for x in rs) or lens.min() < 2:
+        raise ValueError("each reference must be 1-D with at least 2 samples")
+
+    def per_run(x):
+        return np.broadcast_to(np.asarray(x, dtype=float), (R,)).copy()
+
+    def derivative(x, base):
+        if x is None:
+            return [np.gradient(b, dt, edge_order=2) for b in base]
+        return [np.broadcast_to(np.asarray(d, dtype=float), b.shape) for d, b in zip(x, base)]
+
+    rds = derivative(r_dot, rs)
+    rdds = derivative(r_ddot, rds)
+    grp = np.zeros(R, dtype=np.int64) if groups is None else np.asarray(groups).astype(np.int64)
+    # longest runs first: the runs still going at step k are a prefix
+    order = np.argsort(-lens, kind="stable")
+    n = int(lens.max())
+    lens_s = lens[order]
+    Rt = np.zeros((n, R))
+    RDt = np.zeros((n, R))
+    RDDt = np.zeros((n, R))
+    for j, o in enumerate(order):
+        Rt[:lens_s[j], j] = rs[o]
+        RDt[:lens_s[j], j] = rds[o]
+        RDDt[:lens_s[j], j] = rdds[o]
+    I_, Cl_, bl_, th, ph, kp_ = (per_run(x)[order] for x in
+                                 (I, C_linear, beta_tilde_linear, theta0, phi0, kp))
+    grp = grp[order]
+    invI_ = 1.0 / I_
+    breaks = np.asarray(model.alpha_breaks, dtype=float)
+    c_inv = np.asarray(model.C_inv, dtype=float)
+    b0, b1 = model.beta_inv
+    a0, a1 = model.alpha_bar
+    b_slope = (b1 - b0) / (a1 - a0)
+    b_floor = model.options["beta_floor_fraction"] * min(b0, b1)
+    clamp = bool(model.options.get("beta_clamp", False))
+    maximum, absolute, clip = np.maximum, np.abs, np.clip
+    # Operations that cannot change a bit, skipped: x - 0.0 == x; and with β̃ clamped to
+    # [a0, a1] the line lies between b0 and b1, so a floor below half of both is never taken.
+    shift = a0 != 0.0
+    floor = not (clamp and b0 > 0 and b1 > 0 and b_floor < 0.5 * min(b0, b1))
+
+    def beta(a, inv_i):
+        x = clip(a, a0, a1) if clamp else a
+        x = b0 + b_slope * ((x - a0) if shift else x)
+        return (maximum(x, b_floor) if floor else x) * inv_i
+
+    def coefficients(a, inv_i):
+        return _interp(a, breaks, c_inv) * inv_i, beta(a, inv_i)
+
+    def g(a, v, vd2, kr, ph, inv_i, kp):
+        Ca = _interp(a, breaks, c_inv) * inv_i
+        return vd2 - v * (kr - kp * (beta(a, inv_i) * v - Ca * ph))
+
+    chunks = _chunks(max_iter)
+    out_th = np.zeros((n, R))
+    out_ph = np.zeros((n, R))
+    out_v = np.zeros((n, R))
+    out_a = np.zeros((n, R))
+    out_C = np.zeros((n, R))
+    out_b = np.zeros((n, R))
+    out_it = np.zeros((n, R), dtype=np.int32)
+    not_conv = np.zeros(R, dtype=np.int64)
+    bracketed = np.zeros(R, dtype=np.int64)
+    alive = np.searchsorted(-lens_s, -np.arange(n), side="left")  # runs with length > k
+    m_prev = -1
+    with np.errstate(all="ignore"):
+        for k in range(n):
+            m = int(alive[k])
+            if m != m_prev:
+                th, ph = th[:m], ph[:m]
+                kp, invI, Cl, bl, gk = kp_[:m], invI_[:m], Cl_[:m], bl_[:m], grp[:m]
+                m_prev = m
+            out_th[k, :m] = th
+            out_ph[k, :m] = ph
+            v = kp * (Rt[k, :m] - th)
+            vd = kp * (RDt[k, :m] - ph)
+            vd2 = vd * vd
+            kr = kp * RDDt[k, :m]
+            # (45'): first iterate from the linear model's acceleration; α^(1) by (44)
+            a = vd2 - v * (kr - kp * (bl * v - Cl * ph))
+            its = np.empty(m, dtype=np.int32)
+            idx = None            # runs still iterating (None: all)
+            args = (v, vd2, kr, ph, invI, kp)
+            prev = a
+            hist = [(None, a)]      # (runs, iterates) of each block, for the fallback
+            for i0, i1 in chunks:
+                seq = []
+                x = prev
+                for _ in range(i0, i1 + 1):
+                    x = g(x, *args)
+                    seq.append(x)
+                S = np.stack(seq, axis=1)
+                P = np.concatenate([prev[:, None], S[:, :-1]], axis=1)
+                done = absolute(S - P) < maximum(1e-6, 1e-3 * absolute(S))
+                first = done.argmax(axis=1)
+                fin = done[np.arange(len(first)), first]
+                rows = np.flatnonzero(fin) if idx is None else idx[fin]
+                if idx is None:
+                    a = a.copy()
+                a[rows] = S[fin, first[fin]]
+                its[rows] = i0 + first[fin]
+                hist.append((idx, S))
+                if fin.all():
+                    break
+                keep = ~fin
+                idx = np.flatnonzero(keep) if idx is None else idx[keep]
+                args = tuple(y[keep] for y in args)
+                prev = S[keep, -1]
+            else:
+                # (46) not met within max_iter: bisection, batch by batch (module docstring)
+                its[idx] = max_iter
+                H = np.column_stack([h[idx] if ix is None else h[np.searchsorted(ix, idx)]
+                                     for ix, h in hist])
+                a[idx] = H[:, -1]
+                gsub = gk[idx]
+                for gid in np.unique(gsub):
+                    sel = gsub == gid
+                    sub_args = tuple(y[sel] for y in args)
+                    a_g, solved = _bisect_fallback(g, H[sel], np.ones(int(sel.sum()), dtype=bool),
+                                                   sub_args)
+                    rows = idx[sel]
+                    a[rows] = a_g
+                    bracketed[rows] += solved
+                    not_conv[rows] += ~solved
+            C, b = coefficients(a, invI)
+            out_v[k, :m] = v
+            out_a[k, :m] = a
+            out_C[k, :m] = C
+            out_b[k, :m] = b
+            out_it[k, :m] = its
+            if k + 1 < n:
+                E, g1, g2 = zoh_coefficients(C, dt)
+                u = b * v
+                th = th + g1 * ph + g2 * u
+                ph = E * ph + g1 * u
+    results = [None] * R
+    for j, o in enumerate(order):
+        L = lens_s[j]
+        results[o] = SimResult(theta=out_th[:L, j].copy(), phi=out_ph[:L, j].copy(),
+                               v=out_v[:L, j].copy(), C=out_C[:L, j].copy(),
+                               beta_tilde=out_b[:L, j].copy(), alpha=out_a[:L, j].copy(),
+                               n_iter=out_it[:L, j].copy(), n_not_converged=int(not_conv[j]),
+                               n_bracketed=int(bracketed[j]))
+    return results
 
 
 def _tolerance(alpha):

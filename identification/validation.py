@@ -32,7 +32,7 @@ from .dataset import Run
 from .errors import UserError
 from .inertia import InertiaParameters
 from .nonlinear import AlphaModel
-from .simulate import simulate_alpha, simulate_linear
+from .simulate import simulate_alpha_batch, simulate_linear
 from .sine_fit import fit_run
 
 #: A pose of a run counts as an identification pose if both angles agree within this [deg].
@@ -118,30 +118,37 @@ def _initial_velocity(run: Run) -> float:
 
 
 def simulate_runs(runs: list[Run], params: Params) -> dict[str, dict]:
-    """Simulate both models for every run; batched over runs of equal length and dt."""
+    """Simulate both models for every run.
+
+    The linear model is batched over runs of equal length, dt and gain; the α model runs all
+    runs of one dt in one time loop (:func:`simulate_alpha_batch`), with those same batches as
+    its ``groups`` so that every number is the one of a per-batch :func:`simulate_alpha` call.
+    """
     out: dict[str, dict] = {}
     groups: dict = {}
     for run in runs:
-        groups.setdefault((len(run.t), round(run.dt, 12)), []).append(run)
-    for (_, dt), group in groups.items():
-        I, Cl, bl, th0, ph0, kp = (np.array(x) for x in zip(*[
-            (*params.linear_coefficients(r), r.theta[0], _initial_velocity(r), r.kp) for r in group]))
+        groups.setdefault((len(run.t), round(run.dt, 12), run.kp), []).append(run)
+    by_dt: dict = {}
+    for gid, ((_, dt, kp), group) in enumerate(groups.items()):
+        I, Cl, bl, th0, ph0 = (np.array(x) for x in zip(*[
+            (*params.linear_coefficients(r), r.theta[0], _initial_velocity(r)) for r in group]))
         r = np.vstack([g.r for g in group])
-        derivs = [_reference_derivatives(g) for g in group]
-        rd = np.vstack([d[0] for d in derivs])
-        rdd = np.vstack([d[1] for d in derivs])
-        for kp_value in np.unique(kp):
-            sel = kp == kp_value
-            lin = simulate_linear(Cl[sel], bl[sel], r[sel], dt, kp_value, theta0=th0[sel], phi0=ph0[sel])
-            alp = simulate_alpha(params.alpha, I[sel], r[sel], dt, kp_value, C_linear=Cl[sel],
-                                 beta_tilde_linear=bl[sel], theta0=th0[sel], phi0=ph0[sel],
-                                 r_dot=rd[sel], r_ddot=rdd[sel])
-            for j, run in enumerate(np.array(group, dtype=object)[sel]):
-                out[run.name] = {"theta_linear": lin.theta[j], "theta_alpha": alp.theta[j],
-                                 "n_not_converged": int(alp.n_not_converged[j]),
-                                 "n_bracketed": int(alp.n_bracketed[j]),
-                                 "I": float(I[sel][j])}
-    return out
+        lin = simulate_linear(Cl, bl, r, dt, kp, theta0=th0, phi0=ph0)
+        for j, run in enumerate(group):
+            out[run.name] = {"theta_linear": lin.theta[j], "I": float(I[j])}
+            by_dt.setdefault(dt, []).append((run, gid, I[j], Cl[j], bl[j], th0[j], ph0[j], kp))
+    for dt, items in by_dt.items():
+        rs, gids, I, Cl, bl, th0, ph0, kp = zip(*items)
+        derivs = [_reference_derivatives(run) for run in rs]
+        res = simulate_alpha_batch(params.alpha, I, [run.r for run in rs], dt, kp, C_linear=Cl,
+                                   beta_tilde_linear=bl, theta0=th0, phi0=ph0,
+                                   r_dot=[d[0] for d in derivs], r_ddot=[d[1] for d in derivs],
+                                   groups=gids)
+        for run, a in zip(rs, res):
+            out[run.name].update(theta_alpha=a.theta, n_not_converged=int(a.n_not_converged),
+                                 n_bracketed=int(a.n_bracketed))
+    return {run.name: {k: out[run.name][k] for k in ("theta_linear", "theta_alpha", "n_not_converged",
+                                                      "n_bracketed", "I")} for run in runs}
 
 
 def _pose_key(run: Run) -> tuple[float, float]:

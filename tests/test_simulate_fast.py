@@ -1,0 +1,136 @@
+"""The fast α-model simulation (simulate_alpha, simulate_alpha_batch) against the reference
+implementation (simulate_alpha_reference): same numbers, bit for bit, bisection fallback
+included; and validation's batching of all runs into one time loop."""
+
+import math
+
+import numpy as np
+import pytest
+
+from identification.nonlinear import AlphaModel, paper_alpha_model
+from identification.simulate import (
+    simulate_alpha,
+    simulate_alpha_batch,
+    simulate_alpha_reference,
+    square_wave_reference,
+)
+
+DT = 1e-3
+KP = 2.0
+# the α model identified by `omni reproduce` on the virtual Omni (scene.xml): steep C(α), so
+# sine runs need the bisection fallback on some steps
+IDENTIFIED = {"alpha_breaks": [0.0, 1.035010695973506, 1.9760202041275334, 13.75089638086901],
+              "C_k1": [3.404837223520829, 10.561623800367784, 23.904909140385307,
+                       49.567424496642516],
+              "alpha_bar": [0.0, 250.0], "beta_k1": [0.7271126937484368, 437.84316494230626],
+              "options": {"beta_floor_fraction": 0.1, "beta_clamp": True,
+                          "use": "up_to_resonance", "monotone": True, "method": "two_stage",
+                          "breaks_from": "grid search"}}
+
+
+def _sines(freqs, n, amp=0.0498256):
+    t = np.arange(n) * DT
+    w = 2 * math.pi * np.asarray(freqs)[:, None]
+    return amp * np.sin(w * t), amp * w * np.cos(w * t), -amp * w * w * np.sin(w * t)
+
+
+def _assert_same(a, b):
+    for k in ("theta", "phi", "v", "C", "beta_tilde", "alpha", "n_iter"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=k)
+    np.testing.assert_array_equal(a.n_bracketed, b.n_bracketed)
+    np.testing.assert_array_equal(a.n_not_converged, b.n_not_converged)
+
+
+@pytest.mark.parametrize("model", [AlphaModel.from_dict(IDENTIFIED), paper_alpha_model()],
+                         ids=["identified", "paper"])
+def test_fast_equals_reference_sines(model):
+    r, rd, rdd = _sines([1.5, 2.5, 3.5, 5.0, 7.0], 1500)
+    I = np.array([0.0038, 0.0045, 0.005, 0.0055, 0.0067])
+    kw = dict(C_linear=1 / (36.693 * I), beta_tilde_linear=1 / I, theta0=0.001, phi0=0.02,
+              r_dot=rd, r_ddot=rdd)
+    ref = simulate_alpha_reference(model, I, r, DT, KP, **kw)
+    fast = simulate_alpha(model, I, r, DT, KP, **kw)
+    _assert_same(fast, ref)
+    if model.options.get("beta_clamp"):
+        assert np.sum(ref.n_bracketed) > 0  # the fallback is exercised
+
+
+def test_fast_equals_reference_step_and_numerical_derivatives():
+    model = paper_alpha_model()
+    t = np.arange(3000) * DT
+    r = np.tile(square_wave_reference(t, 0.25, 0.07), (3, 1))
+    I = np.array([0.004, 0.005, 0.006])
+    kw = dict(C_linear=1 / (36.693 * I), beta_tilde_linear=1 / I, theta0=-0.07)
+    _assert_same(simulate_alpha(model, I, r, DT, KP, r_dot=0.0, r_ddot=0.0, **kw),
+                 simulate_alpha_reference(model, I, r, DT, KP, r_dot=0.0, r_ddot=0.0, **kw))
+    rs = r[0] * np.linspace(0, 1, 3000)  # smooth enough for numerical derivatives
+    _assert_same(simulate_alpha(model, 0.005, rs, DT, KP, C_linear=5.0, beta_tilde_linear=200.0),
+                 simulate_alpha_reference(model, 0.005, rs, DT, KP, C_linear=5.0,
+                                          beta_tilde_linear=200.0))
+
+
+def test_batch_of_ragged_groups_equals_per_group_reference():
+    """Runs of different lengths and gains in one call, ``groups`` = the reference's batches."""
+    model = AlphaModel.from_dict(IDENTIFIED)
+    ra, rda, rdda = _sines([2.0, 3.5, 6.0], 1200)
+    rb, rdb, rddb = _sines([2.5, 5.0], 900)
+    Ia, Ib = np.array([0.004, 0.005, 0.006]), np.array([0.0045, 0.0055])
+    kw = lambda I: dict(C_linear=1 / (36.693 * I), beta_tilde_linear=1 / I, theta0=0.0)  # noqa: E731
+    ref_a = simulate_alpha_reference(model, Ia, ra, DT, KP, r_dot=rda, r_ddot=rdda, **kw(Ia))
+    ref_b = simulate_alpha_reference(model, Ib, rb, DT, 2.5, r_dot=rdb, r_ddot=rddb, **kw(Ib))
+    # interleaved order, per-run gains
+    order = [("b", 0), ("a", 0), ("a", 1), ("b", 1), ("a", 2)]
+    src = {"a": (ra, rda, rdda, Ia, KP, ref_a), "b": (rb, rdb, rddb, Ib, 2.5, ref_b)}
+    pick = lambda i: [src[s][i][j] if i < 4 else src[s][i] for s, j in order]  # noqa: E731
+    I = np.array(pick(3))
+    res = simulate_alpha_batch(model, I, pick(0), DT, pick(4), r_dot=pick(1), r_ddot=pick(2),
+                               groups=[0 if s == "a" else 1 for s, _ in order], **kw(I))
+    n_brk = 0
+    for (s, j), out in zip(order, res):
+        ref = src[s][5]
+        for k in ("theta", "phi", "v", "C", "beta_tilde", "alpha", "n_iter"):
+            np.testing.assert_array_equal(getattr(out, k), getattr(ref, k)[j], err_msg=k)
+        assert out.n_bracketed == ref.n_bracketed[j]
+        assert out.n_not_converged == ref.n_not_converged[j]
+        n_brk += out.n_bracketed
+    assert n_brk > 0
+
+
+def test_max_iter_checked():
+    with pytest.raises(ValueError):
+        simulate_alpha(paper_alpha_model(), 0.005, np.zeros(10), DT, KP, C_linear=1.0,
+                       beta_tilde_linear=1.0, max_iter=1)
+
+
+@pytest.mark.slow
+def test_validation_paper_campaign_equals_per_group_reference():
+    """All 106 runs of the paper campaign: validation's one-loop batch equals the reference
+    called per batch (length, dt, gain), as validation did before; within 1e-12 (in fact
+    bit for bit), with the same count of bisected steps."""
+    from identification.identify import identify_runs
+    from identification.validation import Params, _initial_velocity, _reference_derivatives, simulate_runs
+    from omni_sim import experiments as ex
+
+    runs = ex.simulate(ex.campaign("paper"))
+    ident = identify_runs(runs)
+    params = Params(ident.inertia.params, ident.alpha_model, ident.to_params()["poses"])
+    fast = simulate_runs(runs, params)
+    groups = {}
+    for run in runs:
+        groups.setdefault((len(run.t), round(run.dt, 12), run.kp), []).append(run)
+    n_brk = 0
+    for (_, dt, kp), group in groups.items():
+        I, Cl, bl = np.array([params.linear_coefficients(r) for r in group]).T
+        d = [_reference_derivatives(r) for r in group]
+        ref = simulate_alpha_reference(
+            params.alpha, I, np.vstack([r.r for r in group]), dt, kp, C_linear=Cl,
+            beta_tilde_linear=bl, theta0=[r.theta[0] for r in group],
+            phi0=[_initial_velocity(r) for r in group], r_dot=np.vstack([x[0] for x in d]),
+            r_ddot=np.vstack([x[1] for x in d]))
+        for j, run in enumerate(group):
+            np.testing.assert_allclose(fast[run.name]["theta_alpha"], ref.theta[j], rtol=0, atol=1e-12)
+            np.testing.assert_array_equal(fast[run.name]["theta_alpha"], ref.theta[j])
+            assert fast[run.name]["n_bracketed"] == ref.n_bracketed[j]
+            assert fast[run.name]["n_not_converged"] == ref.n_not_converged[j]
+            n_brk += ref.n_bracketed[j]
+    assert len(fast) == 106 and n_brk > 0
