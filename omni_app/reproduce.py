@@ -91,6 +91,7 @@ def write_reproduce(folder: Path, res: dict, t0: float) -> None:
     """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
     params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
     (perf_counter), for the real-time factor."""
+    figures = _start_figures(folder, res)  # drawn in a child process meanwhile (POSIX)
     (folder / "dataset").mkdir()
     for run in res["runs"]:
         write_run(folder / "dataset", run)
@@ -98,8 +99,7 @@ def write_reproduce(folder: Path, res: dict, t0: float) -> None:
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
     (folder / "identify").mkdir()
     write_identify_report(res["ident"], folder / "identify", source="dataset/")
-    from .figures import write_figures
-    write_figures(folder, res)
+    figures()
     summary = res["scores"]["summary"]
     summary["run"]["wall_s_total"] = time.perf_counter() - t0
     summary["run"]["real_time_factor"] = summary["run"]["simulated_time_s"] / summary["run"]["wall_s_total"]
@@ -107,6 +107,41 @@ def write_reproduce(folder: Path, res: dict, t0: float) -> None:
     (folder / "scores.json").write_text(json.dumps(res["scores"], indent=2) + "\n")
     from .report import format_report
     (folder / "report.md").write_text(format_report(res))
+
+
+def _start_figures(folder: Path, res: dict):
+    """Start drawing the figures of ``res`` into ``folder``; returns a function that waits for
+    them (and raises if drawing failed).  Where ``fork`` exists the figures are drawn in a
+    forked child (matplotlib is imported there only), in parallel with the writing of the
+    dataset and predictions; elsewhere they are drawn at the wait."""
+    import multiprocessing as mp
+    import os
+
+    def draw():
+        from .figures import write_figures
+        write_figures(folder, res)
+
+    if "fork" not in mp.get_all_start_methods() or os.environ.get("OMNI_FIGURES_INLINE"):
+        return draw
+    queue = mp.get_context("fork").SimpleQueue()
+
+    def child():
+        try:
+            draw()
+            queue.put(None)
+        except BaseException as exc:  # reported to the parent
+            queue.put(f"{type(exc).__name__}: {exc}")
+
+    proc = mp.get_context("fork").Process(target=child, daemon=True)
+    proc.start()
+
+    def wait():
+        proc.join()  # the message is a few bytes: the child never blocks on the pipe
+        error = queue.get() if not queue.empty() else f"exit code {proc.exitcode}"
+        if error is not None:
+            raise RuntimeError(f"drawing the figures failed ({error})")
+
+    return wait
 
 
 def _print_summary(res: dict, label: str = "") -> None:
