@@ -49,6 +49,8 @@ FIGURES = {
     "simulate": ("rms_error_rad", "max_abs_error_rad", "rms_error_sine_rad", "rms_error_step_rad"),
 }
 TIMING_COLUMNS = ("wall_s",)
+#: Seconds to wait for an existing scheduler (--scheduler).
+CONNECT_TIMEOUT_S = 20
 _TOP_KEYS = ("description", "seed", "base", "pipeline", "fixed", "grid", "list", "random")
 _PIPELINE_KEYS = {"reproduce": ("name", "campaign"), "simulate": ("name", "campaign"),
                   "discrepancy": ("name", "hidden", "duration_s")}
@@ -74,7 +76,7 @@ settle_s = 2.0
 record_s = 2.0
 [[pipeline.campaign.step]]
 poses_deg = [[45, 90], [65, 90]]
-frequency_hz = 0.5
+frequency_hz = 0.25
 amplitude_rad = 0.07
 duration_s = 4.0
 
@@ -547,19 +549,20 @@ def _prepare_out(out: Path, study: Study) -> None:
 
 
 def _client(workers: int | None, scheduler: str | None):
-    """A Dask client: on ``scheduler``, or on a new LocalCluster (127.0.0.1, no dashboard)."""
+    """A Dask client: on ``scheduler``, or on a new LocalCluster (everything on 127.0.0.1, the
+    dashboard on a free loopback port)."""
     import logging
 
     from distributed import Client, LocalCluster
 
     if scheduler:
         try:
-            return Client(scheduler, timeout="20s"), None
+            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s"), None
         except (OSError, TimeoutError) as exc:
             raise UserError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
     n = workers or os.cpu_count() or 1
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
