@@ -9,8 +9,13 @@ Figures (issue targets in brackets, 2-core machine):
   second for the same model, step count and threads with zero controls (the ceiling) [>= 0.8];
 * ``alpha_simulation.ratio_alpha_to_lsim``: the quasilinear alpha-model simulation of 25 step
   runs / ``scipy.signal.lsim`` of the linear model over the same runs [<= 3];
-* ``reproduce.real_time_factor``: ``omni reproduce`` as a whole (simulated experiment time /
-  wall time, writing included) [>= 50];
+* ``reproduce``: ``omni reproduce --out TMP`` as a user runs it, in a child process (wall
+  time with imports, writing and figures; ``real_time_factor`` [>= 50]; ``ratio_to_raw_rollout``:
+  that wall time / the raw rollout time of the campaign's physics steps [<= 5];
+  ``peak_rss_mb`` of the child);
+* ``vector_env``: steps/s of ``gym.make_vec("omni_sim/OmniYaw-v0", num_envs=256,
+  vectorization_mode="vector_entry_point")`` under P-controller actions, and its ratio to the
+  raw rollout steps/s;
 * ``discrepancy``: wall time of the discrepancy workflow on the demo case [minutes, not hours].
 """
 
@@ -93,28 +98,81 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
         from identification.simulate import bench_simulation
 
         figures["alpha_simulation"] = bench_simulation(repeat=repeats)
-        figures["reproduce"] = _bench_reproduce(jobs, friction)
+        figures["reproduce"] = _bench_reproduce(jobs, friction, ceil, steps)
+        try:
+            figures["vector_env"] = _bench_vector_env(ceiling_steps_per_s=ceil)
+        except Exception as exc:  # noqa: BLE001  (reported, not fatal)
+            figures["vector_env"] = {"error": f"{type(exc).__name__}: {exc}"}
         from .discrepancy import bench_discrepancy
 
         figures["discrepancy"] = bench_discrepancy(jobs=jobs)
     return figures
 
 
-def _bench_reproduce(jobs: int, friction: str | None = None) -> dict:
-    import argparse
-    import contextlib
-    import io
+def _bench_reproduce(jobs: int, friction: str | None = None, ceiling_steps_per_s: float | None = None,
+                     physics_steps: int | None = None) -> dict:
+    """``omni reproduce --out TMP`` as a user runs it: a child process, wall time (imports,
+    simulation, identification, validation, writing and figures), its peak memory, and the
+    ratio of that wall time to the raw rollout time of the campaign's physics steps."""
     import json
-
-    from .reproduce import reproduce_command
+    import resource
+    import subprocess
+    import sys
 
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "results")
+        cmd = [sys.executable, "-m", "omni_app", "reproduce", "--out", out, "--jobs", str(jobs)]
+        if friction:
+            cmd += ["--friction", friction]
+        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
         t0 = time.perf_counter()
-        with contextlib.redirect_stdout(io.StringIO()):
-            reproduce_command(argparse.Namespace(model=None, friction=friction, out=out,
-                                                 force=False, jobs=jobs))
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         wall = time.perf_counter() - t0
+        peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
         with open(os.path.join(out, "summary.json")) as fh:
             sim = json.load(fh)["run"]["simulated_time_s"]
-    return {"wall_s": round(wall, 2), "simulated_time_s": sim, "real_time_factor": round(sim / wall, 1)}
+    fig = {"wall_s": round(wall, 2), "simulated_time_s": sim, "real_time_factor": round(sim / wall, 1),
+           # ru_maxrss of the children is the largest child so far (KiB on Linux)
+           "peak_rss_mb": round(peak_kb / 1024, 1) if peak_kb > before else None}
+    if ceiling_steps_per_s and physics_steps:
+        raw = physics_steps / ceiling_steps_per_s
+        fig["raw_rollout_s"] = round(raw, 3)
+        fig["ratio_to_raw_rollout"] = round(wall / raw, 1)
+    return fig
+
+
+def _bench_vector_env(num_envs: int = 256, n_steps: int = 200, ceiling_steps_per_s=None) -> dict:
+    """Steps/s of the native vector environment (``num_envs`` Omnis, P-controller actions)
+    beside the raw rollout ceiling."""
+    import gymnasium as gym
+
+    import omni_sim  # noqa: F401  (registers the environments)
+
+    env = gym.make_vec("omni_sim/OmniYaw-v0", num_envs=num_envs,
+                       vectorization_mode="vector_entry_point")
+    try:
+        obs, _ = env.reset(seed=0)
+        low, high = env.single_action_space.low, env.single_action_space.high
+        obs = np.asarray(obs, dtype=float)
+
+        def action(o):
+            # P controller: v = kp (r - theta), observations (theta, theta_dot, r, ...)
+            o = o.reshape(num_envs, -1)
+            return np.clip(2.0 * (o[:, 2:3] - o[:, 0:1]), low, high).astype(
+                env.single_action_space.dtype)
+
+        obs, *_ = env.step(action(obs))  # warm-up
+        t0 = time.perf_counter()
+        for _ in range(n_steps):
+            obs, *_ = env.step(action(np.asarray(obs, dtype=float)))
+        wall = time.perf_counter() - t0
+    finally:
+        env.close()
+    sub = ex.substeps(om.load_model(), ex.CONTROL_PERIOD_S)  # physics steps per env step
+    fig = {"num_envs": num_envs, "env_steps": n_steps * num_envs,
+           "env_steps_per_s": round(n_steps * num_envs / wall),
+           "physics_steps_per_s": round(n_steps * num_envs * sub / wall)}
+    if ceiling_steps_per_s:
+        fig["rollout_ceiling_steps_per_s"] = round(ceiling_steps_per_s)
+        fig["ratio_to_raw_rollout"] = round(n_steps * num_envs * sub / wall / ceiling_steps_per_s, 3)
+    return fig
