@@ -109,6 +109,10 @@ def write_reproduce(folder: Path, res: dict, t0: float) -> None:
     (folder / "report.md").write_text(format_report(res))
 
 
+#: Longest wait [s] for the forked figure child (it takes ~3 s; 30x that on a loaded machine).
+FIGURES_TIMEOUT_S = 120.0
+
+
 def _start_figures(folder: Path, res: dict):
     """Start drawing the figures of ``res`` into ``folder``; returns a function that waits for
     them (and raises if drawing failed).  Where ``fork`` exists the figures are drawn in a
@@ -136,7 +140,15 @@ def _start_figures(folder: Path, res: dict):
     proc.start()
 
     def wait():
-        proc.join()  # the message is a few bytes: the child never blocks on the pipe
+        # the message is a few bytes: the child never blocks on the pipe.  A forked child of a
+        # threaded process can in principle hang on a lock another thread held at the fork:
+        # after FIGURES_TIMEOUT_S it is killed and the figures are drawn here instead.
+        proc.join(FIGURES_TIMEOUT_S)
+        if proc.is_alive():
+            proc.kill()
+            proc.join()
+            draw()
+            return
         error = queue.get() if not queue.empty() else f"exit code {proc.exitcode}"
         if error is not None:
             raise RuntimeError(f"drawing the figures failed ({error})")
