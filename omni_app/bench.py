@@ -16,7 +16,9 @@ Figures (issue targets in brackets, 2-core machine):
 * ``vector_env``: steps/s of ``gym.make_vec("omni_sim/OmniYaw-v0", num_envs=256,
   vectorization_mode="vector_entry_point")`` under P-controller actions, and its ratio to the
   raw rollout steps/s;
-* ``discrepancy``: wall time of the discrepancy workflow on the demo case [minutes, not hours].
+* ``discrepancy``: wall time of the discrepancy workflow on the demo case [minutes, not hours];
+* ``sweep``: variants/s of ``omni sweep --example`` on 1 and 2 local Dask workers (cluster
+  start-up included) and the speed-up [>= 1.7 on 2 cores].
 """
 
 from __future__ import annotations
@@ -106,6 +108,12 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
         from .discrepancy import bench_discrepancy
 
         figures["discrepancy"] = bench_discrepancy(jobs=jobs)
+        from .sweep import bench_sweep
+
+        one, two = bench_sweep(1), bench_sweep(2)
+        figures["sweep"] = {"variants_per_s_1_worker": round(one, 4),
+                            "variants_per_s_2_workers": round(two, 4),
+                            "speedup_2_workers": round(two / one, 3)}
     return figures
 
 
