@@ -76,8 +76,14 @@ class OmniYawVectorEnv(VectorEnv):
         N = self.num_envs
         self._rngs: list[np.random.Generator | None] = [None] * N
         self._opts = [self._env._defaults] * N
-        self._r: list[np.ndarray] = [np.zeros(1)] * N
-        self._noise: list[np.ndarray] = [np.zeros(2)] * N
+        # per-row episode data as padded matrices (row i: its reference, then its noise), and
+        # per-row settings, so that a step gathers them without a Python loop over the rows
+        self._R = np.zeros((N, 1))
+        self._NZ = np.zeros((N, 2))
+        self._quantum = np.zeros(N)
+        self._exact = np.ones(N, dtype=bool)
+        self._weight = np.zeros(N)
+        self._rows = np.arange(N)
         self._k = np.zeros(N, dtype=np.int64)
         self._n = np.ones(N, dtype=np.int64)
         self._done = np.zeros(N, dtype=bool)
@@ -96,9 +102,18 @@ class OmniYawVectorEnv(VectorEnv):
         o = env._merge(env._defaults, options) if options else env._defaults
         self._opts[i] = o
         env._np_random = self._rngs[i]  # the single env's episode draws, on this row's RNG
-        self._r[i], theta0, self._noise[i] = env._episode(o)
+        r, theta0, noise = env._episode(o)
+        if r.size > self._R.shape[1]:  # grow the padded matrices to the longest episode
+            grow = r.size - self._R.shape[1]
+            self._R = np.pad(self._R, ((0, 0), (0, grow)))
+            self._NZ = np.pad(self._NZ, ((0, 0), (0, grow)))
+        self._R[i, : r.size] = r
+        self._NZ[i, : noise.size] = noise
+        self._quantum[i] = ENCODER_STEP_RAD if o.quantize else 0.0
+        self._exact[i] = o.velocity == "exact"
+        self._weight[i] = o.effort_weight
         self._k[i] = 0
-        self._n[i] = self._r[i].size
+        self._n[i] = r.size
         self._done[i] = False
         self._w_est[i] = 0.0
         return theta0, (float(o.gamma1_set_deg), float(o.gamma2_set_deg))
@@ -155,19 +170,20 @@ class OmniYawVectorEnv(VectorEnv):
     # --- measurement ------------------------------------------------------------------------------
     def _measure(self) -> np.ndarray:
         th = self._engine.yaw()
-        k = np.minimum(self._k, self._n)
-        noise = np.array([self._noise[i][k[i]] for i in range(self.num_envs)])
-        q = np.array([ENCODER_STEP_RAD if o.quantize else 0.0 for o in self._opts])
-        return read_encoder(th, noise, q)
+        noise = self._NZ[self._rows, np.minimum(self._k, self._n)]
+        return read_encoder(th, noise, self._quantum)
+
+    def _reference(self) -> np.ndarray:
+        """Every row's current reference sample [rad] (held at its last after the end)."""
+        return self._R[self._rows, np.minimum(self._k, self._n - 1)]
 
     def _observe(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        exact = np.array([o.velocity == "exact" for o in self._opts])
+        exact = self._exact
         d = (3.0 * y - 4.0 * self._y_hist[:, 0] + self._y_hist[:, 1]) / (2.0 * self.dt)
         self._w_est = np.where(exact, self._w_est, self._w_est + self._lp_gain * (d - self._w_est))
         self._y_hist = np.column_stack([y, self._y_hist[:, 0]])
         w = np.where(exact, self._engine.yaw_velocity(), self._w_est)
-        idx = np.minimum(self._k, self._n - 1)
-        r = np.array([self._r[i][idx[i]] for i in range(self.num_envs)])
+        r = self._reference()
         q = self._engine.qpos()
         obs = np.column_stack([y, w, r, q[:, 1], q[:, 2]])
         lo, hi = self._box
@@ -178,8 +194,7 @@ class OmniYawVectorEnv(VectorEnv):
 
     def _info(self, v: np.ndarray) -> dict:
         theta = self._engine.yaw()
-        idx = np.minimum(self._k, self._n - 1)
-        r = np.array([self._r[i][idx[i]] for i in range(self.num_envs)])
+        r = self._reference()
         return {"time": self._engine.time(), "theta_true": theta, "tracking_error": r - theta,
                 "voltage": v}
 
@@ -211,8 +226,7 @@ class OmniYawVectorEnv(VectorEnv):
             self._y_hist[again] = y[again, None]
         obs, bad = self._observe(y)
         info = self._info(v)
-        weights = np.array([o.effort_weight for o in self._opts])
-        reward = -info["tracking_error"] ** 2 - weights * v * v
+        reward = -info["tracking_error"] ** 2 - self._weight * v * v
         terminated = bad & run
         truncated = run & ~terminated & (self._k >= self._n)
         reward[again] = 0.0
