@@ -374,29 +374,10 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
                    phi0=0.0, r_dot=None, r_ddot=None, max_iter=DEFAULT_MAX_ITER) -> SimResult:
     """α-invariant model (37) by the quasilinear iteration (43)–(46) with exact ZOH steps.
 
-    Same arguments and numbers (bit for bit) as :func:`simulate_alpha_reference`; faster: the
-    iterations (44) of a step are computed in blocks for all runs at once and the stopping rule
-    (46) is applied to a block afterwards (module docstring).
-
-    Parameters
-    ----------
-    model : AlphaModel
-        C(α, I) and β̃(α, I).
-    I : float or array_like (n_runs,) [paper units]
-        Inertia of each run (from the inertia model (6)).
-    r : array_like (n_samples,) or (n_runs, n_samples) [rad]
-        Reference, uniformly sampled.
-    dt : float [s]
-        Sample period.
-    kp : float [V/rad]
-    C_linear, beta_tilde_linear : float or array_like (n_runs,)
-        Global linear model of each run ((24)–(26)), used only by the first iterate (45').
-    theta0, phi0 : float or array_like (n_runs,) [rad], [rad/s]
-        Initial state.
-    r_dot, r_ddot : array_like, optional [rad/s], [rad/s²]
-        Reference derivatives, same shape as ``r``; numerical if omitted (module docstring).
-    max_iter : int
-        Bound on the iteration index i of (44).
+    Same arguments and numbers (bit for bit) as :func:`simulate_alpha_reference`, whose
+    docstring lists the parameters and units; faster: the iterations (44) of a step are computed
+    in blocks for all runs at once and the stopping rule (46) is applied to a block afterwards
+    (module docstring).
 
     Returns
     -------
