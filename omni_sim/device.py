@@ -90,21 +90,28 @@ class Encoder:
         return rng.normal(0.0, self.noise_rad, n)
 
 
-def read_encoder(theta, noise, quantum_rad):
-    """The encoder's reading of the true yaw ``theta`` [rad]: ``theta + noise``, rounded to
-    ``quantum_rad`` where it is > 0 (elementwise; scalars or arrays).  A count of zero reads
-    +0.0, never -0.0 (as an integer count would)."""
-    y = np.asarray(theta, dtype=float) + noise
+def encoder_reader(quantum_rad):
+    """The encoder for a fixed rounding step ``quantum_rad`` [rad] (scalar, or one per row; 0:
+    no rounding): a function ``read(theta, noise)`` giving ``theta + noise`` rounded to the
+    step.  A count of zero reads +0.0, never -0.0 (as an integer count would).  The arrays
+    that depend only on the step are made once, for loops that read every control period."""
     q = np.asarray(quantum_rad, dtype=float)
     if not np.any(q > 0):
-        return y
-    qdiv = np.where(q > 0, q, 1.0)
-    return np.where(q > 0, np.round(y / qdiv) * qdiv + 0.0, y)
+        return lambda theta, noise: np.asarray(theta, dtype=float) + noise
+    rounds = q > 0
+    qdiv = np.where(rounds, q, 1.0)
+
+    def read(theta, noise):
+        y = np.asarray(theta, dtype=float) + noise
+        return np.where(rounds, np.round(y / qdiv) * qdiv + 0.0, y)
+
+    return read
 
 
-# np.clip of a float array with both bounds is this ufunc (numpy/_core/_methods.py: _clip);
-# called directly in the engine's per-period loop to skip np.clip's Python dispatch
-_clip = getattr(getattr(getattr(np, "_core", None), "umath", None), "clip", None) or np.clip
+def read_encoder(theta, noise, quantum_rad):
+    """The encoder's reading of the true yaw ``theta`` [rad] (elementwise; scalars or arrays):
+    :func:`encoder_reader` for one call."""
+    return encoder_reader(quantum_rad)(theta, noise)
 
 
 def p_law(kp, r, y, vmax):
@@ -395,48 +402,35 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
 
 def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm) -> None:
     n = r.shape[1]
-    record_arm = arm is not None
-    if record_arm:
-        q1, q2 = arm
+    read = encoder_reader(quantum_rad)
     for k in range(n):
-        if record_arm:
+        if arm is not None:
             q = engine.qpos()
-            th, q1[:, k], q2[:, k] = q[:, 0], q[:, 1], q[:, 2]
+            th, arm[0][:, k], arm[1][:, k] = q[:, 0], q[:, 1], q[:, 2]
         else:
             th = engine.yaw()
-        y = th if exact else read_encoder(th, 0.0 if noise is None else noise[:, k], quantum_rad)
+        y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
         theta[:, k] = y
         v[:, k] = engine.apply(p_law(kp, r[:, k], y, engine.vmax))
 
 
 def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm) -> None:
-    """:func:`run_p_loop` on a batch engine, operation for operation: the yaw read from the
-    state, :func:`read_encoder` (its arrays made once), :func:`p_law` (the clip ufunc on a
-    fresh array) and :meth:`Engine.apply` (whose second clip leaves a clipped command as it
-    is)."""
+    """:func:`run_p_loop` on a batch engine: the same encoder and P law, reading the state and
+    advancing the batch directly (no per-period copies; :meth:`Engine.apply`'s second clip
+    would leave the clipped command as it is)."""
     n = r.shape[1]
     vmax = engine.vmax
-    neg_vmax = -vmax
     qa = engine._qadr
-    q = np.asarray(quantum_rad, dtype=float)
-    rounds = bool(np.any(q > 0))
-    if rounds:
-        qpos = q > 0
-        qdiv = np.where(qpos, q, 1.0)
+    exact = noise is None and not np.any(np.asarray(quantum_rad) > 0)
+    read = encoder_reader(quantum_rad)
     for k in range(n):
         x = engine.x
         th = x[:, qa[0]]
         if arm is not None:
             arm[0][:, k] = x[:, qa[1]]
             arm[1][:, k] = x[:, qa[2]]
-        if noise is None and not rounds:
-            y = th
-        else:  # read_encoder
-            y = th + (0.0 if noise is None else noise[:, k])
-            if rounds:
-                y = np.where(qpos, np.round(y / qdiv) * qdiv + 0.0, y)
+        y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
         theta[:, k] = y
-        u = kp * (r[:, k] - y)
-        _clip(u, neg_vmax, vmax, out=u)
+        u = p_law(kp, r[:, k], y, vmax)
         v[:, k] = u
         engine._advance(u)
