@@ -314,9 +314,8 @@ class Settings:
         return Encoder(quantize=self.quantize, noise_rad=self.noise_rad, seed=self.seed)
 
 
-def substeps(model: mujoco.MjModel, control_period_s: float) -> int:
-    """Physics steps per control period (UserError unless it divides exactly)."""
-    return substeps_of(model, control_period_s)
+#: Physics steps per control period (UserError unless it divides exactly): the device's rule.
+substeps = substeps_of
 
 
 def _plain_motor(model: mujoco.MjModel, act: int) -> bool:
