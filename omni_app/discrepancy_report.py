@@ -151,8 +151,9 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
         L += [intro, ""]
     eff = rep["effects"]
     if eff[0]["name"] == "none":
-        L += [f"**Named effect: none.** {eff[0]['reason']} (best candidate {eff[0]['best_candidate']} "
-              f"removes {eff[0]['best_share']:.0%} of the held-out gap).", ""]
+        best = (f" (best candidate {eff[0]['best_candidate']} removes {eff[0]['best_share']:.0%} of "
+                "the held-out gap)" if eff[0]["best_candidate"] is not None else "")
+        L += [f"**Named effect: none.** {eff[0]['reason']}{best}.", ""]
     else:
         L += ["**Named effect(s): " + ", ".join(e["name"] for e in eff) + ".**", ""]
     L += [f"Gap (held-out RMS replay error): **{_fmt(rep['gap_before'])} rad before -> "

@@ -197,3 +197,19 @@ def test_cli_too_short(tmp_path, capsys):
 def test_cli_requires_measured(capsys):
     assert main(["discrepancy", "--out", "x"]) == 2
     assert "--measured" in capsys.readouterr().err
+
+
+def test_cli_exact_data_names_none(tmp_path, capsys):
+    """Data the nominal model itself generated without noise or quantisation (gap exactly 0, the
+    sanity check a user runs first): ``none``, exit 0, no traceback (was a ZeroDivisionError)."""
+    folder = tmp_path / "exact"
+    folder.mkdir()
+    exps = _short([ex.sine_experiment(65, 90, 2.0), ex.square_experiment(65, 90)], 600)
+    for r in ex.simulate(exps, settings=ex.Settings(quantize=False, noise_rad=0.0), force_reference=True):
+        write_run(folder, r)
+    out = tmp_path / "out"
+    assert main(["discrepancy", "--measured", str(folder), "--out", str(out)]) == 0
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["gap_before"] == 0.0 and [e["name"] for e in rep["effects"]] == ["none"]
+    assert "exactly" in rep["effects"][0]["reason"] and rep["unexplained"] is False
+    assert "named: none" in capsys.readouterr().out

@@ -85,9 +85,10 @@ class Effect:
     description : str
         One line: what it is physically.
     params : tuple of Param
-    read : callable(spec) -> ndarray
-        The parameter values the spec holds now (the nominal values).
-    write : callable(spec, values) -> None
+    read : callable(spec, target) -> ndarray
+        The parameter values the spec holds now (the nominal values) for ``target``
+        (:class:`Target`: the controlled joint and its actuator).
+    write : callable(spec, values, target) -> None
         Put parameter values into the spec (in place).
     grid : callable(nominal) -> ndarray (G, p)
         Starting points tried before the local fit (the fit is local; a saturation limit far
@@ -97,8 +98,8 @@ class Effect:
     name: str
     description: str
     params: tuple[Param, ...]
-    read: Callable[[mujoco.MjSpec], np.ndarray] = field(repr=False)
-    write: Callable[[mujoco.MjSpec, np.ndarray], None] = field(repr=False)
+    read: Callable[..., np.ndarray] = field(repr=False)
+    write: Callable[..., None] = field(repr=False)
     grid: Callable[[np.ndarray], np.ndarray] = field(repr=False)
 
     @property
@@ -116,17 +117,38 @@ class Effect:
         return np.clip(x, lo, hi)
 
 
-def _yaw(spec: mujoco.MjSpec):
-    return spec.joint("yaw")
+@dataclass(frozen=True)
+class Target:
+    """The joint and the actuator an effect is written into.
+
+    Attributes
+    ----------
+    joint : str
+        The controlled hinge (the encoder's joint).
+    actuator : str
+        The actuator of the controlled drive (its control is the command, its gear the torque
+        constant).
+    """
+
+    joint: str = "yaw"
+    actuator: str = "yaw_motor"
 
 
-def _motor(spec: mujoco.MjSpec):
-    return spec.actuator("yaw_motor")
+#: The virtual Omni's yaw drive (the dataset contract's names).
+OMNI = Target()
+
+
+def _yaw(spec: mujoco.MjSpec, target: Target):
+    return spec.joint(target.joint)
+
+
+def _motor(spec: mujoco.MjSpec, target: Target):
+    return spec.actuator(target.actuator)
 
 
 def _set_joint(attr: str, index: int | None = None):
-    def write(spec, x):
-        j = _yaw(spec)
+    def write(spec, x, target=OMNI):
+        j = _yaw(spec, target)
         if index is None:
             setattr(j, attr, float(x[0]))
         else:
@@ -135,8 +157,8 @@ def _set_joint(attr: str, index: int | None = None):
 
 
 def _get_joint(attr: str, index: int | None = None):
-    def read(spec):
-        j = _yaw(spec)
+    def read(spec, target=OMNI):
+        j = _yaw(spec, target)
         val = getattr(j, attr)
         return np.array([float(val if index is None else val[index])])
     return read
@@ -155,7 +177,7 @@ def _abs_grid(values):
 
 
 # --- gravity tilt --------------------------------------------------------------------------
-def _read_tilt(spec):
+def _read_tilt(spec, target=OMNI):
     g = np.asarray(spec.option.gravity, dtype=float)
     n = float(np.linalg.norm(g))
     if n == 0:
@@ -163,7 +185,7 @@ def _read_tilt(spec):
     return np.array([math.asin(np.clip(g[0] / n, -1, 1)), math.asin(np.clip(g[1] / n, -1, 1))])
 
 
-def _write_tilt(spec, x):
+def _write_tilt(spec, x, target=OMNI):
     g = np.asarray(spec.option.gravity, dtype=float)
     n = float(np.linalg.norm(g)) or 9.81
     sx, sy = math.sin(x[0]), math.sin(x[1])
@@ -178,32 +200,32 @@ def _tilt_grid(x0):
 
 
 # --- actuator effects ----------------------------------------------------------------------
-def _read_lag(spec):
-    a = _motor(spec)
+def _read_lag(spec, target=OMNI):
+    a = _motor(spec, target)
     if a.dyntype in (mujoco.mjtDyn.mjDYN_FILTER, mujoco.mjtDyn.mjDYN_FILTEREXACT):
         return np.array([float(a.dynprm[0])])
     return np.array([MIN_TIME_CONSTANT_S])
 
 
-def _write_lag(spec, x):
-    a = _motor(spec)
+def _write_lag(spec, x, target=OMNI):
+    a = _motor(spec, target)
     a.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
     a.dynprm[0] = max(float(x[0]), MIN_TIME_CONSTANT_S)
 
 
-def _read_delay(spec):
-    return np.array([float(_motor(spec).delay)])
+def _read_delay(spec, target=OMNI):
+    return np.array([float(_motor(spec, target).delay)])
 
 
-def _write_delay(spec, x):
-    a = _motor(spec)
+def _write_delay(spec, x, target=OMNI):
+    a = _motor(spec, target)
     a.nsample = max(int(a.nsample), DELAY_NSAMPLE)
     a.interp = 1  # linear interpolation in the ctrl history: a delay between samples is smooth
     a.delay = max(float(x[0]), 0.0)
 
 
-def _read_limit(spec):
-    a = _motor(spec)
+def _read_limit(spec, target=OMNI):
+    a = _motor(spec, target)
     gear = float(a.gear[0])
     if a.forcelimited == mujoco.mjtLimited.mjLIMITED_TRUE or (
             a.forcelimited == mujoco.mjtLimited.mjLIMITED_AUTO and a.forcerange[1] > a.forcerange[0]):
@@ -211,8 +233,8 @@ def _read_limit(spec):
     return np.array([math.inf])
 
 
-def _write_limit(spec, x):
-    a = _motor(spec)
+def _write_limit(spec, x, target=OMNI):
+    a = _motor(spec, target)
     lim = float(x[0]) / float(a.gear[0])  # forcerange clamps the actuator force [V] before gear
     a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
     a.forcerange = [-lim, lim]
@@ -223,21 +245,21 @@ def _limit_grid(x0):
     return np.array([[v] for v in (0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.65)])
 
 
-def _read_gear(spec):
-    return np.array([float(_motor(spec).gear[0])])
+def _read_gear(spec, target=OMNI):
+    return np.array([float(_motor(spec, target).gear[0])])
 
 
-def _write_gear(spec, x):
-    _motor(spec).gear[0] = float(x[0])
+def _write_gear(spec, x, target=OMNI):
+    _motor(spec, target).gear[0] = float(x[0])
 
 
-def _read_bias(spec):
-    a = _motor(spec)
+def _read_bias(spec, target=OMNI):
+    a = _motor(spec, target)
     return np.array([float(a.biasprm[0]) if a.biastype == mujoco.mjtBias.mjBIAS_AFFINE else 0.0])
 
 
-def _write_bias(spec, x):
-    a = _motor(spec)
+def _write_bias(spec, x, target=OMNI):
+    a = _motor(spec, target)
     if a.biastype != mujoco.mjtBias.mjBIAS_AFFINE:
         a.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         a.biasprm[1] = 0.0
@@ -294,21 +316,23 @@ def get(name: str) -> Effect:
     raise KeyError(name)
 
 
-def nominal_values(effect: Effect, spec: mujoco.MjSpec) -> np.ndarray:
+def nominal_values(effect: Effect, spec: mujoco.MjSpec, target: Target = OMNI) -> np.ndarray:
     """The parameter values ``spec`` holds for ``effect``, clipped into its bounds."""
-    x = effect.read(spec)
+    x = effect.read(spec, target)
     x = np.where(np.isfinite(x), x, [p.upper for p in effect.params])
     return effect.clip(x)
 
 
-def apply(spec: mujoco.MjSpec, changes: list[tuple[Effect, np.ndarray]]) -> mujoco.MjSpec:
-    """A copy of ``spec`` with every ``(effect, values)`` written into it."""
+def apply(spec: mujoco.MjSpec, changes: list[tuple[Effect, np.ndarray]],
+          target: Target = OMNI) -> mujoco.MjSpec:
+    """A copy of ``spec`` with every ``(effect, values)`` written into ``target``."""
     out = spec.copy()
     for eff, x in changes:
-        eff.write(out, np.asarray(x, dtype=float))
+        eff.write(out, np.asarray(x, dtype=float), target)
     return out
 
 
-def compile_with(spec: mujoco.MjSpec, changes: list[tuple[Effect, np.ndarray]]) -> mujoco.MjModel:
+def compile_with(spec: mujoco.MjSpec, changes: list[tuple[Effect, np.ndarray]],
+                 target: Target = OMNI) -> mujoco.MjModel:
     """Compile ``spec`` with the changes applied (the spec itself is left untouched)."""
-    return apply(spec, changes).compile()
+    return apply(spec, changes, target).compile()

@@ -105,11 +105,14 @@ class Problem:
         Effects whose parameters are fitted.
     runs : list of ReplayRun
     replayer : Replayer
+    target : effects.Target
+        The controlled joint and actuator the effects are written into.
     """
 
     def __init__(self, spec: mujoco.MjSpec, fixed: list, free: list, runs: list[ReplayRun],
-                 replayer: Replayer):
+                 replayer: Replayer, target: fx.Target = fx.OMNI):
         self.spec, self.fixed, self.free, self.runs, self.rep = spec, list(fixed), list(free), runs, replayer
+        self.target = target
         lo, hi, sc = [], [], []
         for e in self.free:
             l, h = e.bounds()
@@ -130,7 +133,7 @@ class Problem:
         return out
 
     def model(self, x: np.ndarray) -> mujoco.MjModel:
-        return fx.compile_with(self.spec, self.changes(np.asarray(x, float)))
+        return fx.compile_with(self.spec, self.changes(np.asarray(x, float)), self.target)
 
     def simulate(self, xs: list[np.ndarray], run_idx: list[int] | None = None) -> list[list[np.ndarray]]:
         """Raw residuals ``theta_model - theta`` per parameter vector, per run."""

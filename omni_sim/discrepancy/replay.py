@@ -212,7 +212,7 @@ class Replayer:
             ``y_k = step * round((theta_k + noise_k) / step)`` (no rounding if ``step`` is 0), as
             a device with a noisy, quantised encoder, and ``y`` is returned instead of ``theta``
             (it is what the device would log).  Used to propagate the measurement process
-            through the closed loop (:func:`omni_sim.discrepancy.select.measurement_effect`).
+            through the closed loop (:func:`omni_sim.discrepancy.uncertainty.measurement_effect`).
 
         Returns
         -------

@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 
 from . import effects as fx
-from .fit import FitResult, Problem, gap, jacobian_se
+from .fit import FitResult, Problem, gap
 from .replay import Replayer, ReplayRun
 
 #: Least share of the round's starting held-out gap the best candidate must remove.
@@ -72,6 +72,14 @@ SEPARATING_EXPERIMENTS = {
         "steps of 2-3 sizes: saturation only bites on large steps, friction on small ones",
 }
 DEFAULT_SEPARATION = ("repeat the worst-fitting runs at other amplitudes, frequencies and poses")
+
+
+def share_of(g: float, gap_start: float) -> float:
+    """Share ``1 - g / gap_start`` of the starting gap removed; 0 when there was no gap (the
+    data equal the model's replay exactly: nothing to remove)."""
+    if gap_start > 0:
+        return 1 - g / gap_start
+    return 0.0 if g <= 0 else -math.inf
 
 
 def separating_experiment(a: str, b: str) -> str:
@@ -136,6 +144,7 @@ class Scored:
     fold_x: list = field(default_factory=list, repr=False)
     folds: list = field(default_factory=list, repr=False)
     seconds: float = 0.0
+    target: fx.Target = fx.OMNI
 
 
 def _heldout(problem: Problem, fold_x: list[np.ndarray], folds: list[list[int]]) -> list[np.ndarray]:
@@ -212,7 +221,7 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start
 def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.ndarray,
                 runs: list[ReplayRun], rep: Replayer, gap_start: float, k: int = 5,
                 n_confirm: int = 3, candidates: tuple[str, ...] | None = None,
-                screen_nfev: int = 4, log=None) -> list[Scored]:
+                screen_nfev: int = 4, log=None, target: fx.Target = fx.OMNI) -> list[Scored]:
     """Fit and score every candidate not yet accepted; best first.
 
     Parameters
@@ -243,8 +252,8 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
         t0 = time.perf_counter()
         eff = fx.get(name)
         effects = list(accepted) + [eff]
-        prob = Problem(spec, [], effects, runs, rep)
-        x0 = np.concatenate([np.asarray(accepted_x, float), fx.nominal_values(eff, spec)])
+        prob = Problem(spec, [], effects, runs, rep, target)
+        x0 = np.concatenate([np.asarray(accepted_x, float), fx.nominal_values(eff, spec, target)])
         fit = prob.fit(x0, grid_effect_index=len(effects) - 1, max_nfev=screen_nfev)
         scored.append(_screened(name, effects, prob, fit, folds, gap_start, t0, log, width=18))
     return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
@@ -256,8 +265,8 @@ def _screened(name: str, effects, prob, fit, folds, gap_start: float, t0: float,
     fold_x = _onestep_folds(prob, fit, folds)
     raw = _heldout(prob, fold_x, folds)
     g = gap(raw)
-    s = Scored(name, effects, fit, g, 1 - g / gap_start, "one-step", raw, fold_x, folds,
-               time.perf_counter() - t0)
+    s = Scored(name, effects, fit, g, share_of(g, gap_start), "one-step", raw, fold_x, folds,
+               time.perf_counter() - t0, prob.target)
     if log:
         log(f"  {name:{width}s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
             f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
@@ -277,7 +286,7 @@ def _confirm_best(scored: list[Scored], n_confirm: int, spec, runs, rep, folds, 
 def _confirm(spec, s: Scored, runs, rep, folds, gap_start: float, log=None) -> None:
     """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
     t0 = time.perf_counter()
-    prob = Problem(spec, [], s.effects, runs, rep)
+    prob = Problem(spec, [], s.effects, runs, rep, s.target)
     # the screening fit already simulated its end point (same model, runs and effects): the
     # converging fit starts there without simulating it again
     prob.seed(s.fit)
@@ -286,7 +295,7 @@ def _confirm(spec, s: Scored, runs, rep, folds, gap_start: float, log=None) -> N
     s.fold_x = _refit_folds(prob, s.fit, folds, s.fold_x)
     s.heldout_raw = _heldout(prob, s.fold_x, folds)
     s.heldout_gap = gap(s.heldout_raw)
-    s.share = 1 - s.heldout_gap / gap_start
+    s.share = share_of(s.heldout_gap, gap_start)
     s.method = "refit"
     s.seconds += time.perf_counter() - t0
     if log:
@@ -304,7 +313,7 @@ PAIR_SEARCH_SHARE = 0.5
 def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_start: float,
                 k: int = 5, n_confirm: int = 3, n_fit: int = PAIR_FITS,
                 grid_samples: int = PAIR_GRID_SAMPLES, candidates: tuple[str, ...] | None = None,
-                screen_nfev: int = 8, log=None) -> list[Scored]:
+                screen_nfev: int = 8, log=None, target: fx.Target = fx.OMNI) -> list[Scored]:
     """Fit and score every *pair* of candidates jointly; best first.
 
     Two effects can mask each other: a loop delay takes damping away, dry friction adds it, so
@@ -323,10 +332,10 @@ def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_s
     t0 = time.perf_counter()
     for a, b in itertools.combinations(names, 2):
         effects = [fx.get(a), fx.get(b)]
-        prob = Problem(spec, [], effects, grid_runs, rep)
-        ga = effects[0].grid(fx.nominal_values(effects[0], spec))
-        gb = effects[1].grid(fx.nominal_values(effects[1], spec))
-        x0 = np.concatenate([fx.nominal_values(e, spec) for e in effects])
+        prob = Problem(spec, [], effects, grid_runs, rep, target)
+        ga = effects[0].grid(fx.nominal_values(effects[0], spec, target))
+        gb = effects[1].grid(fx.nominal_values(effects[1], spec, target))
+        x0 = np.concatenate([fx.nominal_values(e, spec, target) for e in effects])
         pts = [np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
                                        effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
                for u in ga for v in gb] + [x0]
@@ -341,7 +350,7 @@ def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_s
     for _, a, b, x0 in starts[:n_fit]:
         t0 = time.perf_counter()
         effects = [fx.get(a), fx.get(b)]
-        prob = Problem(spec, [], effects, runs, rep)
+        prob = Problem(spec, [], effects, runs, rep, target)
         fit = prob.fit(x0, None, max_nfev=screen_nfev)
         scored.append(_screened(f"{a}+{b}", effects, prob, fit, folds, gap_start, t0, log, width=36))
     return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
@@ -361,126 +370,9 @@ def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> 
                and m not in [e.name for e in p.effects]]
         if alt:
             a = min(alt, key=lambda p: p.heldout_gap)
-            out.append(([e.name for e in a.effects if e.name != other][0], 1 - best.heldout_gap / a.heldout_gap))
+            out.append(([e.name for e in a.effects if e.name != other][0], share_of(best.heldout_gap, a.heldout_gap)))
             continue
         single = [s for s in singles if s.name == other]
         g = single[0].heldout_gap if single else math.inf
-        out.append((None, 1 - best.heldout_gap / g if math.isfinite(g) else 1.0))
+        out.append((None, share_of(best.heldout_gap, g) if math.isfinite(g) else 1.0))
     return out
-
-
-def uncertainty(spec, s: Scored, runs, rep) -> dict:
-    """Standard errors and systematic shift of a candidate's parameters.
-
-    Returns a dict of arrays: ``jackknife`` (over the k folds' parameters), ``jacobian`` (at the
-    all-runs optimum, :func:`jacobian_se`), ``measurement`` and ``measurement_bias`` (the
-    measurement process through the closed loop, :func:`measurement_effect`), and ``se``, the
-    root-sum-square of the three standard errors (the reported one).
-    """
-    k = len(s.fold_x)
-    X = np.array(s.fold_x)
-    se_jk = np.sqrt((k - 1) / k * np.sum((X - X.mean(axis=0)) ** 2, axis=0)) if k > 1 else np.zeros(len(s.fit.x))
-    prob = Problem(spec, [], s.effects, runs, rep)
-    se_jac = jacobian_se(prob, s.fit)
-    se_meas, bias = measurement_effect(s, runs, rep, spec)
-    return {"se": np.sqrt(se_jk**2 + se_jac**2 + se_meas**2), "jackknife": se_jk, "jacobian": se_jac,
-            "measurement": se_meas, "measurement_bias": bias}
-
-
-def coverage_factor(k: int) -> float:
-    """Two-sided 95 % Student-t factor for a jackknife over ``k`` folds (k - 1 degrees of freedom)."""
-    from scipy.stats import t
-    return float(t.ppf(0.975, max(k - 1, 1)))
-
-
-#: Realisations of the measurement process simulated by :func:`measurement_effect`.
-MEASUREMENT_DRAWS = 8
-
-
-def encoder_step(run: ReplayRun) -> float:
-    """Quantisation step [rad] of the run's logged yaw: the encoder's 15000 counts/rev when the
-    metadata says ``encoder_quantized``, else 0."""
-    from ..experiments import ENCODER_STEP_RAD
-    return float(ENCODER_STEP_RAD) if run.meta.get("encoder_quantized") else 0.0
-
-
-def measurement_effect(s: Scored, runs: list[ReplayRun], rep: Replayer, spec,
-                       draws: int = MEASUREMENT_DRAWS, iterations: int = 4,
-                       seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """What the measurement process does to the fitted parameters (parametric bootstrap).
-
-    The device's controller acted on the *measured* angle (quantised encoder plus noise); the
-    replay's controller acts on the model's exact angle.  That difference is not a parameter of
-    any candidate, so it can bias the fit and add scatter that neither the jackknife over runs
-    nor the Jacobian estimate sees (both take the replay's closed loop for the device's; with
-    friction or a limit the estimate is not even a smooth function of the noise).  Here the
-    fitted model is run ``draws`` times with a simulated measurement process in its loop:
-    white noise of the records' stated ``noise_rad`` (metadata) or, without it, of the std left
-    after the fit (the all-runs fit's residual RMS with the quantisation's ``step^2/12``
-    removed: an upper bound, as the residual also holds any remaining model error), and the
-    encoder's quantisation when the metadata says the angle was quantised.  The true start of
-    each synthetic run is drawn around the measured first sample with the same measurement
-    error (the replay starts from the measured sample: with friction an initial error of a
-    fraction of a count stays in the record).  Each synthetic record is then fitted like the
-    measured one (noise-free replay from its own first sample, Gauss-Newton from the fit,
-    ``iterations`` steps, all draws in lockstep).
-
-    Returns
-    -------
-    (sd, bias) : ndarray, ndarray
-        Standard deviation over the draws and the mean shift of the parameters (the bias the
-        noise-free replay gives on data measured through this process).
-    """
-    p = len(s.fit.x)
-    if p == 0:
-        return np.zeros(p), np.zeros(p)
-    prob = Problem(spec, [], s.effects, runs, rep)
-    nr = len(runs)
-    steps = [encoder_step(r) for r in runs]
-    res = s.fit.raw_residuals
-    ms = np.mean([np.mean(r**2) for r in res]) if res else 0.0
-    q2 = np.mean([st**2 / 12 for st in steps])
-    stated = [r.meta.get("noise_rad") for r in runs]
-    if all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
-           for v in stated):
-        sigma = float(np.sqrt(np.mean(np.square(stated))))  # the records' stated encoder noise
-    else:
-        sigma = math.sqrt(max(ms - q2, 0.0))
-    rng = np.random.default_rng(seed)
-    pairs = [(0, j) for _ in range(draws) for j in range(nr)]
-    noise = [rng.normal(0.0, sigma, runs[j].n) for _, j in pairs]
-    # the true start differs from the measured first sample by the measurement error too
-    starts = []
-    for _, j in pairs:
-        r = runs[j]
-        th0 = r.theta.copy()
-        th0[0] += rng.normal(0.0, sigma) + rng.uniform(-0.5, 0.5) * steps[j]
-        starts.append(ReplayRun(r.name, r.kind, r.t, r.r, th0, r.v, r.dt, r.kp, r.gamma_set_deg,
-                                r.frequency_hz, r.amplitude_rad, r.meta))
-    meas = rep.simulate([prob.model(s.fit.x)], starts, [(0, b) for b in range(len(starts))],
-                        measurement=(noise, [steps[j] for _, j in pairs]))
-    # the synthetic records, replayed like measured ones (from their own first, measured sample)
-    synth = [ReplayRun(r.name, r.kind, r.t, r.r, y, r.v, r.dt, r.kp, r.gamma_set_deg, r.frequency_hz,
-                       r.amplitude_rad, r.meta) for (_, j), y in zip(pairs, meas) for r in [runs[j]]]
-    w = prob.weights
-    xs = [s.fit.x.copy() for _ in range(draws)]
-    for _ in range(iterations):
-        batch, hs = [], []
-        for x in xs:
-            h = prob._steps(x)
-            hs.append(h)
-            batch += [x] + [x + hi * e for hi, e in zip(h, np.eye(p))]
-        models = [prob.model(x) for x in batch]
-        sim_pairs = [(d * (p + 1) + i, d * nr + j) for d in range(draws) for i in range(p + 1) for j in range(nr)]
-        th = rep.simulate(models, synth, sim_pairs)
-        for d in range(draws):
-            def wres(i):
-                base = (d * (p + 1) + i) * nr
-                return np.concatenate([(th[base + j] - synth[d * nr + j].theta) * w[j] for j in range(nr)])
-            f0 = wres(0)
-            J = np.column_stack([(wres(1 + i) - f0) / hs[d][i] for i in range(p)]) * prob.scale
-            A = J.T @ J
-            dz = np.linalg.solve(A + 1e-6 * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p), -J.T @ f0)
-            xs[d] = np.clip(xs[d] + dz * prob.scale, prob.lower, prob.upper)
-    dx = np.array(xs) - s.fit.x
-    return (dx.std(axis=0, ddof=1) if draws > 1 else np.zeros(p)), dx.mean(axis=0)

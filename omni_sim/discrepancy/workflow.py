@@ -16,6 +16,7 @@ from identification.errors import UserError
 from .. import model as om
 from . import effects as fx
 from . import select as sel
+from . import uncertainty as un
 from .fit import gap
 from .localise import localise
 from .replay import Replayer, prepare_runs
@@ -135,6 +136,9 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         best_accepted = None
         t0 = time.perf_counter()
         for rnd in range(max_effects):
+            if gap_start <= 0:
+                log("the model's replay equals the measured data exactly: nothing to name")
+                break
             if rnd > 0 and gap_start < sel.NOISE_FACTOR * noise:
                 log(f"round {rnd + 1}: skipped, the held-out gap is at the noise floor")
                 break
@@ -145,7 +149,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
             best = scored[0]
             runner = scored[1] if len(scored) > 1 else None
             # margin: share of the runner-up's remaining held-out gap the best removes on top
-            margin = 1 - best.heldout_gap / runner.heldout_gap if runner else 1.0
+            margin = sel.share_of(best.heldout_gap, runner.heldout_gap) if runner else 1.0
             ok = best.share >= sel.MIN_SHARE and gap_start >= sel.NOISE_FACTOR * noise
             entry = {"round": rnd + 1, "best": best.name, "share": best.share,
                      "runner_up": runner.name if runner else None,
@@ -164,7 +168,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 pairs = sel.score_pairs(spec, fit_runs, rep, gap_start, k=k, candidates=candidates,
                                         log=log)
                 bp = pairs[0]
-                gain = 1 - bp.heldout_gap / best.heldout_gap
+                gain = sel.share_of(bp.heldout_gap, best.heldout_gap)
                 pair_ok = (bp.share >= sel.MIN_SHARE and gain >= sel.MIN_SHARE
                            and gap_start >= sel.NOISE_FACTOR * noise)
                 entry["pair_search"] = {"best": bp.name, "share": bp.share,
@@ -202,9 +206,9 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         timings["naming_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         if best_accepted is not None:
-            unc = sel.uncertainty(spec, best_accepted, fit_runs, rep)
+            unc = un.uncertainty(spec, best_accepted, fit_runs, rep)
             se, bias = unc["se"], unc["measurement_bias"]
-            cover = sel.coverage_factor(len(best_accepted.folds))
+            cover = un.coverage_factor(len(best_accepted.folds))
             theta_after = _heldout_theta(spec, best_accepted, rr, rep)
         else:
             theta_after = theta_before
@@ -217,11 +221,14 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     unexplained = excess1 / excess0 if excess0 > 0 else 0.0
     effects_out = []
     if best_accepted is None:
-        e0 = entries[0]
+        e0 = entries[0] if entries else {"best": None, "share": None, "runner_up": None, "margin": None}
         effects_out.append({"name": "none", "parameters": {}, "uncertainty": {},
                             "best_candidate": e0["best"], "best_share": e0["share"],
                             "runner_up": e0["runner_up"], "margin": e0["margin"],
                             "reason": (
+                                "the model's replay equals the measured data exactly (gap 0): "
+                                "nothing is missing"
+                                if gap_before <= 0 else
                                 f"no library candidate removes a clear share of the held-out gap, "
                                 f"which stands at {gap_before / max(noise, 1e-300):.0f} x the noise "
                                 "floor: the gap is UNEXPLAINED (an effect outside the library, or "
@@ -276,7 +283,8 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         "gap_after": gap_after,
         "gap_units": "rad (root of the mean over runs of each run's mean-square replay error; "
                      "after = held-out, each run replayed with parameters fitted without it)",
-        "shrink_factor": gap_before / gap_after if gap_after > 0 else float("inf"),
+        "shrink_factor": (gap_before / gap_after if gap_after > 0
+                          else 1.0 if gap_before <= 0 else float("inf")),
         "noise_floor_rad": noise,
         "unexplained_share": unexplained,
         # True whenever the gap left (after the named effects, or with none named) stands well
