@@ -79,6 +79,28 @@ ARM_ACTUATORS = ("shoulder_servo", "elbow_servo")
 
 
 @dataclass(frozen=True)
+class Target:
+    """The controlled joint of a single-joint device and the actuator that drives it (the
+    encoder reads the joint; discrepancy effects are written into them).
+
+    Attributes
+    ----------
+    joint : str
+        The controlled hinge (the encoder's joint).
+    actuator : str
+        The actuator of the controlled drive (its control is the command, its gear the torque
+        constant).
+    """
+
+    joint: str = "yaw"
+    actuator: str = "yaw_motor"
+
+
+#: The virtual Omni's yaw drive (the dataset contract's names).
+OMNI = Target()
+
+
+@dataclass(frozen=True)
 class OmniIndex:
     """Addresses of the contract's elements inside one compiled model."""
 

@@ -43,6 +43,8 @@ from typing import Callable
 import mujoco
 import numpy as np
 
+from .. import model as om
+
 #: Ring-buffer length [samples] given to ``yaw_motor`` by ``time_delay``: the largest delay
 #: the candidate can represent is ``DELAY_NSAMPLE * timestep`` (40 ms at 1 kHz, ~7 % of the
 #: Omni's 3.4 Hz resonance period: far beyond a USB servo loop's few ms).
@@ -117,25 +119,9 @@ class Effect:
         return np.clip(x, lo, hi)
 
 
-@dataclass(frozen=True)
-class Target:
-    """The joint and the actuator an effect is written into.
-
-    Attributes
-    ----------
-    joint : str
-        The controlled hinge (the encoder's joint).
-    actuator : str
-        The actuator of the controlled drive (its control is the command, its gear the torque
-        constant).
-    """
-
-    joint: str = "yaw"
-    actuator: str = "yaw_motor"
-
-
 #: The virtual Omni's yaw drive (the dataset contract's names).
-OMNI = Target()
+Target = om.Target
+OMNI = om.OMNI
 
 
 def _yaw(spec: mujoco.MjSpec, target: Target):
@@ -306,6 +292,37 @@ LIBRARY: tuple[Effect, ...] = (
 )
 
 NAMES = tuple(e.name for e in LIBRARY)
+
+#: What experiment separates two candidates that explain the data alike (unordered pairs).
+SEPARATING_EXPERIMENTS = {
+    frozenset({"joint_stiffness", "gravity_tilt"}):
+        "hold the yaw at several angles up to +-0.9 rad at two arm poses of very different reach "
+        "(e.g. gamma1=25/gamma2=115 deg vs gamma1=65/gamma2=70 deg): a spring's torque is linear in "
+        "theta and the same at every pose, gravity's goes with sin(theta) and scales with the arm's "
+        "mass moment",
+    frozenset({"gravity_tilt", "position_offset"}):
+        "steps around several yaw set points at two arm poses: a bias is the same everywhere, a "
+        "tilt's torque changes with yaw angle and reach",
+    frozenset({"joint_stiffness", "position_offset"}):
+        "steps around several yaw set points: a spring's torque grows with the angle, a bias does not",
+    frozenset({"time_delay", "actuator_lag"}):
+        "sines above the resonance (8-20 Hz) or the command-to-angle response: a lag rolls the "
+        "gain off, a delay only adds phase -w*tau",
+    frozenset({"coulomb_friction", "viscous_damping"}):
+        "sines at the same frequency and 2-3 amplitudes: Coulomb damping falls with amplitude, "
+        "viscous does not",
+    frozenset({"armature", "torque_gain"}):
+        "repeat a step or sine sweep at a second kp: inertia and gain shift the resonance "
+        "differently with kp",
+    frozenset({"viscous_damping", "time_delay"}):
+        "sines near and above the resonance: damping lowers the peak, delay raises it",
+    frozenset({"viscous_damping", "actuator_lag"}):
+        "sines near and above the resonance: damping lowers the peak, a lag raises it",
+    frozenset({"torque_saturation", "coulomb_friction"}):
+        "steps of 2-3 sizes: saturation only bites on large steps, friction on small ones",
+}
+DEFAULT_SEPARATION = ("repeat the worst-fitting runs at other amplitudes, frequencies and poses")
+
 
 
 def get(name: str) -> Effect:

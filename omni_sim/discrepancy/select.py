@@ -43,37 +43,6 @@ UNEXPLAINED_SHARE = 0.3
 #: library does not explain the data down to the noise, so no name is given "high" confidence.
 REMAINDER_FACTOR = 3.0
 
-#: What experiment separates two candidates that explain the data alike (unordered pairs).
-SEPARATING_EXPERIMENTS = {
-    frozenset({"joint_stiffness", "gravity_tilt"}):
-        "hold the yaw at several angles up to +-0.9 rad at two arm poses of very different reach "
-        "(e.g. gamma1=25/gamma2=115 deg vs gamma1=65/gamma2=70 deg): a spring's torque is linear in "
-        "theta and the same at every pose, gravity's goes with sin(theta) and scales with the arm's "
-        "mass moment",
-    frozenset({"gravity_tilt", "position_offset"}):
-        "steps around several yaw set points at two arm poses: a bias is the same everywhere, a "
-        "tilt's torque changes with yaw angle and reach",
-    frozenset({"joint_stiffness", "position_offset"}):
-        "steps around several yaw set points: a spring's torque grows with the angle, a bias does not",
-    frozenset({"time_delay", "actuator_lag"}):
-        "sines above the resonance (8-20 Hz) or the command-to-angle response: a lag rolls the "
-        "gain off, a delay only adds phase -w*tau",
-    frozenset({"coulomb_friction", "viscous_damping"}):
-        "sines at the same frequency and 2-3 amplitudes: Coulomb damping falls with amplitude, "
-        "viscous does not",
-    frozenset({"armature", "torque_gain"}):
-        "repeat a step or sine sweep at a second kp: inertia and gain shift the resonance "
-        "differently with kp",
-    frozenset({"viscous_damping", "time_delay"}):
-        "sines near and above the resonance: damping lowers the peak, delay raises it",
-    frozenset({"viscous_damping", "actuator_lag"}):
-        "sines near and above the resonance: damping lowers the peak, a lag raises it",
-    frozenset({"torque_saturation", "coulomb_friction"}):
-        "steps of 2-3 sizes: saturation only bites on large steps, friction on small ones",
-}
-DEFAULT_SEPARATION = ("repeat the worst-fitting runs at other amplitudes, frequencies and poses")
-
-
 def share_of(g: float, gap_start: float) -> float:
     """Share ``1 - g / gap_start`` of the starting gap removed; 0 when there was no gap (the
     data equal the model's replay exactly: nothing to remove)."""
@@ -84,7 +53,7 @@ def share_of(g: float, gap_start: float) -> float:
 
 def separating_experiment(a: str, b: str) -> str:
     """The experiment that would separate candidate ``a`` from ``b``."""
-    return SEPARATING_EXPERIMENTS.get(frozenset({a, b}), DEFAULT_SEPARATION)
+    return fx.SEPARATING_EXPERIMENTS.get(frozenset({a, b}), fx.DEFAULT_SEPARATION)
 
 
 def kfolds(runs: list[ReplayRun], k: int) -> list[list[int]]:
