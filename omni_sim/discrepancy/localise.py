@@ -20,6 +20,12 @@ WINDOW_S = 0.5
 NEAR_ZERO_SHARE = 0.05
 #: A command above this share of the data's largest |v| counts as "near its limit".
 NEAR_LIMIT_SHARE = 0.8
+#: Half-width [s] of the window around a velocity reversal ("around reversals"): a few
+#: periods of the bristle/pre-sliding transient at the Omni's speeds.
+REVERSAL_S = 0.03
+#: A regime whose RMS stands this many times above the average over the data is where the gap
+#: "lives" (:func:`describe`).
+CONCENTRATION = 1.3
 #: Largest lag [s] searched for the residual/command correlation.
 MAX_LAG_S = 0.1
 
@@ -83,6 +89,7 @@ def regimes(runs, residuals) -> dict:
     cmd_max = max(float(np.max(np.abs(r.v))) for r in runs)
     th_all = np.concatenate([r.theta for r in runs])
     edges = np.quantile(th_all, [0, 0.25, 0.5, 0.75, 1.0])
+    abs_edges = np.quantile(np.abs(th_all), [0, 0.75]) if th_all.size else np.zeros(2)
     bins: dict[str, list] = defaultdict(list)
     for run, res, w in zip(runs, residuals, vel):
         aw = np.abs(w)
@@ -95,6 +102,12 @@ def regimes(runs, residuals) -> dict:
             lo, hi = edges[i], edges[i + 1]
             sel = (run.theta >= lo) & ((run.theta < hi) if i < 3 else (run.theta <= hi))
             bins[f"position: [{lo:+.3f}, {hi:+.3f}] rad"].append(res[sel])
+        outer = np.abs(run.theta) >= abs_edges[1]
+        bins["position: |theta| outer quarter"].append(res[outer])
+        bins["position: |theta| inner three quarters"].append(res[~outer])
+        rev = _near_reversal(w, NEAR_ZERO_SHARE * v95, max(1, int(round(REVERSAL_S / run.dt))))
+        bins["motion: around reversals"].append(res[rev])
+        bins["motion: away from reversals"].append(res[~rev])
         near = np.abs(run.v) >= NEAR_LIMIT_SHARE * cmd_max
         bins["command: near its limit"].append(res[near])
         bins["command: below"].append(res[~near])
@@ -103,6 +116,21 @@ def regimes(runs, residuals) -> dict:
         x = np.concatenate(parts) if parts else np.zeros(0)
         out[k] = {"rms_rad": _rms(x), "n": int(x.size)}
     return {"bins": out, "speed_p95_rad_s": v95, "command_max_v": cmd_max}
+
+
+def _near_reversal(vel: np.ndarray, vmin: float, half: int) -> np.ndarray:
+    """Samples within ``half`` samples of a reversal: the velocity changes sign between two
+    samples where its magnitude exceeds ``vmin`` (a stop and a restart the other way)."""
+    sign = np.where(vel > vmin, 1, np.where(vel < -vmin, -1, 0))
+    idx = np.nonzero(sign)[0]
+    out = np.zeros(len(vel), bool)
+    if len(idx) < 2:
+        return out
+    flips = np.nonzero(np.diff(sign[idx]) != 0)[0]
+    for f in flips:
+        a, b = idx[f], idx[f + 1]
+        out[max(0, a - half): b + half + 1] = True
+    return out
 
 
 def time_windows(runs, residuals, window_s: float = WINDOW_S) -> list[dict]:
@@ -182,4 +210,96 @@ def localise(runs, theta_model) -> dict:
     worst.sort(key=lambda p: -p[0])
     out["worst"] = [{"where": w, "rms_rad": v, "ratio_to_overall": v / overall if overall > 0 else float("nan")}
                     for v, w in worst[:6]]
+    return out
+
+
+def _ratio(a, b) -> float:
+    return float(a / b) if (b and b > 0 and a is not None and math.isfinite(a)) else float("nan")
+
+
+def describe(loc: dict, noise_rad: float = 0.0) -> list[dict]:
+    """Where the gap lives, in words: the regimes whose residual RMS stands out.
+
+    Compares each map of :func:`localise` with the RMS over the data and returns, strongest
+    first, ``{"where": ..., "ratio": ..., "text": ...}`` for every regime that stands
+    :data:`CONCENTRATION` times above its complement (low speed, reversals, a position band,
+    the command near its limit, a frequency band, small or large amplitudes, the start of the
+    runs, steps vs sines), plus a command lag when the residual follows the command.  An empty
+    list: the gap is spread evenly (or at the noise floor).
+    """
+    out = []
+    overall = loc.get("overall_rms_rad", float("nan"))
+    if not (overall > 0) or overall <= 2 * noise_rad:
+        return out
+    b = loc["regimes"]["bins"]
+
+    def rms(key):
+        v = b.get(key, {})
+        return v.get("rms_rad") if v.get("n", 0) > 50 else None
+
+    def add(where, a, ref, text):
+        r = _ratio(a, ref)
+        if math.isfinite(r) and r >= CONCENTRATION:
+            out.append({"where": where, "ratio": r, "text": text.format(r=r)})
+
+    slow, low, fast = rms("speed: near zero"), rms("speed: low"), rms("speed: high")
+    moving = max([x for x in (low, fast) if x is not None], default=None)
+    add("low speed", slow, moving,
+        "at low speed: near standstill the error is {r:.1f}x that of the moving samples "
+        "(friction, stiction, pre-sliding, backlash)")
+    add("high speed", fast, max([x for x in (slow, low) if x is not None], default=None),
+        "at high speed: {r:.1f}x the error of the slow samples (damping, back-EMF, drag)")
+    add("reversals", rms("motion: around reversals"), rms("motion: away from reversals"),
+        "around velocity reversals: {r:.1f}x the error away from them (dry friction, pre-sliding, "
+        "backlash, cable compliance)")
+    add("position band", rms("position: |theta| outer quarter"), rms("position: |theta| inner three quarters"),
+        "in a position band: the outer quarter of |theta| has {r:.1f}x the error of the rest "
+        "(a spring, gravity, an end stop, a position-dependent torque)")
+    pos = {k[len("position: ["):]: v["rms_rad"] for k, v in b.items()
+           if k.startswith("position: [") and v.get("n", 0) > 50}
+    if pos:
+        k = max(pos, key=pos.get)
+        others = [v for kk, v in pos.items() if kk != k]
+        add(f"positions [{k}", pos[k], float(np.sqrt(np.mean(np.square(others)))) if others else None,
+            "at positions [" + k + ": {r:.1f}x the error of the other quartiles")
+    add("command near its limit", rms("command: near its limit"), rms("command: below"),
+        "when the command is near its limit: {r:.1f}x the error below it (saturation, a torque limit)")
+    pf = loc.get("per_frequency", {})
+    if len(pf) >= 2:
+        f = max(pf, key=pf.get)
+        others = [v for k, v in pf.items() if k != f]
+        fr = [row for row in loc.get("frequency_response", []) if f"{row['frequency_hz']:g}" == f]
+        detail = ""
+        if fr:
+            g = float(np.mean([row["gain_error_db"] for row in fr]))
+            ph = float(np.mean([row["phase_error_deg"] for row in fr]))
+            detail = f" (model gain {g:+.1f} dB, phase {ph:+.1f} deg there)"
+        add(f"frequency {f} Hz", pf[f], float(np.sqrt(np.mean(np.square(others)))),
+            f"in the sines at {f} Hz: {{r:.1f}}x the error of the other frequencies{detail}")
+    pa = loc.get("per_amplitude", {})
+    if len(pa) >= 2:
+        amps = sorted(pa, key=float)
+        small, large = pa[amps[0]], pa[amps[-1]]
+        add("small amplitudes", small, large,
+            f"at the smallest amplitude ({amps[0]} rad): {{r:.1f}}x the error at {amps[-1]} rad "
+            "(effects that weaken with amplitude: dry friction, backlash, cogging)")
+        add("large amplitudes", large, small,
+            f"at the largest amplitude ({amps[-1]} rad): {{r:.1f}}x the error at {amps[0]} rad "
+            "(saturation, springs, end stops)")
+    tw = loc.get("time_windows", [])
+    if len(tw) >= 2:
+        rest = float(np.sqrt(np.mean([w["rms_rad"] ** 2 for w in tw[1:]])))
+        add("start of the runs", tw[0]["rms_rad"], rest,
+            "in the first {w:.1f} s of the runs: {{r:.1f}}x the error later (start transient, "
+            "initial state)".format(w=tw[0]["t_end_s"]))
+    pk = loc.get("per_kind", {})
+    if "step" in pk and "sine" in pk:
+        add("steps", pk["step"], pk["sine"], "in the step responses: {r:.1f}x the error of the sines")
+        add("sines", pk["sine"], pk["step"], "in the sines: {r:.1f}x the error of the step responses")
+    cl = loc.get("command_lag", {})
+    if abs(cl.get("correlation", 0.0)) >= 0.5 and abs(cl.get("lag_s", 0.0)) > 0:
+        out.append({"where": "follows the command", "ratio": float("nan"),
+                    "text": f"the residual follows the command {cl['lag_s'] * 1000:+.0f} ms later "
+                            f"(correlation {cl['correlation']:+.2f}): a loop delay or drive lag"})
+    out.sort(key=lambda d: -(d["ratio"] if math.isfinite(d["ratio"]) else 0.0))
     return out

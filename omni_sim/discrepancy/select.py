@@ -1,19 +1,23 @@
 """Name the missing effect: score every candidate on held-out runs, accept the best if it
-removes a clear share of the gap, repeat once for a second effect.
+removes a clear share of the gap, repeat (forward selection, up to three effects).
 
 Scoring (per round):
 
-1. fit each candidate on all runs (grid start, then least squares; earlier accepted effects stay
-   free in the fit so two effects can trade off);
-2. *screen*: held-out gap with k-fold over runs, each fold's parameters from one Gauss-Newton
+1. *prescreen* every candidate on short records (the first :data:`PRESCREEN_SAMPLES` samples
+   of each run): its grid, then a few damped Gauss-Newton steps, all candidates in lockstep so
+   each iteration is one batch of rollouts (earlier accepted effects stay free so effects can
+   trade off).  A candidate costs a few short batches, not a campaign;
+2. *screen* the :data:`N_SCREEN` best on all runs: least squares from the prescreen's point,
+   then the held-out gap with k-fold over runs, each fold's parameters from one Gauss-Newton
    step from the all-runs fit with the held-out runs' rows removed (cheap: one Jacobian);
 3. *confirm*: the best candidates (``n_confirm``) are refitted exactly on each fold's training
    runs (warm start) and their held-out runs simulated with those parameters; this held-out gap
    decides.  The fold fits also give a jackknife spread of each parameter.
 
-Acceptance: the best candidate's held-out gap must fall by at least ``min_share`` of the gap it
-started from, and that starting gap must stand clearly above the measurement noise floor
-(``noise_factor`` times the noise estimated from the residual's sample-to-sample roughness).
+Acceptance (held-out stopping): the best candidate's held-out gap must fall by at least
+``min_share`` of the gap it started from, and that starting gap must stand clearly above the
+measurement noise floor (``noise_factor`` times the noise estimated from the residual's
+sample-to-sample roughness).
 """
 
 from __future__ import annotations
@@ -114,6 +118,7 @@ class Scored:
     folds: list = field(default_factory=list, repr=False)
     seconds: float = 0.0
     target: fx.Target = fx.OMNI
+    prescreen_gap: float = math.nan
 
 
 def _heldout(problem: Problem, fold_x: list[np.ndarray], folds: list[list[int]]) -> list[np.ndarray]:
@@ -190,7 +195,8 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start
 def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.ndarray,
                 runs: list[ReplayRun], rep: Replayer, gap_start: float, k: int = 5,
                 n_confirm: int = 3, candidates: tuple[str, ...] | None = None,
-                screen_nfev: int = 4, log=None, target: fx.Target = fx.OMNI) -> list[Scored]:
+                screen_nfev: int = 4, log=None, target: fx.Target = fx.OMNI,
+                n_screen: int | None = None, prescreen_samples: int | None = None) -> list[Scored]:
     """Fit and score every candidate not yet accepted; best first.
 
     Parameters
@@ -211,21 +217,169 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
         fitted to convergence).
     candidates : tuple of str, optional
         Library names to try (default: all).
+    n_screen : int
+        Candidates, best on the short records (:func:`prescreen`), that are fitted on all runs
+        and scored on held-out runs (default :data:`N_SCREEN`); the others keep their prescreen.
+    prescreen_samples : int
+        Samples per run of the prescreen's short records (default :data:`PRESCREEN_SAMPLES`).
     """
-    names = candidates or fx.NAMES
+    names = [n for n in (candidates or fx.NAMES) if n not in [e.name for e in accepted]]
+    n_screen = N_SCREEN if n_screen is None else n_screen
+    prescreen_samples = PRESCREEN_SAMPLES if prescreen_samples is None else prescreen_samples
     folds = kfolds(runs, k)
+    pre = prescreen(spec, accepted, accepted_x, names, runs, rep, target=target,
+                    samples=prescreen_samples, log=log)
+    keep = {c.name for c in pre[:n_screen]}
     scored: list[Scored] = []
-    for name in names:
-        if name in [e.name for e in accepted]:
+    for c in pre:
+        if c.name not in keep:
+            # not among the n_screen best on the short records: scored there only
+            scored.append(Scored(c.name, c.effects, FitResult(c.effects, c.x, c.x_start, c.gap), math.inf,
+                                 -math.inf, "prescreen", target=target, prescreen_gap=c.gap))
             continue
         t0 = time.perf_counter()
+        prob = Problem(spec, [], c.effects, runs, rep, target)
+        fit = prob.fit(c.x, None, max_nfev=screen_nfev)
+        sc = _screened(c.name, c.effects, prob, fit, folds, gap_start, t0, log, width=18)
+        sc.prescreen_gap = c.gap
+        scored.append(sc)
+    return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
+
+
+#: Samples per run of the short records on which every candidate is prescreened (1.5 s at
+#: 1 kHz: a step edge and its settling, or 2-5 cycles of a 1.5-3.5 Hz sine after the start).
+PRESCREEN_SAMPLES = 1500
+#: Candidates (best on the short records) that go on to the held-out screening on all samples.
+N_SCREEN = 6
+#: Lockstep Gauss-Newton iterations of the prescreen.
+PRESCREEN_ITERATIONS = 3
+
+
+@dataclass
+class Prescreened:
+    """A candidate fitted on the short records: its free effects, start, end point, gap [rad]."""
+
+    name: str
+    effects: list
+    x_start: np.ndarray
+    x: np.ndarray
+    gap: float
+
+
+def signature(model: mujoco.MjModel) -> tuple:
+    """What models must share to be stepped in one batch (state size, controls, sensors)."""
+    return (mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS), model.nu,
+            model.nsensordata, model.opt.timestep)
+
+
+def simulate_grouped(rep: Replayer, models: list, runs: list[ReplayRun],
+                     pairs: list[tuple[int, int]]) -> list[np.ndarray]:
+    """:meth:`Replayer.simulate` of ``pairs`` whose models may differ in structure: one batch
+    per group of models that can share a batch (:func:`signature`); results in pair order."""
+    groups: dict = {}
+    for b, (i, _) in enumerate(pairs):
+        groups.setdefault(signature(models[i]), []).append(b)
+    out: list = [None] * len(pairs)
+    for rows in groups.values():
+        th = rep.simulate(models, runs, [pairs[b] for b in rows])
+        for b, t in zip(rows, th):
+            out[b] = t
+    return out
+
+
+def prescreen(spec: mujoco.MjSpec, accepted: list, accepted_x: np.ndarray, names: list[str],
+              runs: list[ReplayRun], rep: Replayer, target: fx.Target = fx.OMNI,
+              samples: int = PRESCREEN_SAMPLES, iterations: int = PRESCREEN_ITERATIONS,
+              log=None) -> list[Prescreened]:
+    """Fit every candidate coarsely on the first ``samples`` samples of each run; best first.
+
+    All candidates advance together: their grid points form one batch (per group of models
+    that can share one, :func:`simulate_grouped`), then each Gauss-Newton iteration simulates
+    every candidate's point and its finite-difference perturbations in one batch and each
+    candidate takes its own damped step.  A candidate thus costs a few short-record batches,
+    not a full campaign; the best :data:`N_SCREEN` go on to the held-out screening.
+    """
+    t0 = time.perf_counter()
+    short = [r.truncated(samples) for r in runs]
+    probs, x0s, grids = [], [], []
+    for name in names:
         eff = fx.get(name)
         effects = list(accepted) + [eff]
-        prob = Problem(spec, [], effects, runs, rep, target)
-        x0 = np.concatenate([np.asarray(accepted_x, float), fx.nominal_values(eff, spec, target)])
-        fit = prob.fit(x0, grid_effect_index=len(effects) - 1, max_nfev=screen_nfev)
-        scored.append(_screened(name, effects, prob, fit, folds, gap_start, t0, log, width=18))
-    return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
+        prob = Problem(spec, [], effects, short, rep, target)
+        x0 = np.clip(np.concatenate([np.asarray(accepted_x, float), fx.nominal_values(eff, spec, target)]),
+                     prob.lower, prob.upper)
+        i0 = len(x0) - eff.nparam
+        pts = []
+        for g in eff.grid(x0[i0:]):
+            xp = x0.copy()
+            xp[i0:] = eff.clip(np.asarray(g, float))
+            pts.append(xp)
+        pts.append(x0)
+        probs.append(prob)
+        x0s.append(x0)
+        grids.append(pts)
+    # 1. every candidate's grid, one batch per model group
+    nr = len(short)
+    models, pairs, owner = [], [], []
+    for c, pts in enumerate(grids):
+        for x in pts:
+            models.append(probs[c].model(x))
+            pairs += [(len(models) - 1, j) for j in range(nr)]
+            owner.append(c)
+    th = simulate_grouped(rep, models, short, pairs)
+    starts, best_gap, m = [], [], 0
+    for c, pts in enumerate(grids):
+        gaps = []
+        for _ in pts:
+            gaps.append(gap([th[m * nr + j] - short[j].theta for j in range(nr)]))
+            m += 1
+        i = int(np.argmin(gaps))
+        starts.append(pts[i].copy())
+        best_gap.append(gaps[i])
+    # 2. lockstep damped Gauss-Newton from each candidate's best grid point: each iteration
+    #    evaluates every candidate's point and its perturbations; a step that made the gap worse
+    #    is undone and the damping raised
+    xs = [x.copy() for x in starts]
+    best_x = [x.copy() for x in starts]
+    lam = [1e-3] * len(xs)
+    for it in range(iterations + 1):
+        last = it == iterations  # the last pass only scores the last step's end points
+        models, pairs, spans = [], [], []
+        for c, x in enumerate(xs):
+            h = [] if last else probs[c]._steps(x)
+            first = len(models)
+            for xp in [x] + [x + hi * e for hi, e in zip(h, np.eye(len(x)))]:
+                models.append(probs[c].model(xp))
+                pairs += [(len(models) - 1, j) for j in range(nr)]
+            spans.append((first, h))
+        th = simulate_grouped(rep, models, short, pairs)
+        for c, (first, h) in enumerate(spans):
+            prob = probs[c]
+            raws = [[th[(first + i) * nr + j] - short[j].theta for j in range(nr)]
+                    for i in range(len(h) + 1)]
+            g0 = gap(raws[0])
+            if g0 <= best_gap[c]:
+                best_gap[c], best_x[c] = g0, xs[c].copy()
+                lam[c] = max(lam[c] / 3, 1e-6)
+            else:
+                lam[c] *= 10
+            if last:
+                continue
+            if g0 > best_gap[c]:  # this point is worse: step again from the best one, damped more
+                xs[c] = best_x[c].copy()
+                continue
+            f0 = prob.weighted(raws[0])
+            J = np.column_stack([(prob.weighted(raws[1 + i]) - f0) / h[i] for i in range(len(h))]) * prob.scale
+            A = J.T @ J
+            p = len(h)
+            dz = np.linalg.solve(A + lam[c] * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p), -J.T @ f0)
+            xs[c] = np.clip(xs[c] + dz * prob.scale, prob.lower, prob.upper)
+    out = [Prescreened(name, probs[c].free, x0s[c], best_x[c], best_gap[c]) for c, name in enumerate(names)]
+    out.sort(key=lambda c: c.gap)
+    if log:
+        log(f"  prescreen of {len(names)} candidates on {samples}-sample records: "
+            f"{time.perf_counter() - t0:.1f} s; best " + ", ".join(f"{c.name} ({c.gap:.2e})" for c in out[:N_SCREEN]))
+    return out
 
 
 def _screened(name: str, effects, prob, fit, folds, gap_start: float, t0: float, log=None,
