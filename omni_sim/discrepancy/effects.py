@@ -95,6 +95,9 @@ class Effect:
     grid : callable(nominal) -> ndarray (G, p)
         Starting points tried before the local fit (the fit is local; a saturation limit far
         above anything the data reaches has no gradient, so a coarse grid comes first).
+    applies : callable(spec, target) -> bool
+        Whether the effect can be written into this model (e.g. ``arm_mass`` needs the Omni's
+        arm bodies); default: always.
     """
 
     name: str
@@ -103,6 +106,7 @@ class Effect:
     read: Callable[..., np.ndarray] = field(repr=False)
     write: Callable[..., None] = field(repr=False)
     grid: Callable[[np.ndarray], np.ndarray] = field(repr=False)
+    applies: Callable[..., bool] = field(default=lambda spec, target=None: True, repr=False)
 
     @property
     def nparam(self) -> int:
@@ -253,6 +257,383 @@ def _write_bias(spec, x, target=OMNI):
     a.biasprm[0] = float(x[0])
 
 
+# --- drive friction: LuGre elements (pre-sliding, Stribeck) and cogging ---------------------
+#: Encoder quantum of the Omni [rad]: 15000 counts per joint revolution (models/README.md).
+ENCODER_COUNT_RAD = 2 * math.pi / 15000
+#: ``stribeck_friction``'s bristle stiffness sigma0 [N*m/rad], fixed: the pre-sliding range is
+#: below Fs/sigma0 <= 0.3/1000 = 3e-4 rad for every Fs within the bounds, under one encoder
+#: count (4.19e-4 rad), so the element is a Stribeck curve with a true stick and no visible
+#: elastic range (tests/test_effects_library.py measures it).
+STRIBECK_SIGMA0 = 1000.0
+#: ``stribeck_friction``'s bristle damping sigma1 [N*m*s/rad]: sigma1/sigma0 = 1 ms, one
+#: timestep.  A stiff bristle with sigma1 = 0 rings at sqrt(sigma0/J) and ratchets at the 1 ms
+#: step (a probe script: sigma0 = 300-1000, sigma1 = 0, J = 2e-3 kg*m^2 under 0.8 Fs drifted
+#: 0.04 rad instead of resting 0.2 mrad away); with sigma1 = sigma0 * 1 ms it rests within
+#: 1.5 % of -(Fs/sigma0) ln(1 - tau/Fs) for J = 1e-5..2e-3 kg*m^2 (MuJoCo's implicitfast
+#: integrates the sigma1 term implicitly).
+STRIBECK_SIGMA1 = 1.0
+#: ``cogging``'s periods per joint revolution (estimate, not a measurement: the Omni's motors
+#: and capstan ratio are not public).  A 2-pole, 3-slot iron-core DC motor cogs lcm(2, 3) = 6
+#: times per motor turn; a capstan ratio of ~7.5 is inferred from the 15000 counts per joint
+#: turn over a 500-line (2000-count) motor encoder; 6 * 7.5 = 45 periods per joint turn, one
+#: period every 0.14 rad (8 deg).  Change it for a device whose motor is known.
+COGGING_PERIODS = 45.0
+#: MJCF ``input="none"``: a passive actuator without a control (``MjsActuator.ctrlspec``).
+_INPUT_NONE = 16
+
+
+def _stribeck_name(target: Target) -> str:
+    return f"{target.joint}_stribeck"
+
+
+def _cogging_name(target: Target) -> str:
+    return f"{target.joint}_cogging"
+
+
+def _presliding_name(target: Target) -> str:
+    return f"{target.joint}_presliding"
+
+
+def _unique(spec: mujoco.MjSpec, objtype, name: str) -> str:
+    """``name``, or ``name_2``, ``name_3``... if an element of ``objtype`` already has it."""
+    out, k = name, 1
+    while _exists(spec, objtype, out):
+        k += 1
+        out = f"{name}_{k}"
+    return out
+
+
+def _exists(spec: mujoco.MjSpec, objtype, name: str) -> bool:
+    get = {mujoco.mjtObj.mjOBJ_JOINT: spec.joint, mujoco.mjtObj.mjOBJ_BODY: spec.body,
+           mujoco.mjtObj.mjOBJ_TENDON: spec.tendon, mujoco.mjtObj.mjOBJ_ACTUATOR: spec.actuator}[objtype]
+    return get(name) is not None
+
+
+def _is_passive_dcmotor(a, joint: str) -> bool:
+    return (a.trntype == mujoco.mjtTrn.mjTRN_JOINT and a.target == joint
+            and a.biastype == mujoco.mjtBias.mjBIAS_DCMOTOR)
+
+
+def _own_dcmotor(spec: mujoco.MjSpec, name: str, joint: str):
+    """The passive dcmotor an effect added (by name), or None."""
+    a = spec.actuator(name)
+    return a if a is not None and _is_passive_dcmotor(a, joint) else None
+
+
+def _add_dcmotor(spec: mujoco.MjSpec, name: str, joint: str, lugre: bool):
+    """Append a passive ``dcmotor`` (``input="none"``, no electrical part) on ``joint``: the
+    MJCF ``<dcmotor joint=.. input="none" resistance="1" lugre=../cogging=../>`` (same compiled
+    arrays, checked in tests/test_effects_library.py).  Appended after every actuator, so the
+    controlled actuators keep control index = actuator index (``om.index``)."""
+    a = spec.add_actuator(name=_unique(spec, mujoco.mjtObj.mjOBJ_ACTUATOR, name), target=joint,
+                          trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    a.gaintype = mujoco.mjtGain.mjGAIN_DCMOTOR
+    a.biastype = mujoco.mjtBias.mjBIAS_DCMOTOR
+    a.dyntype = mujoco.mjtDyn.mjDYN_DCMOTOR
+    a.gainprm = [1.0] + [0.0] * (len(a.gainprm) - 1)
+    a.biasprm = [0.0] * len(a.biasprm)
+    a.dynprm = [0.0] * len(a.dynprm)  # a new actuator's dynprm[0] = 1 would be an inductance
+    a.ctrlspec = _INPUT_NONE
+    a.actearly = True
+    a.actdim = 1 if lugre else 0  # the LuGre bristle state z
+    a.actlimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    _extend_key_act(spec, a.actdim)
+    return a
+
+
+def _extend_key_act(spec: mujoco.MjSpec, n: int) -> None:
+    """Keyframes that give ``act`` get ``n`` zeros for an actuator appended at the end."""
+    if n:
+        for key in spec.keys:
+            if len(key.act):
+                key.act = list(key.act) + [0.0] * n
+
+
+def _lugre_of(a) -> np.ndarray:
+    """sigma0, sigma1, Fc, Fs, vs of a LuGre dcmotor (dynprm[5:7], biasprm[3:6])."""
+    return np.array([a.dynprm[5], a.dynprm[6], a.biasprm[3], a.biasprm[4], a.biasprm[5]], float)
+
+
+def _set_lugre(a, sigma0, sigma1, fc, fs, vs) -> None:
+    a.dynprm[5], a.dynprm[6] = float(sigma0), float(sigma1)
+    a.biasprm[3], a.biasprm[4], a.biasprm[5] = float(fc), float(fs), float(vs)
+
+
+def _presliding_element(spec: mujoco.MjSpec, target: Target):
+    """The LuGre element ``presliding_friction`` changes: the first passive LuGre dcmotor on the
+    joint that is not another effect's element (e.g. the default scene's ``yaw_friction``)."""
+    skip = {_stribeck_name(target), _cogging_name(target)}
+    for a in spec.actuators:
+        if (_is_passive_dcmotor(a, target.joint) and a.name not in skip
+                and not any(a.name.startswith(s + "_") for s in skip) and a.dynprm[5] > 0):
+            return a
+    return None
+
+
+def _read_presliding(spec, target=OMNI):
+    a = _presliding_element(spec, target)
+    if a is None:  # no LuGre element: no pre-sliding friction (levels 0)
+        return np.zeros(4)
+    s0, _, fc, fs, vs = _lugre_of(a)
+    return np.array([s0, fc, fs, vs])
+
+
+def _write_presliding(spec, x, target=OMNI):
+    a = _presliding_element(spec, target)
+    if a is None:
+        a = _add_dcmotor(spec, _presliding_name(target), target.joint, lugre=True)
+        sigma1 = 0.0  # as the default scene's yaw_friction (models/scene_lugre.xml)
+    else:
+        sigma1 = float(a.dynprm[6])  # kept as in the model
+    _set_lugre(a, x[0], sigma1, x[1], x[2], x[3])
+
+
+def _presliding_grid(x0):
+    if x0[2] > 0:  # the model has a LuGre drive: around it
+        f = [(1, 1, 1, 1), (0.3, 1, 1, 1), (3, 1, 1, 1), (1, 1, 1.5, 1), (1, 1, 0.7, 1),
+             (1, 1.5, 1.5, 1), (1, 1, 1, 0.3)]
+        return np.array([[x0[0] * a, x0[1] * b, x0[2] * c, x0[3] * d] for a, b, c, d in f])
+    # none yet: the default scene's calibrated LuGre (sigma0 ~ 3 N*m/rad, Fc ~ 13, Fs ~ 32 mN*m,
+    # vs ~ 0.6 rad/s; models/README.md) and stiffer/weaker variants
+    return np.array([[s0, fc, fs, 0.5] for s0, fc, fs in
+                     ((3.0, 0.01, 0.02), (10.0, 0.01, 0.02), (30.0, 0.01, 0.02), (3.0, 0.005, 0.01),
+                      (10.0, 0.02, 0.04))])
+
+
+def _read_stribeck(spec, target=OMNI):
+    a = _own_dcmotor(spec, _stribeck_name(target), target.joint)
+    if a is None:
+        return np.zeros(3)
+    return _lugre_of(a)[2:5]
+
+
+def _write_stribeck(spec, x, target=OMNI):
+    a = _own_dcmotor(spec, _stribeck_name(target), target.joint)
+    if a is None:
+        a = _add_dcmotor(spec, _stribeck_name(target), target.joint, lugre=True)
+    _set_lugre(a, STRIBECK_SIGMA0, STRIBECK_SIGMA1, x[0], x[1], x[2])
+
+
+def _stribeck_grid(x0):
+    # levels around the Omni's estimate (Fc 5-20 mN*m, Fs up to the 35 mN*m back-drive bound;
+    # models/README.md) and Stribeck speeds a decade apart
+    return np.array([[fc, fs, vs] for fc, fs, vs in
+                     ((0.005, 0.015, 0.1), (0.005, 0.015, 0.5), (0.01, 0.03, 0.1), (0.01, 0.03, 0.5),
+                      (0.02, 0.035, 0.3))])
+
+
+def _read_cogging(spec, target=OMNI):
+    a = _own_dcmotor(spec, _cogging_name(target), target.joint)
+    if a is None:
+        return np.zeros(2)
+    return np.array([a.biasprm[0], a.biasprm[2]], float)
+
+
+def _write_cogging(spec, x, target=OMNI):
+    a = _own_dcmotor(spec, _cogging_name(target), target.joint)
+    if a is None:
+        a = _add_dcmotor(spec, _cogging_name(target), target.joint, lugre=False)
+    # MuJoCo 4 dcmotor cogging = "amplitude periods phase" -> biasprm[0:3]; the torque on the
+    # joint is amplitude * sin(periods * q + phase) (checked in tests/test_effects_library.py)
+    a.biasprm[0], a.biasprm[1], a.biasprm[2] = float(x[0]), COGGING_PERIODS, float(x[1])
+
+
+def _cogging_grid(x0):
+    return np.array([[a, ph] for a in (0.001, 0.003) for ph in (-math.pi / 2, 0.0, math.pi / 2, math.pi)])
+
+
+# --- two-mass drive: rotor + cable (drive_compliance, backlash) ----------------------------
+#: Mass [kg] and principal inertia [kg*m^2] of the rotor body the two-mass drive adds: numerical
+#: placeholders (MuJoCo rejects a moving body without mass); the rotor's inertia is its joint's
+#: armature (``rotor_inertia_kgm2``); the placeholder adds 1e-12 kg*m^2 to it (its centre of
+#: mass is on the axis, so gravity puts no torque on it).
+ROTOR_BODY_MASS = 1e-6
+ROTOR_BODY_INERTIA = 1e-12
+#: The backlash stop's impedance: solimplimit (dmin, dmax, width, midpoint, power) and the
+#: solreflimit time constant in timesteps.  The default (0.9, 0.95, 0.001) with 0.02 s let a
+#: 0.1 N*m load push 21 mrad into the stop (a probe script); 2 timesteps (the smallest
+#: MuJoCo recommends) and 0.99/0.999 leave 4e-5 rad at 0.1 N*m (0.1 encoder count).
+BACKLASH_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+BACKLASH_SOLREF_STEPS = 2.0
+
+
+def _two_mass_names(target: Target) -> tuple[str, str, str]:
+    """Names of the output joint, the rotor body and the cable tendon."""
+    return f"{target.joint}_output", f"{target.joint}_rotor", f"{target.joint}_cable"
+
+
+def _two_mass(spec: mujoco.MjSpec, target: Target):
+    """``(rotor joint, output joint, cable tendon)`` if the two-mass drive exists, else None."""
+    out_name, _, cable = _two_mass_names(target)
+    t, jo, jr = spec.tendon(cable), spec.joint(out_name), spec.joint(target.joint)
+    if t is None or jo is None or jr is None:
+        return None
+    return jr, jo, t
+
+
+def _subtree_end(model: mujoco.MjModel, body: int) -> int:
+    """Id of the last body of ``body``'s subtree (bodies are numbered depth first)."""
+    last = body
+    for b in range(body + 1, model.nbody):
+        p = b
+        while p > body:
+            p = int(model.body_parentid[p])
+        if p == body:
+            last = b
+        else:
+            break
+    return last
+
+
+def _ensure_two_mass(spec: mujoco.MjSpec, target: Target):
+    """Split the target joint into rotor + output coupled by a cable (once; idempotent).
+
+    The hinge ``target.joint`` becomes ``<joint>_output`` (the turret keeps its body, range and
+    everything that hangs on it); a new body ``<joint>_rotor``, a sibling at the same place,
+    carries a hinge about the same axis named ``target.joint``, so every element that named
+    the joint -- the motor, the encoder sensors, a LuGre friction element -- now acts on the
+    rotor, where the encoder and the motor sit on a capstan drive.  The drive's joint
+    properties go with it: damping (mostly back-EMF on the Omni, models/README.md),
+    frictionloss, stiffness/springref and the armature (the rotor's reflected inertia).  A
+    fixed tendon ``<joint>_cable`` = q_rotor - q_output (rotor angle at the output side) joins
+    them, rest length 0.  Keyframes get the rotor at the output's angle (cable unstretched).
+    """
+    found = _two_mass(spec, target)
+    if found is not None:
+        return found
+    jo = spec.joint(target.joint)
+    body = jo.parent
+    parent = body.parent
+    m = spec.compile()  # the resolved geometry (classes, frames, alternative orientations)
+    jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, target.joint)
+    bid = int(m.jnt_bodyid[jid])
+    pid = int(m.body_parentid[bid])
+    # qpos/dof addresses of the new rotor: it is the parent's last child, so its coordinates
+    # follow the parent's subtree (depth-first numbering)
+    end = _subtree_end(m, pid)
+    later = [j for j in range(m.njnt) if m.jnt_bodyid[j] > end]
+    qadr = int(m.jnt_qposadr[later[0]]) if later else m.nq
+    vadr = int(m.jnt_dofadr[later[0]]) if later else m.nv
+    out_name, rotor_name, cable_name = _two_mass_names(target)
+    out_name = _unique(spec, mujoco.mjtObj.mjOBJ_JOINT, out_name)
+    jo.name = out_name
+    rb = parent.add_body(name=_unique(spec, mujoco.mjtObj.mjOBJ_BODY, rotor_name))
+    rb.pos = m.body_pos[bid].copy()
+    rb.quat = m.body_quat[bid].copy()
+    rb.explicitinertial = True
+    rb.ipos = [0.0, 0.0, 0.0]
+    rb.iquat = [1.0, 0.0, 0.0, 0.0]
+    rb.mass = ROTOR_BODY_MASS
+    rb.inertia = [ROTOR_BODY_INERTIA] * 3
+    jr = rb.add_joint(name=target.joint, type=jo.type)
+    jr.pos = m.jnt_pos[jid].copy()
+    jr.axis = m.jnt_axis[jid].copy()
+    jr.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+    jr.ref = jo.ref
+    # the drive's properties move to the rotor
+    jr.armature = jo.armature
+    jr.frictionloss = jo.frictionloss
+    jr.damping = list(jo.damping)
+    jr.stiffness = list(jo.stiffness)
+    jr.springref = jo.springref
+    jr.solref_friction = list(jo.solref_friction)
+    jr.solimp_friction = list(jo.solimp_friction)
+    jo.armature = 0.0
+    jo.frictionloss = 0.0
+    jo.damping = [0.0] * len(jo.damping)
+    jo.stiffness = [0.0] * len(jo.stiffness)
+    t = spec.add_tendon(name=_unique(spec, mujoco.mjtObj.mjOBJ_TENDON, cable_name))
+    t.wrap_joint(target.joint, 1.0)
+    t.wrap_joint(out_name, -1.0)
+    t.springlength = [0.0, 0.0]
+    t.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+    oq = int(m.jnt_qposadr[jid])
+    for key in spec.keys:
+        if len(key.qpos) == m.nq:
+            q = list(key.qpos)
+            key.qpos = q[:qadr] + [q[oq]] + q[qadr:]
+        if len(key.qvel) == m.nv:
+            v = list(key.qvel)
+            key.qvel = v[:vadr] + [0.0] + v[vadr:]
+    return jr, jo, t
+
+
+def _applies_two_mass(spec, target=OMNI) -> bool:
+    j = spec.joint(target.joint)
+    return j is not None and j.type == mujoco.mjtJoint.mjJNT_HINGE
+
+
+def _read_compliance(spec, target=OMNI):
+    tm = _two_mass(spec, target)
+    if tm is None:  # rigid drive: infinitely stiff, no cable damping, the joint's armature
+        return np.array([math.inf, 0.0, float(spec.joint(target.joint).armature)])
+    jr, _, t = tm
+    return np.array([float(t.stiffness[0]), float(t.damping[0]), float(jr.armature)])
+
+
+def _write_compliance(spec, x, target=OMNI):
+    jr, _, t = _ensure_two_mass(spec, target)
+    t.stiffness[0] = float(x[0])
+    t.damping[0] = float(x[1])
+    jr.armature = float(x[2])
+
+
+def _compliance_grid(x0):
+    return np.array([[k, 0.0, x0[2]] for k in (2.0, 5.0, 15.0, 40.0, x0[0])])
+
+
+def _read_backlash(spec, target=OMNI):
+    tm = _two_mass(spec, target)
+    if tm is None or tm[2].limited != mujoco.mjtLimited.mjLIMITED_TRUE:
+        return np.zeros(1)
+    return np.array([float(tm[2].range[1])])
+
+
+def _write_backlash(spec, x, target=OMNI):
+    _, _, t = _ensure_two_mass(spec, target)
+    b = float(x[0])
+    t.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+    t.range = [-b, b]
+    t.springlength = [-b, b]  # a cable spring (drive_compliance) has no force inside the band
+    t.solref_limit = [BACKLASH_SOLREF_STEPS * float(spec.option.timestep), 1.0]
+    t.solimp_limit = list(BACKLASH_SOLIMP)
+
+
+def _backlash_grid(x0):
+    return np.array([[c * ENCODER_COUNT_RAD] for c in (0.5, 1.0, 2.0, 4.0, 8.0)])
+
+
+# --- arm link masses (the Omni) ------------------------------------------------------------
+ARM_BODIES = ("upper_arm", "forearm")
+
+
+def _applies_arm(spec, target=OMNI) -> bool:
+    for name in ARM_BODIES:
+        b = spec.body(name)
+        if b is None or not b.explicitinertial or not b.mass > 0 or not np.all(np.isfinite(b.ipos)):
+            return False
+    return True
+
+
+def _read_arm(spec, target=OMNI):
+    return np.array([float(spec.body(n).mass) for n in ARM_BODIES])
+
+
+def _write_arm(spec, x, target=OMNI):
+    for name, mass in zip(ARM_BODIES, x):
+        b = spec.body(name)
+        f = float(mass) / float(b.mass)  # same shape: inertia scales with the mass, CoM kept
+        b.mass = float(mass)
+        b.inertia = [float(v) * f for v in b.inertia]
+        if np.all(np.isfinite(b.fullinertia)):
+            b.fullinertia = [float(v) * f for v in b.fullinertia]
+
+
+def _arm_grid(x0):
+    f = ((1, 1), (0.7, 1), (1.4, 1), (1, 0.7), (1, 1.4), (0.7, 0.7), (1.4, 1.4))
+    return np.array([[x0[0] * a, x0[1] * b] for a, b in f])
+
+
 #: The library, in a fixed order (ties are broken by this order).
 LIBRARY: tuple[Effect, ...] = (
     Effect("coulomb_friction", "Coulomb (dry) friction at the yaw joint",
@@ -289,6 +670,36 @@ LIBRARY: tuple[Effect, ...] = (
     Effect("position_offset", "constant bias: drive offset voltage, the loop settles bias/kp off",
            (Param("bias_v", "V", -0.5, 0.5, 0.005),),
            _read_bias, _write_bias, _abs_grid((-0.05, -0.01, 0.0, 0.01, 0.05))),
+    Effect("presliding_friction",
+           "LuGre drive friction with an elastic pre-sliding range (bristle stiffness sigma0)",
+           (Param("sigma0_nm_per_rad", "N*m/rad", 0.3, 100.0, 1.0),
+            Param("fc_nm", "N*m", 0.0, 0.3, 0.003),
+            Param("fs_nm", "N*m", 0.0, 0.3, 0.003),
+            Param("vs_rad_per_s", "rad/s", 0.02, 3.0, 0.1)),
+           _read_presliding, _write_presliding, _presliding_grid),
+    Effect("stribeck_friction",
+           "static friction above the Coulomb level (Stribeck curve), stick without pre-sliding",
+           (Param("fc_nm", "N*m", 0.0, 0.3, 0.003),
+            Param("fs_nm", "N*m", 0.0, 0.3, 0.003),
+            Param("vs_rad_per_s", "rad/s", 0.01, 3.0, 0.05)),
+           _read_stribeck, _write_stribeck, _stribeck_grid),
+    Effect("drive_compliance",
+           "compliant capstan cable between the motor (encoder) and the turret: a two-mass drive",
+           (Param("stiffness_nm_per_rad", "N*m/rad", 0.5, 100.0, 2.0),
+            Param("damping_nms_per_rad", "N*m*s/rad", 0.0, 0.05, 0.001),
+            Param("rotor_inertia_kgm2", "kg*m^2", 5e-5, 1e-3, 2e-5)),
+           _read_compliance, _write_compliance, _compliance_grid, _applies_two_mass),
+    Effect("backlash", "dead zone (slack) between the motor (encoder) and the turret",
+           (Param("half_width_rad", "rad", 1e-6, 0.02, 2e-4),),
+           _read_backlash, _write_backlash, _backlash_grid, _applies_two_mass),
+    Effect("arm_mass", "masses of the Omni's upper arm and forearm links (pose-dependent yaw inertia)",
+           (Param("upper_arm_mass_kg", "kg", 0.02, 0.2, 0.005),
+            Param("forearm_mass_kg", "kg", 0.02, 0.2, 0.005)),
+           _read_arm, _write_arm, _arm_grid, _applies_arm),
+    Effect("cogging", "motor cogging: a torque periodic in the motor angle",
+           (Param("amplitude_nm", "N*m", 0.0, 0.05, 0.001),
+            Param("phase_rad", "rad", -2 * math.pi, 2 * math.pi, 0.3)),
+           _read_cogging, _write_cogging, _cogging_grid),
 )
 
 NAMES = tuple(e.name for e in LIBRARY)
@@ -323,6 +734,11 @@ SEPARATING_EXPERIMENTS = {
 }
 DEFAULT_SEPARATION = ("repeat the worst-fitting runs at other amplitudes, frequencies and poses")
 
+
+
+def applicable(spec: mujoco.MjSpec, target: Target = OMNI) -> tuple[str, ...]:
+    """Names of the library effects that can be written into ``spec`` for ``target``."""
+    return tuple(e.name for e in LIBRARY if e.applies(spec, target))
 
 
 def get(name: str) -> Effect:
