@@ -6,7 +6,10 @@ more columns are allowed and kept.
 
 JSON: ``kind`` ("sine" | "step" | "other"), ``gamma1_deg``, ``gamma2_deg`` (actual arm
 angles [deg]), ``kp`` [V/rad], ``frequency_hz`` [Hz], ``amplitude_rad`` [rad]; optional
-``gamma1_set_deg``, ``gamma2_set_deg``; anything else is kept.
+``gamma1_set_deg``, ``gamma2_set_deg``; anything else is kept.  A single-joint device
+without the Omni's arm (``omni discrepancy --joint``) has no pose: its runs are read with
+``require_pose=False``, which makes ``gamma1_deg``/``gamma2_deg`` optional (finite if given),
+and may carry ``command_limit`` (the P law's saturation).
 
 This module is numpy-only so that data from a real Omni never needs the simulator.
 """
@@ -29,6 +32,8 @@ from .errors import UserError
 
 REQUIRED_COLUMNS = ("t", "r", "theta", "v")
 REQUIRED_KEYS = ("kind", "gamma1_deg", "gamma2_deg", "kp", "frequency_hz", "amplitude_rad")
+#: The arm pose keys, optional for a device without the Omni's arm (``require_pose=False``).
+POSE_KEYS = ("gamma1_deg", "gamma2_deg")
 KINDS = ("sine", "step", "other")
 #: Relative tolerance on the sample spacing for "uniformly sampled" [-].  Text round trip of
 #: times written with 9 decimals gives spacing errors of ~1e-9 s, far below this.
@@ -113,8 +118,11 @@ def _fail(path: Path, problem: str) -> UserError:
     return UserError(f"{path}: {problem}")
 
 
-def read_run(csv_path: str | os.PathLike) -> Run:
+def read_run(csv_path: str | os.PathLike, require_pose: bool = True) -> Run:
     """Read and validate one run from its CSV path (the JSON beside it is read too).
+
+    ``require_pose`` False: ``gamma1_deg``/``gamma2_deg`` may be absent (a device without the
+    Omni's arm); if present they must still be finite numbers.
 
     Raises
     ------
@@ -134,12 +142,13 @@ def read_run(csv_path: str | os.PathLike) -> Run:
         raise _fail(json_path, f"not valid JSON ({exc})") from None
     if not isinstance(meta, dict):
         raise _fail(json_path, "metadata must be a JSON object")
-    missing = [k for k in REQUIRED_KEYS if k not in meta]
+    required = REQUIRED_KEYS if require_pose else tuple(k for k in REQUIRED_KEYS if k not in POSE_KEYS)
+    missing = [k for k in required if k not in meta]
     if missing:
         raise _fail(json_path, f"missing required key(s): {', '.join(missing)}")
     if meta["kind"] not in KINDS:
         raise _fail(json_path, f"kind must be one of {', '.join(KINDS)}, got {meta['kind']!r}")
-    for k in REQUIRED_KEYS[1:]:
+    for k in [k for k in REQUIRED_KEYS[1:] if k in meta]:
         val = meta[k]
         if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
             raise _fail(json_path, f"{k} must be a finite number, got {val!r}")
@@ -171,8 +180,8 @@ def read_run(csv_path: str | os.PathLike) -> Run:
     return Run(csv_path.stem, t, cols["r"], cols["theta"], cols["v"], meta, extra)
 
 
-def read_dataset(folder: str | os.PathLike) -> list[Run]:
-    """Read every run in ``folder`` (sorted by name).
+def read_dataset(folder: str | os.PathLike, require_pose: bool = True) -> list[Run]:
+    """Read every run in ``folder`` (sorted by name); ``require_pose``: see :func:`read_run`.
 
     Raises
     ------
@@ -185,7 +194,7 @@ def read_dataset(folder: str | os.PathLike) -> list[Run]:
     paths = sorted(folder.glob("*.csv"))
     if not paths:
         raise UserError(f"{folder}: no runs (NAME.csv + NAME.json) in this folder")
-    return [read_run(p) for p in paths]
+    return [read_run(p, require_pose) for p in paths]
 
 
 @contextmanager

@@ -102,6 +102,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--measured", default=None, help="measured dataset folder")
     p.add_argument("--model", default=None, help="MJCF file of the model to test")
     _friction_option(p, what="the model to test: ")
+    p.add_argument("--joint", default="yaw", metavar="NAME",
+                   help="the controlled hinge of the model (the joint the encoder reads; default: "
+                        "yaw, the Omni's). A model without the Omni's shoulder/elbow joints needs no "
+                        "pose in the runs' metadata")
+    p.add_argument("--actuator", default="yaw_motor", metavar="NAME",
+                   help="the actuator driving --joint, whose control is the P law's command "
+                        "kp*(r - theta) clipped to the metadata's command_limit if given and to the "
+                        "actuator's ctrlrange (default: yaw_motor)")
     p.add_argument("--out", default=None, help="output folder")
     p.add_argument("--demo", action="store_true", help="hide an effect in a copy of the virtual Omni and find it")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")

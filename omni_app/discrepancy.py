@@ -24,8 +24,23 @@ def _log(msg: str) -> None:
     sys.stderr.write(msg + "\n")
 
 
+def _target(args: argparse.Namespace) -> om.Target:
+    """The controlled joint and actuator of ``--joint``/``--actuator`` (default: the Omni's)."""
+    joint = getattr(args, "joint", None) or om.OMNI.joint
+    actuator = getattr(args, "actuator", None) or om.OMNI.actuator
+    return om.Target(joint, actuator)
+
+
 def discrepancy_command(args: argparse.Namespace) -> int:
     """Entry point of ``omni discrepancy`` (see ``omni discrepancy --help``)."""
+    target = _target(args)
+    if target != om.OMNI:
+        if args.demo:
+            raise UserError("discrepancy: --demo runs on the virtual Omni; --joint/--actuator "
+                            "apply to --measured runs on your own --model")
+        if getattr(args, "friction", None) is not None:
+            raise UserError("discrepancy: --friction picks one of the Omni's built-in scenes; it "
+                            "cannot be combined with --joint/--actuator (give your model with --model)")
     if args.demo:
         if getattr(args, "friction", None) is not None:
             raise UserError("discrepancy: --demo hides its effect in the default built-in model; "
@@ -42,8 +57,9 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.is_dir() and any(out.iterdir()) and not args.force:
         raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
-    runs = read_dataset(args.measured)
-    outcome = run_discrepancy(runs, model, log=_log)
+    # the pose keys are checked against the model (needed only with the Omni's arm)
+    runs = read_dataset(args.measured, require_pose=False)
+    outcome = run_discrepancy(runs, model, log=_log, target=target)
     with atomic_output_dir(out, force=args.force) as tmp:
         rp.write(outcome, tmp)
     _summary(outcome, out)

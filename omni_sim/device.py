@@ -128,8 +128,33 @@ def substeps_of(model: mujoco.MjModel, control_period_s: float) -> int:
     return int(round(n))
 
 
+def coupled_hinges(model: mujoco.MjModel, joint_id: int) -> list[tuple[int, float]]:
+    """Hinges tied to joint ``joint_id`` by a fixed tendon of exactly two joints (a two-mass
+    drive: rotor and output coupled by a cable), as ``(qpos address, factor)``: the tendon's
+    length ``c_j q_j + c_h q_h`` is zero at ``q_h = factor * q_j`` (``factor = -c_j / c_h``).
+    Tendons with a zero coefficient on the other hinge are skipped."""
+    out = []
+    for t in range(model.ntendon):
+        adr, num = int(model.tendon_adr[t]), int(model.tendon_num[t])
+        if num != 2:
+            continue
+        wraps = range(adr, adr + num)
+        if any(model.wrap_type[w] != mujoco.mjtWrap.mjWRAP_JOINT for w in wraps):
+            continue  # a spatial tendon
+        ids = [int(model.wrap_objid[w]) for w in wraps]
+        coef = [float(model.wrap_prm[w]) for w in wraps]
+        if joint_id not in ids or ids[0] == ids[1]:
+            continue
+        i = ids.index(joint_id)
+        other, c_other = ids[1 - i], coef[1 - i]
+        if model.jnt_type[other] != mujoco.mjtJoint.mjJNT_HINGE or c_other == 0:
+            continue
+        out.append((int(model.jnt_qposadr[other]), -coef[i] / c_other))
+    return out
+
+
 class Device:
-    """The virtual Omni built once from a compiled model.
+    """The virtual Omni (or a user's single-joint device) built once from a compiled model.
 
     Parameters
     ----------
@@ -139,6 +164,11 @@ class Device:
         value) is seen by the next step, but not by the cached equilibrium poses.
     control_period_s : float [s]
         Servo period; a whole multiple of the model's timestep.
+    target : omni_sim.model.Target, optional
+        The controlled hinge (the encoder's joint) and its actuator of a user's device (default
+        None: the Omni's contract, ``yaw``/``yaw_motor`` and the arm).  Without the Omni's arm
+        (``ix.has_arm`` False) a run has no pose: its start leaves every other joint at
+        ``qpos0`` (see :meth:`start_data`).
 
     Attributes
     ----------
@@ -149,18 +179,28 @@ class Device:
     substeps : int
         Physics steps per control period.
     voltage_limit : float [V]
-        ``ctrlrange`` of ``yaw_motor`` (inf if unlimited).
+        ``ctrlrange`` of ``yaw_motor`` / the target's actuator (inf if unlimited): the drive's
+        clip of every command.
     torque_constant : float [N*m/V]
         ``yaw_motor`` gear (the paper's beta_bar).
+    target : Target or None
+    coupled : list of (int, float)
+        Hinges tied to the encoder joint by a two-joint fixed tendon (:func:`coupled_hinges`),
+        started where that tendon's length is zero.
     """
 
-    def __init__(self, model: mujoco.MjModel, control_period_s: float = CONTROL_PERIOD_S):
+    def __init__(self, model: mujoco.MjModel, control_period_s: float = CONTROL_PERIOD_S,
+                 target: om.Target | None = None):
         self.model = model
-        self.ix = om.index(model)
+        self.target = target
+        self.ix = om.index(model, target=target)
         self.control_period_s = float(control_period_s)
         self.substeps = substeps_of(model, control_period_s)
-        self.voltage_limit = om.voltage_limit(model)
+        self.voltage_limit = om.voltage_limit(model, target)
         self.torque_constant = float(model.actuator_gear[self.ix.yaw_act, 0])
+        jid = int(model.dof_jntid[self.ix.yaw_dof])
+        arm = {self.ix.shoulder_qpos, self.ix.elbow_qpos}
+        self.coupled = [(a, f) for a, f in coupled_hinges(model, jid) if a not in arm]
         self.nstate = mujoco.mj_stateSize(model, STATE_SPEC)
         self._eq: dict[tuple[float, float], tuple[float, float]] = {}
         self._scratch: mujoco.MjData | None = None  # start_state's MjData (made on first use)
@@ -182,25 +222,36 @@ class Device:
             self._eq[key] = om.equilibrium_pose(self.model, *key)
         return self._eq[key]
 
-    def start_data(self, theta0_rad: float, gamma_set_deg: tuple[float, float],
+    def start_data(self, theta0_rad: float, gamma_set_deg: tuple[float, float] | None,
                    data: mujoco.MjData | None = None) -> mujoco.MjData:
         """The start of a run: arm at the equilibrium of its set points, servos holding them,
-        yaw at rest at ``theta0_rad``; ``mj_forward`` done.  Writes into ``data`` if given."""
+        yaw at rest at ``theta0_rad``; ``mj_forward`` done.  Writes into ``data`` if given.
+
+        Without the Omni's arm (``ix.has_arm`` False) ``gamma_set_deg`` is ignored (None or an
+        empty tuple are fine) and the other joints start at ``qpos0``.  Every hinge tied to the
+        encoder joint by a two-joint fixed tendon (:attr:`coupled`, a two-mass drive) starts
+        where that tendon's length is zero: the cable unstretched, all at rest."""
         m, ix = self.model, self.ix
-        g1, g2 = self.equilibrium(*gamma_set_deg)
         d = mujoco.MjData(m) if data is None else data
         mujoco.mj_resetData(m, d)
         d.qpos[ix.yaw_qpos] = theta0_rad
-        d.qpos[ix.shoulder_qpos] = math.radians(g1)
-        d.qpos[ix.elbow_qpos] = math.radians(g2)
-        if ix.shoulder_act is not None:  # the arm servos hold their set points
-            d.ctrl[ix.shoulder_act] = math.radians(gamma_set_deg[0])
-        if ix.elbow_act is not None:
-            d.ctrl[ix.elbow_act] = math.radians(gamma_set_deg[1])
+        if ix.has_arm:
+            if gamma_set_deg is None or len(gamma_set_deg) != 2:
+                raise UserError("this model has the Omni's arm (shoulder, elbow): a run needs its "
+                                "two set points gamma1, gamma2 [deg]")
+            g1, g2 = self.equilibrium(*gamma_set_deg)
+            d.qpos[ix.shoulder_qpos] = math.radians(g1)
+            d.qpos[ix.elbow_qpos] = math.radians(g2)
+            if ix.shoulder_act is not None:  # the arm servos hold their set points
+                d.ctrl[ix.shoulder_act] = math.radians(gamma_set_deg[0])
+            if ix.elbow_act is not None:
+                d.ctrl[ix.elbow_act] = math.radians(gamma_set_deg[1])
+        for adr, factor in self.coupled:
+            d.qpos[adr] = factor * theta0_rad
         mujoco.mj_forward(m, d)
         return d
 
-    def start_state(self, theta0_rad: float, gamma_set_deg: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    def start_state(self, theta0_rad: float, gamma_set_deg: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
         """The start of a run as ``(full physics state, ctrl vector)`` (see :meth:`start_data`).
 
         Computed in one scratch ``MjData`` of the device (``mj_resetData`` first, as a new one
@@ -215,8 +266,13 @@ class Device:
 
     def engine(self, theta0_rad, gamma_set_deg, nthread: int | None = None) -> "Engine":
         """An :class:`Engine` of B runs of this device (``theta0_rad``: B floats,
-        ``gamma_set_deg``: B pairs)."""
+        ``gamma_set_deg``: B pairs, or B Nones without the Omni's arm)."""
         return Engine([self] * len(theta0_rad), theta0_rad, gamma_set_deg, nthread=nthread)
+
+
+def _pose(gamma_set_deg):
+    """A run's set points as a tuple (None stays None: a device without the Omni's arm)."""
+    return None if gamma_set_deg is None else tuple(gamma_set_deg)
 
 
 class Engine:
@@ -234,6 +290,7 @@ class Engine:
     devices : list of Device
     theta0_rad : sequence of float [rad]
     gamma_set_deg : sequence of (float, float) [deg]
+        One pair per row (None, or an empty tuple, per row for a device without the arm).
     nthread : int, optional
         Threads for a batch (default: all cores).
     pool : mujoco.rollout.Rollout, optional
@@ -250,15 +307,20 @@ class Engine:
         d0 = devices[0]
         if any(d.substeps != d0.substeps or d.nstate != d0.nstate for d in devices):
             raise ValueError("the devices of one engine need the same substeps and state size")
+        if any(d.ix != d0.ix for d in devices):
+            raise ValueError("the devices of one engine need the same joint and actuator addresses")
         self.devices = devices
         self.B = len(devices)
         self.substeps = d0.substeps
         self.vmax = np.array([d.voltage_limit for d in devices])
         self._yaw_act = d0.ix.yaw_act
-        self._q = (d0.ix.yaw_qpos, d0.ix.shoulder_qpos, d0.ix.elbow_qpos)
+        #: the rows' models have the Omni's arm (else :meth:`qpos` gives NaN arm angles)
+        self.has_arm = d0.ix.has_arm
+        self._q = ((d0.ix.yaw_qpos, d0.ix.shoulder_qpos, d0.ix.elbow_qpos) if self.has_arm
+                   else (d0.ix.yaw_qpos,))
         self._qadr = 1 + np.array(self._q)  # FULLPHYSICS state = [time, qpos, qvel, act, ...]
         if self.B == 1:
-            self._data = d0.start_data(float(theta0_rad[0]), tuple(gamma_set_deg[0]), data)
+            self._data = d0.start_data(float(theta0_rad[0]), _pose(gamma_set_deg[0]), data)
             self._vmax1 = float(self.vmax[0])
             self._own_pool = False
             self.pool = None
@@ -267,7 +329,7 @@ class Engine:
         self.x = np.empty((self.B, d0.nstate))
         self._ctrl = np.empty((self.B, self.substeps, d0.model.nu))
         for b, (dev, th0, gs) in enumerate(zip(devices, theta0_rad, gamma_set_deg)):
-            self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), tuple(gs))
+            self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
         self._models = [d.model for d in devices]
         nthread = max(1, nthread or os.cpu_count() or 1)
         self._own_pool = pool is None
@@ -297,7 +359,13 @@ class Engine:
         return self._data
 
     def qpos(self) -> np.ndarray:
-        """True ``(yaw, shoulder, elbow)`` angles [rad] of every row, shape ``(B, 3)``."""
+        """True ``(yaw, shoulder, elbow)`` angles [rad] of every row, shape ``(B, 3)``; yaw is
+        the controlled joint.  Without the Omni's arm (:attr:`has_arm` False) the shoulder and
+        elbow columns are NaN (the shape stays ``(B, 3)``)."""
+        if not self.has_arm:
+            out = np.full((self.B, 3), np.nan)
+            out[:, 0] = self.yaw()
+            return out
         if self._data is not None:
             return self._data.qpos[list(self._q)][None, :].copy()
         return self.x[:, self._qadr].copy()
@@ -326,9 +394,9 @@ class Engine:
         for b, th0, gs in zip(rows, theta0_rad, gamma_set_deg):
             dev = self.devices[b]
             if self._data is not None:
-                dev.start_data(float(th0), tuple(gs), self._data)
+                dev.start_data(float(th0), _pose(gs), self._data)
             else:
-                self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), tuple(gs))
+                self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
 
     def apply(self, v) -> np.ndarray:
         """Hold the commands ``v`` [V] (one per row, clipped to each drive) for one control
@@ -355,7 +423,7 @@ class Engine:
 
 
 def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,
-               quantum_rad=0.0, record_arm: bool = False) -> dict:
+               quantum_rad=0.0, record_arm: bool = False, command_limit=None) -> dict:
     """The paper's experiment: the clipped P law closed around the encoder, for every row.
 
     Parameters
@@ -370,7 +438,11 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     quantum_rad : float or ndarray (B,) [rad]
         Encoder rounding step (0: none).
     record_arm : bool
-        Also return the true shoulder/elbow angles.
+        Also return the true shoulder/elbow angles (NaN without the Omni's arm).
+    command_limit : float or ndarray (B,), optional [V]
+        The P law's own saturation (a run's metadata ``command_limit``); default: each drive's
+        limit (``ctrlrange``).  The drive still clips what it receives to its ``ctrlrange``, so
+        the applied command is clipped at the smaller of the two.
 
     Returns
     -------
@@ -386,12 +458,15 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     if record_arm:
         q1 = np.empty((B, n))
         q2 = np.empty((B, n))
+    vmax = engine.vmax
+    if command_limit is not None:
+        vmax = np.minimum(vmax, np.broadcast_to(np.asarray(command_limit, dtype=float), (B,)))
     if engine.data is None:  # a batch: the same steps as below, without the per-call overheads
         _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v,
-                      (q1, q2) if record_arm else None)
+                      (q1, q2) if record_arm else None, vmax)
     else:
         _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v,
-                        (q1, q2) if record_arm else None)
+                        (q1, q2) if record_arm else None, vmax)
     if not np.all(np.isfinite(theta)):
         raise RuntimeError("simulation diverged (non-finite yaw angle)")
     out = {"theta": theta, "v": v}
@@ -400,7 +475,7 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     return out
 
 
-def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm) -> None:
+def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm, vmax) -> None:
     n = r.shape[1]
     read = encoder_reader(quantum_rad)
     for k in range(n):
@@ -411,16 +486,19 @@ def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm) -> 
             th = engine.yaw()
         y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
         theta[:, k] = y
-        v[:, k] = engine.apply(p_law(kp, r[:, k], y, engine.vmax))
+        v[:, k] = engine.apply(p_law(kp, r[:, k], y, vmax))
 
 
-def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm) -> None:
+def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm, vmax) -> None:
     """:func:`run_p_loop` on a batch engine: the same encoder and P law, reading the state and
     advancing the batch directly (no per-period copies; :meth:`Engine.apply`'s second clip
     would leave the clipped command as it is)."""
     n = r.shape[1]
-    vmax = engine.vmax
     qa = engine._qadr
+    if arm is not None and not engine.has_arm:
+        arm[0][:] = np.nan
+        arm[1][:] = np.nan
+        arm = None
     exact = noise is None and not np.any(np.asarray(quantum_rad) > 0)
     read = encoder_reader(quantum_rad)
     for k in range(n):

@@ -102,26 +102,40 @@ OMNI = Target()
 
 @dataclass(frozen=True)
 class OmniIndex:
-    """Addresses of the contract's elements inside one compiled model."""
+    """Addresses of the contract's elements inside one compiled model.
+
+    The ``yaw_*`` fields address the controlled drive: the Omni's ``yaw`` / ``yaw_motor``, or
+    a :class:`Target`'s joint and actuator.  The arm fields are None when the model has no arm
+    (a user's single-joint device: :func:`index` with a target and no ``shoulder``/``elbow``
+    hinges); code that poses the arm uses them only when present (:attr:`has_arm`).
+    """
 
     yaw_qpos: int
     yaw_dof: int
-    shoulder_qpos: int
-    elbow_qpos: int
+    shoulder_qpos: int | None
+    elbow_qpos: int | None
     yaw_act: int
     shoulder_act: int | None
     elbow_act: int | None
 
+    @property
+    def has_arm(self) -> bool:
+        """True when the model has the Omni's shoulder and elbow joints (a pose to set)."""
+        return self.shoulder_qpos is not None and self.elbow_qpos is not None
 
-def load_model(path: str | os.PathLike | None = None, friction: str | None = None) -> mujoco.MjModel:
+
+def load_model(path: str | os.PathLike | None = None, friction: str | None = None,
+               target: Target | None = None) -> mujoco.MjModel:
     """Compile an MJCF file (default: the built-in scene of the friction family ``friction``,
-    or ``scene.xml``) and check the contract's names.
+    or ``scene.xml``) and check the contract's names (:func:`index`: the Omni's with ``target``
+    None, else the target's joint and actuator).
 
     Raises
     ------
     UserError
         The file is missing, does not compile, or lacks the joints ``yaw``, ``shoulder``,
-        ``elbow`` or the actuator ``yaw_motor`` acting on ``yaw``.
+        ``elbow`` or the actuator ``yaw_motor`` acting on ``yaw`` (with a ``target``: its hinge,
+        or its actuator acting on that hinge).
     """
     path = model_path(path, friction)
     if not path.is_file():
@@ -131,36 +145,75 @@ def load_model(path: str | os.PathLike | None = None, friction: str | None = Non
     except (ValueError, RuntimeError) as exc:  # MuJoCo reports XML/compile errors as ValueError
         msg = " ".join(str(exc).split())
         raise UserError(f"{path}: not a valid MJCF model ({msg})") from None
-    index(model, path)
+    index(model, path, target)
     return model
 
 
-def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>") -> OmniIndex:
-    """Find the contract's joints and actuators in ``model`` (UserError if missing)."""
-    missing = [j for j in JOINTS if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) < 0]
-    if missing:
-        raise UserError(f"{path}: model lacks the contract's joint(s) {', '.join(missing)}")
-    jid = {j: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in JOINTS}
-    for j, i in jid.items():
-        if model.jnt_type[i] != mujoco.mjtJoint.mjJNT_HINGE:
-            raise UserError(f"{path}: joint {j!r} must be a hinge")
-    aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, YAW_ACTUATOR)
-    if aid < 0:
-        raise UserError(f"{path}: model lacks the contract's actuator {YAW_ACTUATOR!r}")
-    if model.actuator_trntype[aid] != mujoco.mjtTrn.mjTRN_JOINT or model.actuator_trnid[aid, 0] != jid["yaw"]:
-        raise UserError(f"{path}: actuator {YAW_ACTUATOR!r} must act on joint 'yaw'")
+def _joint_id(model: mujoco.MjModel, name: str) -> int:
+    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+
+
+def _is_hinge(model: mujoco.MjModel, jid: int) -> bool:
+    return jid >= 0 and model.jnt_type[jid] == mujoco.mjtJoint.mjJNT_HINGE
+
+
+def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>",
+          target: Target | None = None) -> OmniIndex:
+    """Find the contract's joints and actuators in ``model`` (UserError if missing).
+
+    ``target`` None: the virtual Omni's contract (hinges ``yaw``, ``shoulder``, ``elbow``, the
+    actuator ``yaw_motor`` on ``yaw``).  A :class:`Target`: a single-joint device -- its
+    ``joint`` must be a hinge and its ``actuator`` must act on that joint; the Omni's arm
+    (hinges ``shoulder`` and ``elbow``, servos ``shoulder_servo``/``elbow_servo``) is used only
+    if the model has both hinges and neither is the target joint, else the arm fields are None.
+    """
+    if target is None:
+        missing = [j for j in JOINTS if _joint_id(model, j) < 0]
+        if missing:
+            raise UserError(f"{path}: model lacks the contract's joint(s) {', '.join(missing)}")
+        jid = {j: _joint_id(model, j) for j in JOINTS}
+        for j, i in jid.items():
+            if model.jnt_type[i] != mujoco.mjtJoint.mjJNT_HINGE:
+                raise UserError(f"{path}: joint {j!r} must be a hinge")
+        aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, YAW_ACTUATOR)
+        if aid < 0:
+            raise UserError(f"{path}: model lacks the contract's actuator {YAW_ACTUATOR!r}")
+        if model.actuator_trntype[aid] != mujoco.mjtTrn.mjTRN_JOINT or model.actuator_trnid[aid, 0] != jid["yaw"]:
+            raise UserError(f"{path}: actuator {YAW_ACTUATOR!r} must act on joint 'yaw'")
+        joint, actuator, has_arm = "yaw", YAW_ACTUATOR, True
+    else:
+        joint, actuator = target.joint, target.actuator
+        j = _joint_id(model, joint)
+        if j < 0:
+            raise UserError(f"{path}: model has no joint {joint!r} (the controlled joint, --joint)")
+        if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
+            raise UserError(f"{path}: joint {joint!r} must be a hinge (the controlled joint, --joint)")
+        aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, actuator)
+        if aid < 0:
+            raise UserError(f"{path}: model has no actuator {actuator!r} (the controlled "
+                            "joint's actuator, --actuator)")
+        if model.actuator_trntype[aid] != mujoco.mjtTrn.mjTRN_JOINT or model.actuator_trnid[aid, 0] != j:
+            raise UserError(f"{path}: actuator {actuator!r} must act on joint {joint!r} "
+                            "(a joint transmission on the controlled hinge)")
+        if model.actuator_ctrlnum[aid] < 1:  # a passive actuator (input="none"): no control
+            raise UserError(f"{path}: actuator {actuator!r} takes no control (a passive actuator)")
+        jid = {"yaw": j, "shoulder": _joint_id(model, "shoulder"), "elbow": _joint_id(model, "elbow")}
+        has_arm = all(_is_hinge(model, jid[a]) and jid[a] != j for a in ("shoulder", "elbow"))
     arm = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in ARM_ACTUATORS]
+    if not has_arm:
+        arm = [-1, -1]
     # the code indexes data.ctrl by actuator id: true while passive (input="none") actuators,
     # which take no control, come after the controlled ones
     ctrladr = getattr(model, "actuator_ctrladr", None)
     if ctrladr is not None and any(a >= 0 and ctrladr[a] != a for a in (aid, *arm)):
-        raise UserError(f"{path}: passive actuators must come after {YAW_ACTUATOR!r} and the arm "
-                        "servos in <actuator> (their control index must equal their actuator index)")
+        raise UserError(f"{path}: passive actuators must come after {actuator!r}"
+                        + (" and the arm servos" if has_arm else "")
+                        + " in <actuator> (their control index must equal their actuator index)")
     return OmniIndex(
         yaw_qpos=int(model.jnt_qposadr[jid["yaw"]]),
         yaw_dof=int(model.jnt_dofadr[jid["yaw"]]),
-        shoulder_qpos=int(model.jnt_qposadr[jid["shoulder"]]),
-        elbow_qpos=int(model.jnt_qposadr[jid["elbow"]]),
+        shoulder_qpos=int(model.jnt_qposadr[jid["shoulder"]]) if has_arm else None,
+        elbow_qpos=int(model.jnt_qposadr[jid["elbow"]]) if has_arm else None,
         yaw_act=int(aid),
         shoulder_act=int(arm[0]) if arm[0] >= 0 else None,
         elbow_act=int(arm[1]) if arm[1] >= 0 else None,
@@ -209,14 +262,16 @@ def without_friction(model: mujoco.MjModel) -> mujoco.MjModel:
     return m
 
 
-def torque_constant(model: mujoco.MjModel) -> float:
-    """The yaw motor's gear, i.e. the torque constant beta_bar [N*m/V]."""
-    return float(model.actuator_gear[index(model).yaw_act, 0])
+def torque_constant(model: mujoco.MjModel, target: Target | None = None) -> float:
+    """The yaw motor's gear, i.e. the torque constant beta_bar [N*m/V] (with a ``target``:
+    its actuator's gear)."""
+    return float(model.actuator_gear[index(model, target=target).yaw_act, 0])
 
 
-def voltage_limit(model: mujoco.MjModel) -> float:
-    """The drive's voltage limit [V] (``ctrlrange`` of ``yaw_motor``; inf if unlimited)."""
-    i = index(model).yaw_act
+def voltage_limit(model: mujoco.MjModel, target: Target | None = None) -> float:
+    """The drive's voltage limit [V] (``ctrlrange`` of ``yaw_motor``, or of the ``target``'s
+    actuator; inf if unlimited)."""
+    i = index(model, target=target).yaw_act
     if not model.actuator_ctrllimited[i]:
         return math.inf
     lo, hi = model.actuator_ctrlrange[i]

@@ -7,6 +7,11 @@ model's equilibrium for them; the yaw starts at rest at the measured ``theta[0]`
 control period the model's yaw angle ``theta_k`` is read, ``v_k = kp (r_k - theta_k)`` clipped
 to the drive's ``ctrlrange`` is written to ``yaw_motor`` and held for the period.
 
+A user's single-joint device (a :class:`~omni_sim.model.Target`: its hinge and actuator) is
+replayed the same way: without the Omni's arm a run needs no pose; its P law saturates at the
+run's ``command_limit`` (metadata, in the actuator's control units) if given, and the drive
+clips at the actuator's ``ctrlrange`` in any case.
+
 The loop is the device's (:mod:`omni_sim.device`): its start state, encoder, clipped P law and
 closed-loop :class:`~omni_sim.device.Engine`, which advances the whole batch one period at a time
 with :class:`mujoco.rollout.Rollout` (C, threads), so any MJCF effect of ``yaw_motor`` -- a
@@ -54,10 +59,14 @@ class ReplayRun:
     dt : float [s]
         Sample (= control) period.
     kp : float [V/rad]
+        The P law's gain (in the actuator's control units per rad).
     gamma_set_deg : tuple of float [deg]
-        Arm servo set points used in the replay.
+        Arm servo set points used in the replay; the empty tuple for a model without the
+        Omni's arm (no pose).
     frequency_hz, amplitude_rad : float
     meta : dict
+        The run's metadata; a checked ``command_limit`` (:attr:`command_limit`) lives here, so
+        copies of a run made with the positional constructor keep it.
     """
 
     name: str
@@ -77,6 +86,13 @@ class ReplayRun:
     def n(self) -> int:
         return len(self.r)
 
+    @property
+    def command_limit(self) -> float:
+        """The P law's saturation [control units]: metadata ``command_limit``, inf if absent
+        (then only the drive's ``ctrlrange`` clips)."""
+        c = self.meta.get("command_limit")
+        return math.inf if c is None else float(c)
+
     def truncated(self, nmax: int) -> "ReplayRun":
         """The first ``nmax`` samples of the run (the replay starts from the same state)."""
         if nmax >= self.n:
@@ -87,17 +103,26 @@ class ReplayRun:
                          self.amplitude_rad, self.meta)
 
 
-def prepare_runs(runs: list[Run], model: mujoco.MjModel, source: str = "measured data") -> list[ReplayRun]:
+def prepare_runs(runs: list[Run], model: mujoco.MjModel, source: str = "measured data",
+                 target: om.Target | None = None) -> list[ReplayRun]:
     """Check that every run can be replayed on ``model`` and convert it.
+
+    ``target`` (None: the Omni) names the controlled joint and actuator.  A model with the
+    Omni's arm needs each run's pose (``gamma1_set_deg``/``gamma2_set_deg`` or
+    ``gamma1_deg``/``gamma2_deg``); without the arm a pose is not needed (any given is ignored).
+    An optional ``command_limit`` (positive; the P law's saturation) is checked and kept in
+    the run's ``meta``.
 
     Raises
     ------
     UserError
         A run is too short, has no usable ``kp``, a sample period that is not a whole multiple
-        of the model's timestep, or a pose outside the model's joint ranges.
+        of the model's timestep, a pose outside the model's joint ranges (or none where the
+        model has the arm), or a ``command_limit`` that is not a positive number.
     """
     if not runs:
         raise UserError(f"{source}: no runs")
+    has_arm = om.index(model, target=target).has_arm
     out = []
     for run in runs:
         where = f"{source}: run {run.name!r}"
@@ -112,19 +137,31 @@ def prepare_runs(runs: list[Run], model: mujoco.MjModel, source: str = "measured
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) != 1:
             raise UserError(f"{where}: sample period {dt:g} s must equal the model's timestep "
                             f"{model.opt.timestep:g} s (the replay steps once per control period)")
-        g1 = run.meta.get("gamma1_set_deg", run.meta.get("gamma1_deg"))
-        g2 = run.meta.get("gamma2_set_deg", run.meta.get("gamma2_deg"))
-        for name, val in (("gamma1", g1), ("gamma2", g2)):
-            if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
-                raise UserError(f"{where}: metadata needs a finite {name}_set_deg or {name}_deg, got {val!r}")
-        try:
-            om.check_pose(model, float(g1), float(g2))
-        except UserError as exc:
-            raise UserError(f"{where}: unknown pose for this model ({exc})") from None
+        meta = dict(run.meta)
+        lim = meta.get("command_limit")
+        if lim is not None:
+            if (isinstance(lim, bool) or not isinstance(lim, (int, float))
+                    or not (lim > 0 and not math.isnan(lim))):
+                raise UserError(f"{where}: command_limit must be a positive number (the P law's "
+                                f"saturation in the actuator's control units), got {lim!r}")
+            meta["command_limit"] = float(lim)
+        if has_arm:
+            g1 = run.meta.get("gamma1_set_deg", run.meta.get("gamma1_deg"))
+            g2 = run.meta.get("gamma2_set_deg", run.meta.get("gamma2_deg"))
+            for name, val in (("gamma1", g1), ("gamma2", g2)):
+                if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
+                    raise UserError(f"{where}: metadata needs a finite {name}_set_deg or {name}_deg, got {val!r}")
+            try:
+                om.check_pose(model, float(g1), float(g2))
+            except UserError as exc:
+                raise UserError(f"{where}: unknown pose for this model ({exc})") from None
+            pose = (float(g1), float(g2))
+        else:
+            pose = ()
         out.append(ReplayRun(run.name, run.kind, np.asarray(run.t, float), np.asarray(run.r, float),
                              np.asarray(run.theta, float), np.asarray(run.v, float), dt, float(kp),
-                             (float(g1), float(g2)), float(run.meta.get("frequency_hz", 0.0)),
-                             float(run.meta.get("amplitude_rad", 0.0)), dict(run.meta)))
+                             pose, float(run.meta.get("frequency_hz", 0.0)),
+                             float(run.meta.get("amplitude_rad", 0.0)), meta))
     return out
 
 
@@ -135,12 +172,15 @@ class Replayer:
     ----------
     nthread : int, optional
         Threads of the rollout pool (default: all cores).
+    target : omni_sim.model.Target, optional
+        The controlled joint and actuator of the devices built (default None: the Omni).
 
     Use as a context manager, or call :meth:`close` to stop the thread pool.
     """
 
-    def __init__(self, nthread: int | None = None):
+    def __init__(self, nthread: int | None = None, target: om.Target | None = None):
         self.nthread = max(1, nthread or os.cpu_count() or 1)
+        self.target = target
         # one thread: rollouts run on the calling thread (Rollout(nthread=0)), not handed to a
         # one-thread pool at every control period; the trajectories are the same
         self._pool = rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0)
@@ -168,7 +208,7 @@ class Replayer:
         key = id(model)
         if key not in self._devices:
             # [device, model (kept alive with its id), content digest (made when first needed)]
-            self._devices[key] = [Device(model), model, None]
+            self._devices[key] = [Device(model, target=self.target), model, None]
         return self._devices[key]
 
     def _model_key(self, model: mujoco.MjModel) -> bytes:
@@ -182,12 +222,13 @@ class Replayer:
         return e[2]
 
     def _run_key(self, run: ReplayRun) -> tuple:
-        """What the replay of ``run`` depends on: start angle, set points, kp, reference."""
+        """What the replay of ``run`` depends on: start angle, set points, kp, the P law's
+        saturation, reference."""
         e = self._runs.get(id(run))
         if e is None or e[1] is not run or len(run.r) != e[2]:
             r = np.ascontiguousarray(run.r, dtype=float)
             key = (float(run.theta[0]), tuple(float(g) for g in run.gamma_set_deg), float(run.kp),
-                   len(r), hashlib.blake2b(r, digest_size=20).digest())
+                   run.command_limit, len(r), hashlib.blake2b(r, digest_size=20).digest())
             e = self._runs[id(run)] = (key, run, len(run.r))  # the run kept alive with its id
         return e[0]
 
@@ -261,10 +302,12 @@ class Replayer:
         B = len(pairs)
         rmat = np.empty((B, nmax))
         kp = np.empty(B)
+        limit = np.empty(B)
         for b, (_, j) in enumerate(pairs):
             rmat[b, : runs[j].n] = runs[j].r
             rmat[b, runs[j].n:] = runs[j].r[-1]
             kp[b] = runs[j].kp
+            limit[b] = runs[j].command_limit
         noise, qstep = None, 0.0
         if measurement is not None:
             noise = np.zeros((B, nmax))
@@ -277,7 +320,8 @@ class Replayer:
                         [runs[j].gamma_set_deg for _, j in pairs],
                         nthread=self.nthread, pool=self._pool)
         try:
-            theta = run_p_loop(engine, rmat, kp, noise, qstep)["theta"]
+            theta = run_p_loop(engine, rmat, kp, noise, qstep,
+                               command_limit=None if np.all(np.isinf(limit)) else limit)["theta"]
         except RuntimeError:
             raise RuntimeError("replay diverged (non-finite yaw angle)") from None
         self.steps += B * nmax

@@ -53,15 +53,16 @@ class Outcome:
     rounds: list = field(default_factory=list)
 
 
-def _load_spec(model_path) -> tuple[mujoco.MjSpec, mujoco.MjModel, str]:
+def _load_spec(model_path, target: om.Target | None = None) -> tuple[mujoco.MjSpec, mujoco.MjModel, str]:
     path = Path(model_path) if model_path is not None else om.DEFAULT_SCENE
-    model = om.load_model(path)  # UserError on a missing file, bad XML or missing names
+    # UserError on a missing file, bad XML or missing names (the Omni's, or the target's)
+    model = om.load_model(path, target=target)
     spec = mujoco.MjSpec.from_file(str(path))
     return spec, model, str(path)
 
 
-def _heldout_theta(spec, scored, runs, rep) -> list[np.ndarray]:
-    models = [fx.compile_with(spec, [(e, x) for e, x in _split(scored.effects, fx_)])
+def _heldout_theta(spec, scored, runs, rep, target: om.Target = om.OMNI) -> list[np.ndarray]:
+    models = [fx.compile_with(spec, [(e, x) for e, x in _split(scored.effects, fx_)], target)
               for fx_ in scored.fold_x]
     pairs = [(f, j) for f, idx in enumerate(scored.folds) for j in idx]
     th = rep.simulate(models, runs, pairs)
@@ -85,7 +86,8 @@ def _confidence(share, margin, unexplained) -> str:
 
 def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None, k: int = 5,
                     max_effects: int = 2, max_fit_samples: int = MAX_FIT_SAMPLES,
-                    candidates: tuple[str, ...] | None = None, log=None) -> Outcome:
+                    candidates: tuple[str, ...] | None = None, log=None,
+                    target: om.Target | None = None) -> Outcome:
     """Find, name, fit and check the effect(s) the model misses on these measured runs.
 
     Parameters
@@ -103,7 +105,11 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     max_fit_samples : int
         Sample budget of the fits (see :data:`MAX_FIT_SAMPLES`).
     candidates : tuple of str, optional
-        Library names to consider (default: all).
+        Library names to consider (default: all that can be written into the model).
+    target : omni_sim.model.Target, optional
+        The controlled hinge and its actuator of a user's single-joint device (default None:
+        the Omni's contract, ``yaw``/``yaw_motor`` with the arm).  Without the Omni's arm the
+        runs need no pose metadata.
 
     Raises
     ------
@@ -111,8 +117,14 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         Model without the contract's names, runs the model cannot replay, too little data.
     """
     t_start = time.perf_counter()
-    spec, model, path = _load_spec(model_path)
-    rr = prepare_runs(runs, model)
+    spec, model, path = _load_spec(model_path, target)
+    rr = prepare_runs(runs, model, target=target)
+    tgt = om.OMNI if target is None else target  # where the effects are written
+    if hasattr(fx, "applicable"):  # only candidates that can be written into this model
+        ok_names = fx.applicable(spec, tgt)
+        candidates = tuple(c for c in (candidates or fx.NAMES) if c in ok_names)
+        if not candidates:
+            raise UserError(f"{path}: none of the candidate effects can be written into this model")
     if len(rr) < 2:
         raise UserError("measured data: at least 2 runs are needed (candidates are scored on runs "
                         "held out of their fit)")
@@ -121,7 +133,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     fit_runs = [r.truncated(nfit) for r in rr] if nfit else rr
     log = log or (lambda s: None)
     timings = {}
-    with Replayer(jobs) as rep:
+    with Replayer(jobs, target) as rep:
         t0 = time.perf_counter()
         theta_before = rep.simulate([model], rr)
         timings["replay_nominal_s"] = time.perf_counter() - t0
@@ -144,7 +156,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 break
             log(f"round {rnd + 1}: scoring {len(fx.NAMES) - len(accepted)} candidates")
             scored = sel.score_round(spec, accepted, accepted_x, fit_runs, rep, gap_start, k=k,
-                                     candidates=candidates, log=log)
+                                     candidates=candidates, log=log, target=tgt)
             rounds.append(scored)
             best = scored[0]
             runner = scored[1] if len(scored) > 1 else None
@@ -166,7 +178,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 # only visible together, so every pair is fitted jointly too
                 log(f"round 1: the best single candidate removes only {best.share:.0%}: scoring pairs")
                 pairs = sel.score_pairs(spec, fit_runs, rep, gap_start, k=k, candidates=candidates,
-                                        log=log)
+                                        log=log, target=tgt)
                 bp = pairs[0]
                 gain = sel.share_of(bp.heldout_gap, best.heldout_gap)
                 pair_ok = (bp.share >= sel.MIN_SHARE and gain >= sel.MIN_SHARE
@@ -209,7 +221,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
             unc = un.uncertainty(spec, best_accepted, fit_runs, rep)
             se, bias = unc["se"], unc["measurement_bias"]
             cover = un.coverage_factor(len(best_accepted.folds))
-            theta_after = _heldout_theta(spec, best_accepted, rr, rep)
+            theta_after = _heldout_theta(spec, best_accepted, rr, rep, tgt)
         else:
             theta_after = theta_before
         timings["uncertainty_and_evaluation_s"] = time.perf_counter() - t0
@@ -248,7 +260,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 "name": eff.name,
                 "description": eff.description,
                 "parameters": {p.name: float(v) for p, v in zip(eff.params, x)},
-                "nominal": {p.name: float(v) for p, v in zip(eff.params, fx.nominal_values(eff, spec))},
+                "nominal": {p.name: float(v) for p, v in zip(eff.params, fx.nominal_values(eff, spec, tgt))},
                 "uncertainty": {p.name: float(cover * s + abs(b))
                                 for p, s, b in zip(eff.params, se[sl], bias[sl])},
                 "uncertainty_kind": f"95 % half-width: {cover:.2f} x standard error (Student t, "
@@ -273,7 +285,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 item["indistinguishable_from"] = ent["runner_up"]
                 item["separating_experiment"] = ent["separating_experiment"]
             effects_out.append(item)
-        patched = fx.apply(spec, _split(best_accepted.effects, best_accepted.fit.x))
+        patched = fx.apply(spec, _split(best_accepted.effects, best_accepted.fit.x), tgt)
     loc_before = localise(rr, theta_before)
     loc_after = localise(rr, theta_after)
     timings["total_s"] = time.perf_counter() - t_start
