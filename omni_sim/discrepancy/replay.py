@@ -279,10 +279,12 @@ class Replayer:
             hit = self._traj.get(key)
             if (hit is None or len(hit) < nmax) and key not in todo:
                 todo[key] = b
+        fresh: dict = {}
         if todo:
             rows = list(todo.values())
             theta = self._simulate(models, runs, [pairs[b] for b in rows], nmax, None)
             for key, th in zip(todo, theta):
+                fresh[key] = th
                 old = self._traj.pop(key, None)
                 if old is not None:
                     self._traj_samples -= len(old)
@@ -292,8 +294,12 @@ class Replayer:
                 self._traj_samples -= len(self._traj.popitem(last=False)[1])
         out = []
         for key, n in zip(keys, lengths):
-            th = self._traj[key]
-            self._traj.move_to_end(key)
+            # a batch larger than the cache evicts its own first trajectories: those are read
+            # from this batch's results
+            th = fresh.get(key)
+            if th is None:
+                th = self._traj[key]
+                self._traj.move_to_end(key)
             out.append(th[:n].copy())
         return out
 
