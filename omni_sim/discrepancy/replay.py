@@ -279,7 +279,11 @@ class Replayer:
             hit = self._traj.get(key)
             if (hit is None or len(hit) < nmax) and key not in todo:
                 todo[key] = b
-        fresh: dict = {}
+        # trajectories this call returns, kept aside from the cache (a batch larger than the
+        # cache evicts its own first trajectories and cached ones it was about to reuse)
+        fresh: dict = {key: self._traj[key] for key in keys if key not in todo}
+        for key in fresh:
+            self._traj.move_to_end(key)
         if todo:
             rows = list(todo.values())
             theta = self._simulate(models, runs, [pairs[b] for b in rows], nmax, None)
@@ -292,16 +296,7 @@ class Replayer:
                 self._traj_samples += nmax
             while self._traj_samples > CACHE_SAMPLES and len(self._traj) > 1:
                 self._traj_samples -= len(self._traj.popitem(last=False)[1])
-        out = []
-        for key, n in zip(keys, lengths):
-            # a batch larger than the cache evicts its own first trajectories: those are read
-            # from this batch's results
-            th = fresh.get(key)
-            if th is None:
-                th = self._traj[key]
-                self._traj.move_to_end(key)
-            out.append(th[:n].copy())
-        return out
+        return [fresh[key][:n].copy() for key, n in zip(keys, lengths)]
 
     def _simulate(self, models, runs, pairs, nmax: int, measurement) -> np.ndarray:
         """One batch of ``pairs`` through the device engine for ``nmax`` samples, shape (B, nmax)."""
