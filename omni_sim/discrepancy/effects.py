@@ -18,7 +18,73 @@ time_delay         ``yaw_motor`` ``delay`` (``nsample`` buffer) ``delay_s`` [s]
 torque_saturation  ``yaw_motor`` ``forcerange``                 ``torque_limit_nm`` [N*m]
 torque_gain        ``yaw_motor`` ``gear``                       ``gear_nm_per_v`` [N*m/V]
 position_offset    ``yaw_motor`` affine bias ``biasprm[0]``     ``bias_v`` [V]
+presliding_        LuGre ``dcmotor`` on ``yaw`` (the scene's    ``sigma0_nm_per_rad`` [N*m/rad],
+friction           ``yaw_friction``, else a new passive one)    ``fc_nm``, ``fs_nm`` [N*m],
+                                                                ``vs_rad_per_s`` [rad/s]
+stribeck_friction  new passive LuGre ``dcmotor``                ``fc_nm``, ``fs_nm`` [N*m],
+                   ``yaw_stribeck``, sigma0 fixed stiff         ``vs_rad_per_s`` [rad/s]
+drive_compliance   rotor body + hinge ``yaw``; the turret's     ``stiffness_nm_per_rad`` [N*m/rad],
+                   hinge renamed ``yaw_output``; fixed tendon   ``damping_nms_per_rad`` [N*m*s/rad],
+                   ``yaw_cable`` = q_yaw - q_yaw_output         ``rotor_inertia_kgm2`` [kg*m^2]
+                   (stiffness, damping; rotor armature)
+backlash           the same two-mass drive, ``yaw_cable``       ``half_width_rad`` [rad]
+                   limited to [-b, b] (springlength [-b, b])
+arm_mass           ``upper_arm``, ``forearm`` body masses       ``upper_arm_mass_kg``,
+                   (inertia scaled, CoM kept)                   ``forearm_mass_kg`` [kg]
+cogging            new passive ``dcmotor`` ``yaw_cogging``,     ``amplitude_nm`` [N*m],
+                   torque a*sin(n*q_yaw + phase), n fixed       ``phase_rad`` [rad]
 =================  ==========================================  ===================================
+
+(``yaw``/``yaw_motor`` stand for the :class:`Target`'s joint and actuator; added elements are
+named after the joint, with a suffix ``_2``... if the model already uses the name.  Passive
+actuators are appended after every actuator, so controlled ones keep control index = id.)
+
+The drive effects, their magnitudes and where they come from (the Omni's numbers are
+estimates: models/README.md, models/omni.xml):
+
+* ``presliding_friction``: changes the LuGre element the model has (default scene:
+  ``yaw_friction``, calibrated sigma0 = 3.2 N*m/rad, Fc = 12.9, Fs = 31.6 mN*m, vs = 0.62 rad/s;
+  its sigma1 is kept) or adds one with sigma1 = 0 (the scene's choice).  A model without one
+  reads levels 0 (no pre-sliding friction; sigma0 and vs then read 0 and clip to their lower
+  bounds).  Bounds: sigma0 0.3-100 N*m/rad (pre-sliding range Fs/sigma0 from ~0.1 rad down to
+  ~0.3 mrad, under one count at the top); levels 0-0.3 N*m (as ``coulomb_friction``).
+  Visible: sigma0 3.2 -> 10 in the default scene is 54x the noise floor of the bank set.
+* ``stribeck_friction``: a separate stiff LuGre element on top of whatever friction the model
+  has (levels read 0 when absent): sigma0 = :data:`STRIBECK_SIGMA0` so the pre-sliding range
+  stays under one encoder count, sigma1 = :data:`STRIBECK_SIGMA1` to damp the stiff bristle at
+  the 1 ms step.  Realistic: Fc 5-20 mN*m, Fs up to the 35 mN*m back-drive bound; Fc = 5,
+  Fs = 15 mN*m, vs = 0.1 rad/s added to the default scene is ~800x the floor.
+* ``drive_compliance``: the capstan cable as a spring between the rotor (motor and encoder:
+  the encoder joint keeps the name, so the motor, the sensors and the drive friction act on it,
+  with the joint's damping, frictionloss, stiffness and armature) and the turret.  A real
+  steel capstan cable is ~1e3 N*m/rad at the turret (estimate: 0.45 mm stranded steel,
+  EA ~ 1.6e4 N, ~2 cm free length, two strands, ~3 cm drum radius): its mode (~500 Hz with a
+  1e-4 kg*m^2 rotor) sits at the 1 kHz loop's Nyquist frequency and the explicit spring of the
+  1 ms step is unstable above k ~ 4 J/dt^2 (~400 N*m/rad for 1e-4 kg*m^2; a probe script
+  diverged at 400).  The candidate therefore covers soft drives, 0.5-100 N*m/rad (a loose or
+  stretched cable, an elastic coupling; the default scene's sigma0 ~ 3 N*m/rad lumps such a
+  low-energy stiffness, models/README.md), with the rotor inertia bounded below by the
+  5e-5 kg*m^2 end of the rotor estimate (sqrt(100/5e-5) * 1 ms = 1.4 < 2: stable).  Nominal of
+  a rigid drive: read gives inf, :func:`nominal_values` the upper bound 100 N*m/rad, no cable
+  damping, the joint's armature as the rotor -- NOT the rigid model: near the ~3.4 Hz loop
+  resonance even 100 N*m/rad differs from the rigid drive (30x the noise floor of the bank set;
+  k = 20: 160x, k = 5: 600x).  A drive stiffer than ~100 N*m/rad is beyond this candidate.
+* ``backlash``: the same two-mass drive with the cable's length limited to [-b, b] (a stop,
+  solref 2 timesteps, solimp 0.99/0.999: 4e-5 rad penetration at 0.1 N*m) and no spring force
+  inside the band.  A pre-tensioned capstan has no backlash; a slack cable or a loose coupling
+  gives a few counts: b = 1 count is 8x the floor, 3 counts 19x.  A rigid model reads 0 (the
+  lower bound is 1e-6 rad: MuJoCo needs range[0] < range[1]).
+* ``arm_mass``: the calibrated link masses (68.8 g, 59.5 g, models/omni.xml) are inferred
+  from the paper's data; +-30 % is a realistic doubt.  +20 % on both links is ~390x the floor
+  (the arm's gravity sag changes too).  Applies only where both bodies have an explicit
+  inertial.
+* ``cogging``: :data:`COGGING_PERIODS` periods per joint turn (estimate with its reasoning);
+  amplitude 1-3 mN*m (a few % of a small iron-core motor's rated torque times the capstan
+  ratio, ~1/10-1/4 of the drive's Coulomb level; estimate): 1 mN*m is 4.8x the floor, 3 mN*m 14x.
+  The phase is bounded to +-2 pi so a fit started in [-pi, pi) does not sit on a bound.
+
+"Noise floor" above: the gap of the nominal replay to data from the nominal model with the
+encoder's quantisation and 1e-4 rad noise (1.6e-4 rad over ``bank.bank_experiments()``).
 
 Notes on two of them:
 
@@ -314,10 +380,20 @@ def _is_passive_dcmotor(a, joint: str) -> bool:
             and a.biastype == mujoco.mjtBias.mjBIAS_DCMOTOR)
 
 
+def _suffixed(name: str, k: int) -> str:
+    return name if k == 1 else f"{name}_{k}"
+
+
 def _own_dcmotor(spec: mujoco.MjSpec, name: str, joint: str):
-    """The passive dcmotor an effect added (by name), or None."""
-    a = spec.actuator(name)
-    return a if a is not None and _is_passive_dcmotor(a, joint) else None
+    """The passive dcmotor an effect added: ``name`` (or ``name_2``... if the model already had
+    an element called ``name``, see :func:`_unique`) on ``joint``; None if there is none."""
+    for k in range(1, 100):
+        a = spec.actuator(_suffixed(name, k))
+        if a is None:
+            return None
+        if _is_passive_dcmotor(a, joint):
+            return a
+    return None
 
 
 def _add_dcmotor(spec: mujoco.MjSpec, name: str, joint: str, lugre: bool):
@@ -457,18 +533,26 @@ BACKLASH_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 BACKLASH_SOLREF_STEPS = 2.0
 
 
-def _two_mass_names(target: Target) -> tuple[str, str, str]:
-    """Names of the output joint, the rotor body and the cable tendon."""
-    return f"{target.joint}_output", f"{target.joint}_rotor", f"{target.joint}_cable"
+def _two_mass_names(target: Target, k: int = 1) -> tuple[str, str, str]:
+    """Names of the output joint, the rotor body and the cable tendon (suffix ``_k`` for
+    ``k`` > 1: used when the model already had one of the plain names)."""
+    return tuple(_suffixed(f"{target.joint}_{n}", k) for n in ("output", "rotor", "cable"))
 
 
 def _two_mass(spec: mujoco.MjSpec, target: Target):
-    """``(rotor joint, output joint, cable tendon)`` if the two-mass drive exists, else None."""
-    out_name, _, cable = _two_mass_names(target)
-    t, jo, jr = spec.tendon(cable), spec.joint(out_name), spec.joint(target.joint)
-    if t is None or jo is None or jr is None:
+    """``(rotor joint, output joint, cable tendon)`` if the two-mass drive exists, else None.
+
+    It exists when the target joint sits in a body ``<joint>_rotor[_k]`` and the joint
+    ``<joint>_output[_k]`` and the tendon ``<joint>_cable[_k]`` of the same suffix exist."""
+    jr = spec.joint(target.joint)
+    if jr is None:
         return None
-    return jr, jo, t
+    for k in range(1, 100):
+        out_name, rotor_name, cable = _two_mass_names(target, k)
+        if jr.parent.name == rotor_name:
+            t, jo = spec.tendon(cable), spec.joint(out_name)
+            return (jr, jo, t) if t is not None and jo is not None else None
+    return None
 
 
 def _subtree_end(model: mujoco.MjModel, body: int) -> int:
@@ -514,10 +598,14 @@ def _ensure_two_mass(spec: mujoco.MjSpec, target: Target):
     later = [j for j in range(m.njnt) if m.jnt_bodyid[j] > end]
     qadr = int(m.jnt_qposadr[later[0]]) if later else m.nq
     vadr = int(m.jnt_dofadr[later[0]]) if later else m.nv
-    out_name, rotor_name, cable_name = _two_mass_names(target)
-    out_name = _unique(spec, mujoco.mjtObj.mjOBJ_JOINT, out_name)
+    for k in range(1, 100):  # one suffix for all three names, none taken
+        out_name, rotor_name, cable_name = _two_mass_names(target, k)
+        if not (_exists(spec, mujoco.mjtObj.mjOBJ_JOINT, out_name)
+                or _exists(spec, mujoco.mjtObj.mjOBJ_BODY, rotor_name)
+                or _exists(spec, mujoco.mjtObj.mjOBJ_TENDON, cable_name)):
+            break
     jo.name = out_name
-    rb = parent.add_body(name=_unique(spec, mujoco.mjtObj.mjOBJ_BODY, rotor_name))
+    rb = parent.add_body(name=rotor_name)
     rb.pos = m.body_pos[bid].copy()
     rb.quat = m.body_quat[bid].copy()
     rb.explicitinertial = True
@@ -542,7 +630,7 @@ def _ensure_two_mass(spec: mujoco.MjSpec, target: Target):
     jo.frictionloss = 0.0
     jo.damping = [0.0] * len(jo.damping)
     jo.stiffness = [0.0] * len(jo.stiffness)
-    t = spec.add_tendon(name=_unique(spec, mujoco.mjtObj.mjOBJ_TENDON, cable_name))
+    t = spec.add_tendon(name=cable_name)
     t.wrap_joint(target.joint, 1.0)
     t.wrap_joint(out_name, -1.0)
     t.springlength = [0.0, 0.0]
@@ -731,6 +819,51 @@ SEPARATING_EXPERIMENTS = {
         "sines near and above the resonance: damping lowers the peak, a lag raises it",
     frozenset({"torque_saturation", "coulomb_friction"}):
         "steps of 2-3 sizes: saturation only bites on large steps, friction on small ones",
+    frozenset({"presliding_friction", "coulomb_friction"}):
+        "small steps and slow sines of 1-5 mrad (kp*gear*|e| below the static level): pre-sliding "
+        "follows them elastically (the loop gets stiffer, the small-amplitude resonance moves up) "
+        "and creeps on to the set point; a hard Coulomb stick does not move at all until "
+        "kp*gear*|e| exceeds Fc and then stops a constant Fc/(kp*gear) short",
+    frozenset({"stribeck_friction", "coulomb_friction"}):
+        "slow triangle references (constant speeds 0.02-1 rad/s) and slow ramps from rest: the torque "
+        "kp*gear*e needed to keep moving falls with speed from Fs to Fc with Stribeck friction, "
+        "it is flat with Coulomb; from rest Stribeck breaks away at Fs and jumps (stick-slip)",
+    frozenset({"presliding_friction", "stribeck_friction"}):
+        "steps of a few mrad: pre-sliding moves elastically by tau/sigma0 below the break-away, "
+        "a Stribeck stick does not move by even one encoder count",
+    frozenset({"drive_compliance", "armature"}):
+        "small sines or a chirp from 10 to 100 Hz: a compliant cable adds a resonance/antiresonance "
+        "pair near sqrt(k (1/J_rotor + 1/J_out)) that moves with the arm pose (J_out), a rotor "
+        "inertia only lowers the ~3.4 Hz loop resonance; or measure the turret (tip position) "
+        "against the encoder: they differ by tau/k only with a compliant cable",
+    frozenset({"drive_compliance", "actuator_lag"}):
+        "sines above the resonance (10-60 Hz): a lag rolls the gain off monotonically, a compliant "
+        "drive adds a resonance peak near sqrt(k (1/J_rotor + 1/J_out)) and changes with the pose",
+    frozenset({"drive_compliance", "backlash"}):
+        "sines of 2-3 amplitudes at one frequency: backlash is a fixed dead angle at every reversal "
+        "(its effect shrinks as the amplitude grows), compliance deflects in proportion to the "
+        "transmitted torque (the same fraction at every amplitude)",
+    frozenset({"backlash", "coulomb_friction"}):
+        "slow sines around reversals at 2-3 amplitudes, with the turret or tip measured (camera, "
+        "tip tracker) against the encoder: with backlash the motor angle runs through +-b while "
+        "the turret rests at each reversal, with Coulomb friction the motor itself stops",
+    frozenset({"arm_mass", "armature"}):
+        "repeat the runs at two arm poses of very different reach (gamma1=25/gamma2=115 deg vs "
+        "gamma1=65/gamma2=90 deg): a link mass changes the yaw inertia by m*r^2 with the link's "
+        "distance r from the yaw axis (and the arm's sag), an armature by the same amount at every pose",
+    frozenset({"arm_mass", "torque_gain"}):
+        "repeat the runs at two arm poses of very different reach: a link mass shifts the resonance "
+        "differently at each pose, a torque constant by the same factor at every pose",
+    frozenset({"cogging", "gravity_tilt"}):
+        "hold the yaw at closely spaced angles (every 1-2 deg over the range) or follow a slow ramp: "
+        "cogging's torque repeats every 2*pi/n (n periods per turn, 8 deg for the Omni estimate), "
+        "a tilt's torque goes with sin(theta) over the whole range and scales with the arm's reach",
+    frozenset({"cogging", "joint_stiffness"}):
+        "hold the yaw at closely spaced angles (every 1-2 deg) or follow a slow ramp: cogging's "
+        "torque repeats every 2*pi/n, a spring's grows linearly with theta",
+    frozenset({"cogging", "position_offset"}):
+        "steps around set points a fraction of a cogging period (2*pi/n) apart: the offset cogging "
+        "leaves changes sign along theta, a bias does not",
 }
 DEFAULT_SEPARATION = ("repeat the worst-fitting runs at other amplitudes, frequencies and poses")
 
