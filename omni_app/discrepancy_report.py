@@ -126,17 +126,22 @@ def figures(outcome, folder: Path) -> list[str]:
     fig.savefig(folder / "fig_localisation.png", dpi=110)
     plt.close(fig)
     names.append("fig_localisation.png")
-    # 3. candidates
-    fig, ax = plt.subplots(figsize=(9, 3.5))
+    # 3. candidates: one panel per round, held-out share of the gap each removes
+    nr = max(1, len(rep["candidates"]))
+    fig, axes = plt.subplots(1, nr, figsize=(4.2 * nr, 0.28 * max(len(r) for r in rep["candidates"] or [[0]]) + 1.4),
+                             squeeze=False)
     for i, rnd in enumerate(rep["candidates"]):
-        nm = [c["name"] for c in rnd]
-        sh = [max(c["share"], -0.5) for c in rnd]
-        ax.bar(np.arange(len(nm)) + 0.4 * i, sh, 0.4, label=f"round {i + 1}")
-        if i == 0:
-            ax.set_xticks(np.arange(len(nm)), nm, rotation=35, ha="right", fontsize=8)
-    ax.axhline(rep["settings"]["min_share"], color="k", ls=":", lw=0.8, label="acceptance")
-    ax.set_ylabel("held-out share of the gap removed")
-    ax.legend(fontsize=7)
+        ax = axes[0, i]
+        nm = [c["name"] for c in rnd][::-1]
+        sh = [max(c["share"], -0.5) if math.isfinite(c["share"]) else 0.0 for c in rnd][::-1]
+        pre = [c["method"] == "prescreen" for c in rnd][::-1]
+        ax.barh(np.arange(len(nm)), sh, color=["0.8" if p else "C0" for p in pre])
+        ax.set_yticks(np.arange(len(nm)), [n + (" (prescreen)" if p else "") for n, p in zip(nm, pre)],
+                      fontsize=7)
+        ax.axvline(rep["settings"]["min_share"], color="k", ls=":", lw=0.8)
+        ax.set_xlim(-0.5, 1.0)
+        ax.set_xlabel("held-out share of the gap removed", fontsize=8)
+        ax.set_title(f"round {i + 1}", fontsize=9)
     fig.tight_layout()
     fig.savefig(folder / "fig_candidates.png", dpi=110)
     plt.close(fig)
@@ -183,12 +188,29 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
         L += ["**Part of the gap is not explained by the library** (the remaining error stays well "
               "above the noise floor): the named effect is the nearest candidate, not necessarily the "
               "physical cause.", ""]
+    where = rep.get("where", [])
+    if where:
+        L += ["## Where the gap lives (before)", ""]
+        L += [f"- {w['text']}" for w in where]
+        L.append("")
+    elif rep["gap_before"] > 0:
+        L += ["## Where the gap lives (before)", "", "- spread evenly over the regimes mapped "
+              "(speed, reversals, position, command, frequency, amplitude, time): no regime stands "
+              "out.", ""]
+    near = rep.get("nearest_candidates", [])
+    if near and rep["unexplained"]:
+        L += ["Nearest library candidates (**low confidence**: they do not explain the gap): "
+              + ", ".join(f"{c['name']} (removes {c['share']:.0%})" for c in near) + ".", ""]
     L += ["## Candidates (held-out, k-fold over runs)", ""]
     for i, rnd in enumerate(rep["candidates"]):
         L += [f"Round {i + 1} (start gap {_fmt(rep['rounds'][i]['gap_start_rad'])} rad):", "",
               "| candidate | held-out gap [rad] | share removed | folds | parameters |", "|---|---|---|---|---|"]
         for c in rnd:
             ps = ", ".join(f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items())
+            if c["method"] == "prescreen":  # not among the best on the short records
+                L.append(f"| {c['name']} | (short records {_fmt(c['prescreen_gap_rad'])}) | - | "
+                         f"prescreen | {ps} |")
+                continue
             L.append(f"| {c['name']} | {_fmt(c['heldout_gap_rad'])} | {c['share']:+.2f} | {c['method']} | {ps} |")
         L.append("")
     lb, la = rep["localisation"]["before"], rep["localisation"]["after"]

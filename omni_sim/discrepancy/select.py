@@ -320,12 +320,11 @@ def prescreen(spec: mujoco.MjSpec, accepted: list, accepted_x: np.ndarray, names
         grids.append(pts)
     # 1. every candidate's grid, one batch per model group
     nr = len(short)
-    models, pairs, owner = [], [], []
+    models, pairs = [], []
     for c, pts in enumerate(grids):
         for x in pts:
             models.append(probs[c].model(x))
             pairs += [(len(models) - 1, j) for j in range(nr)]
-            owner.append(c)
     th = simulate_grouped(rep, models, short, pairs)
     starts, best_gap, m = [], [], 0
     for c, pts in enumerate(grids):
@@ -429,42 +428,70 @@ def _confirm(spec, s: Scored, runs, rep, folds, gap_start: float, log=None) -> N
 PAIR_GRID_SAMPLES = 700
 #: Pairs (best by their grid) fitted and screened; the best ``n_confirm`` of them confirmed.
 PAIR_FITS = 8
+#: Points per effect of a pair's starting grid (each effect's grid thinned to this many).
+PAIR_GRID_POINTS = 4
 #: Pairs are searched when the best single candidate removes less than this share of the gap.
 PAIR_SEARCH_SHARE = 0.5
+
+
+def _thin(grid: np.ndarray, m: int) -> np.ndarray:
+    """At most ``m`` points of a starting grid, spread over it (ends kept)."""
+    if len(grid) <= m:
+        return grid
+    return grid[np.unique(np.round(np.linspace(0, len(grid) - 1, m)).astype(int))]
 
 
 def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_start: float,
                 k: int = 5, n_confirm: int = 3, n_fit: int = PAIR_FITS,
                 grid_samples: int = PAIR_GRID_SAMPLES, candidates: tuple[str, ...] | None = None,
-                screen_nfev: int = 8, log=None, target: fx.Target = fx.OMNI) -> list[Scored]:
-    """Fit and score every *pair* of candidates jointly; best first.
+                screen_nfev: int = 8, log=None, target: fx.Target = fx.OMNI,
+                anchors: tuple[str, ...] | None = None,
+                grid_points: int = PAIR_GRID_POINTS) -> list[Scored]:
+    """Fit and score *pairs* of candidates jointly; best first.
 
     Two effects can mask each other: a loop delay takes damping away, dry friction adds it, so
     neither alone explains the data (fitted alone, the delay even stays at zero) while together
     they explain it down to the noise.  One effect at a time, as :func:`score_round` adds them,
-    cannot find such a pair.  Here every pair starts from the best point of the product of the
-    two effects' grids (one batch per pair, on the first ``grid_samples`` samples of each run),
-    the ``n_fit`` best pairs are fitted on all runs and screened on held-out runs like the single
-    candidates, and the best ``n_confirm`` are confirmed with exact per-fold refits.
+    cannot find such a pair.  Here every pair (with ``anchors``: every pair holding at least one
+    of them, e.g. the candidates a round screened, since the masking partner of one that
+    explains part of the gap may explain nothing alone) starts from the best point of the
+    product of the two effects' grids (each thinned to ``grid_points``), all pairs' grid points
+    simulated together on the first ``grid_samples`` samples of each run; the ``n_fit`` best
+    pairs are fitted on all runs and screened on held-out runs like the single candidates, and
+    the best ``n_confirm`` are confirmed with exact per-fold refits.
     """
     import itertools
     names = candidates or fx.NAMES
     folds = kfolds(runs, k)
     grid_runs = [r.truncated(grid_samples) for r in runs]
-    starts = []
     t0 = time.perf_counter()
-    for a, b in itertools.combinations(names, 2):
+    combos = [(a, b) for a, b in itertools.combinations(names, 2)
+              if anchors is None or a in anchors or b in anchors]
+    nr = len(grid_runs)
+    models, pairs, pts_of = [], [], []
+    for a, b in combos:
         effects = [fx.get(a), fx.get(b)]
         prob = Problem(spec, [], effects, grid_runs, rep, target)
-        ga = effects[0].grid(fx.nominal_values(effects[0], spec, target))
-        gb = effects[1].grid(fx.nominal_values(effects[1], spec, target))
+        ga = _thin(effects[0].grid(fx.nominal_values(effects[0], spec, target)), grid_points)
+        gb = _thin(effects[1].grid(fx.nominal_values(effects[1], spec, target)), grid_points)
         x0 = np.concatenate([fx.nominal_values(e, spec, target) for e in effects])
         pts = [np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
                                        effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
-               for u in ga for v in gb] + [x0]
-        scores = [gap(raw) for raw in prob.simulate(pts)]
+               for u in ga for v in gb] + [np.clip(x0, prob.lower, prob.upper)]
+        pts_of.append(pts)
+        for x in pts:
+            models.append(prob.model(x))
+            pairs += [(len(models) - 1, j) for j in range(nr)]
+    th = simulate_grouped(rep, models, grid_runs, pairs)
+    starts, m = [], 0
+    for (a, b), pts in zip(combos, pts_of):
+        scores = []
+        for _ in pts:
+            scores.append(gap([th[m * nr + j] - grid_runs[j].theta for j in range(nr)]))
+            m += 1
         i = int(np.argmin(scores))
         starts.append((scores[i], a, b, pts[i]))
+    del th, models
     starts.sort(key=lambda t: t[0])
     if log:
         log(f"  pair grids: {len(starts)} pairs in {time.perf_counter() - t0:.1f} s; best "

@@ -18,7 +18,7 @@ from . import effects as fx
 from . import select as sel
 from . import uncertainty as un
 from .fit import gap
-from .localise import localise
+from .localise import describe, localise
 from .replay import Replayer, prepare_runs
 
 #: Samples (all runs together) above which the fits use only the start of each run: the fit and
@@ -85,7 +85,7 @@ def _confidence(share, margin, unexplained) -> str:
 
 
 def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None, k: int = 5,
-                    max_effects: int = 2, max_fit_samples: int = MAX_FIT_SAMPLES,
+                    max_effects: int = 3, max_fit_samples: int = MAX_FIT_SAMPLES,
                     candidates: tuple[str, ...] | None = None, log=None,
                     target: om.Target | None = None) -> Outcome:
     """Find, name, fit and check the effect(s) the model misses on these measured runs.
@@ -120,11 +120,13 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     spec, model, path = _load_spec(model_path, target)
     rr = prepare_runs(runs, model, target=target)
     tgt = om.OMNI if target is None else target  # where the effects are written
-    if hasattr(fx, "applicable"):  # only candidates that can be written into this model
-        ok_names = fx.applicable(spec, tgt)
-        candidates = tuple(c for c in (candidates or fx.NAMES) if c in ok_names)
-        if not candidates:
-            raise UserError(f"{path}: none of the candidate effects can be written into this model")
+    ok_names = fx.applicable(spec, tgt)  # only candidates that can be written into this model
+    unknown = [c for c in (candidates or ()) if c not in fx.NAMES]
+    if unknown:
+        raise UserError(f"unknown candidate effect(s): {', '.join(unknown)} (library: {', '.join(fx.NAMES)})")
+    candidates = tuple(c for c in (candidates or fx.NAMES) if c in ok_names)
+    if not candidates:
+        raise UserError(f"{path}: none of the candidate effects can be written into this model")
     if len(rr) < 2:
         raise UserError("measured data: at least 2 runs are needed (candidates are scored on runs "
                         "held out of their fit)")
@@ -147,19 +149,24 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         gap_start = fit_before
         best_accepted = None
         t0 = time.perf_counter()
-        for rnd in range(max_effects):
+        rnd = -1
+        while len(accepted) < max_effects:
+            rnd += 1
             if gap_start <= 0:
                 log("the model's replay equals the measured data exactly: nothing to name")
                 break
             if rnd > 0 and gap_start < sel.NOISE_FACTOR * noise:
                 log(f"round {rnd + 1}: skipped, the held-out gap is at the noise floor")
                 break
-            log(f"round {rnd + 1}: scoring {len(fx.NAMES) - len(accepted)} candidates")
+            names = [c for c in candidates if c not in [e.name for e in accepted]]
+            if not names:
+                break
+            log(f"round {rnd + 1}: scoring {len(names)} candidates")
             scored = sel.score_round(spec, accepted, accepted_x, fit_runs, rep, gap_start, k=k,
-                                     candidates=candidates, log=log, target=tgt)
+                                     candidates=tuple(names), log=log, target=tgt)
             rounds.append(scored)
             best = scored[0]
-            runner = scored[1] if len(scored) > 1 else None
+            runner = scored[1] if len(scored) > 1 and math.isfinite(scored[1].heldout_gap) else None
             # margin: share of the runner-up's remaining held-out gap the best removes on top
             margin = sel.share_of(best.heldout_gap, runner.heldout_gap) if runner else 1.0
             ok = best.share >= sel.MIN_SHARE and gap_start >= sel.NOISE_FACTOR * noise
@@ -175,10 +182,12 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
             if (rnd == 0 and max_effects >= 2 and best.share < sel.PAIR_SEARCH_SHARE
                     and gap_start >= sel.REMAINDER_FACTOR * noise):
                 # no single effect explains most of the gap: effects that mask each other are
-                # only visible together, so every pair is fitted jointly too
+                # only visible together, so pairs are fitted jointly too (each pair holds one of
+                # the round's screened candidates)
+                anchors = tuple(c.name for c in scored if c.method != "prescreen")
                 log(f"round 1: the best single candidate removes only {best.share:.0%}: scoring pairs")
-                pairs = sel.score_pairs(spec, fit_runs, rep, gap_start, k=k, candidates=candidates,
-                                        log=log, target=tgt)
+                pairs = sel.score_pairs(spec, fit_runs, rep, gap_start, k=k, candidates=tuple(names),
+                                        log=log, target=tgt, anchors=anchors)
                 bp = pairs[0]
                 gain = sel.share_of(bp.heldout_gap, best.heldout_gap)
                 pair_ok = (bp.share >= sel.MIN_SHARE and gain >= sel.MIN_SHARE
@@ -204,7 +213,8 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                     log(f"round 1: accepted the pair {bp.name} (removes {bp.share:.0%}; "
                         f"{gain:.0%} of what the best single candidate leaves)")
                     accepted, accepted_x, best_accepted = bp.effects, bp.fit.x, bp
-                    break
+                    gap_start = bp.heldout_gap
+                    continue  # forward selection goes on from the pair
                 log(f"round 1: best pair {bp.name} removes {bp.share:.0%} ({gain:.0%} of what the best "
                     "single leaves): not accepted")
             if not ok:
@@ -288,6 +298,9 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         patched = fx.apply(spec, _split(best_accepted.effects, best_accepted.fit.x), tgt)
     loc_before = localise(rr, theta_before)
     loc_after = localise(rr, theta_after)
+    # the library's nearest candidates (round 1, held-out share), for a gap left unexplained
+    nearest = [{"name": c.name, "share": c.share, "confidence": "low"}
+               for c in (rounds[0] if rounds else []) if c.method != "prescreen"][:3]
     timings["total_s"] = time.perf_counter() - t_start
     report = {
         "effects": effects_out,
@@ -303,9 +316,12 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         # above the noise floor: the library does not explain the data
         "unexplained": bool((best_accepted is not None and unexplained > sel.UNEXPLAINED_SHARE)
                             or gap_after > sel.REMAINDER_FACTOR * noise),
+        "where": describe(loc_before, noise),
+        "where_after": describe(loc_after, noise),
+        "nearest_candidates": nearest,
         "rounds": entries,
         "candidates": [[{"name": s.name, "heldout_gap_rad": s.heldout_gap, "share": s.share,
-                         "method": s.method,
+                         "method": s.method, "prescreen_gap_rad": s.prescreen_gap,
                          "parameters": {p.name: float(v) for e, x in _split(s.effects, s.fit.x)
                                         for p, v in zip(e.params, x)}} for s in rnd] for rnd in rounds],
         "localisation": {"before": loc_before, "after": loc_after},
