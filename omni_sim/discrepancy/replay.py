@@ -186,6 +186,8 @@ class Replayer:
         self._pool = rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0)
         self._devices: dict = {}
         self.steps = 0  # physics steps simulated so far (for timings)
+        self.unstable_warnings = 0  # MuJoCo's instability warnings during replays
+        self.first_warning = ""
         # replayed trajectories by (model content, run content), least recently used first
         self._traj: OrderedDict = OrderedDict()
         self._traj_samples = 0
@@ -193,6 +195,11 @@ class Replayer:
 
     def __enter__(self):
         return self
+
+    def _warned(self, msg: str) -> None:
+        self.unstable_warnings += 1
+        if not self.first_warning:
+            self.first_warning = " ".join(str(msg).split())
 
     def __exit__(self, *exc):
         self.close()
@@ -320,10 +327,19 @@ class Replayer:
                         [float(runs[j].theta[0]) for _, j in pairs],
                         [runs[j].gamma_set_deg for _, j in pairs],
                         nthread=self.nthread, pool=self._pool)
+        # MuJoCo reports an unstable state (and resets that row's data) through its warning
+        # handler, from the rollout's threads; by default it prints and appends to
+        # MUJOCO_LOG.TXT in the working folder.  A candidate's parameter can make the model
+        # unstable (a stiff cable on a light rotor): such a row's replay is wrong and scores
+        # badly, so the warnings are counted (``unstable_warnings``), not printed.
+        prev = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(self._warned)
         try:
             theta = run_p_loop(engine, rmat, kp, noise, qstep,
                                command_limit=None if np.all(np.isinf(limit)) else limit)["theta"]
         except RuntimeError:
             raise RuntimeError("replay diverged (non-finite yaw angle)") from None
+        finally:
+            mujoco.set_mju_user_warning(prev)
         self.steps += B * nmax
         return theta

@@ -246,9 +246,10 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
     return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
 
 
-#: Samples per run of the short records on which every candidate is prescreened (1.5 s at
-#: 1 kHz: a step edge and its settling, or 2-5 cycles of a 1.5-3.5 Hz sine after the start).
-PRESCREEN_SAMPLES = 1500
+#: Samples per run of the short records on which every candidate is prescreened (1 s at 1 kHz:
+#: a step edge and its settling, or 1.5-3.5 cycles of a 1.5-3.5 Hz sine from the start; half of
+#: a bank run, a sixth of a paper-campaign sine).
+PRESCREEN_SAMPLES = 1000
 #: Candidates (best on the short records) that go on to the held-out screening on all samples.
 N_SCREEN = 6
 #: Lockstep Gauss-Newton iterations of the prescreen.

@@ -236,6 +236,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
             theta_after = theta_before
         timings["uncertainty_and_evaluation_s"] = time.perf_counter() - t0
         steps = rep.steps
+        warnings = {"unstable_simulations": rep.unstable_warnings, "first": rep.first_warning}
     res_after = [th - r.theta for th, r in zip(theta_after, rr)]
     gap_after = gap(res_after)
     excess0 = math.sqrt(max(gap_before**2 - noise**2, 0.0))
@@ -328,6 +329,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         "settings": {"folds": k, "max_effects": max_effects, "min_share": sel.MIN_SHARE,
                      "noise_factor": sel.NOISE_FACTOR, "tie_margin": sel.TIE_MARGIN,
                      "fit_samples_per_run": nfit, "model": path, "mujoco": mujoco.__version__},
+        "mujoco_warnings": warnings,
         "timings": {**timings, "physics_steps": steps,
                     "steps_per_s": steps / max(timings["naming_s"] + timings["replay_nominal_s"], 1e-9)},
     }
