@@ -81,6 +81,7 @@ __all__ = [
     "simulate_alpha_batch",
     "simulate_alpha_reference",
     "simulate_linear",
+    "set_kernel",
     "zoh_coefficients",
     "square_wave_reference",
     "bench_simulation",
@@ -347,6 +348,22 @@ def simulate_alpha_reference(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_
                    n_bracketed=(int(bracketed[0]) if single else bracketed))
 
 
+#: A compiled replacement of :func:`_batch_loop_numpy` (same arguments, same numbers bit for
+#: bit), registered by an application with :func:`set_kernel`; None: the numpy loop.  This
+#: package never imports a compiler itself (numpy/scipy only).
+_KERNEL = None
+
+
+def set_kernel(kernel):
+    """Register ``kernel``, a compiled implementation of the time loop of
+    :func:`simulate_alpha_batch` (and so of :func:`simulate_alpha`) with the arguments of
+    :func:`_batch_loop_numpy`, giving the same numbers bit for bit (e.g.
+    ``omni_app.alpha_kernel``); ``None`` restores the numpy loop.  Returns the previous one."""
+    global _KERNEL
+    previous, _KERNEL = _KERNEL, kernel
+    return previous
+
+
 #: Iteration indices i of (44) computed together (without a convergence test in between) by
 #: :func:`simulate_alpha`; inclusive ranges covering 2..max_iter.
 _CHUNKS = ((2, 4), (5, 7), (8, 10), (11, 14), (15, 19), (20, 26), (27, 35), (36, 50))
@@ -418,7 +435,8 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
     Returns
     -------
     list of SimResult
-        One single-run result per run, in the order of ``r``.
+        One single-run result per run, in the order of ``r`` (its arrays are views into
+        arrays shared by the call's runs).
     """
     if max_iter < 2:
         raise ValueError(f"max_iter must be at least 2 (the rule (46) compares two iterates), got {max_iter}")
@@ -465,6 +483,44 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
     b_slope = (b1 - b0) / (a1 - a0)
     b_floor = model.options["beta_floor_fraction"] * min(b0, b1)
     clamp = bool(model.options.get("beta_clamp", False))
+    # outputs (n, R) indexed [step, run], stored run-major so that each run's result is a
+    # contiguous view (no copies)
+    out_th, out_ph, out_v, out_a, out_C, out_b = (np.zeros((R, n)).T for _ in range(6))
+    out_it = np.zeros((R, n), dtype=np.int32).T
+    not_conv = np.zeros(R, dtype=np.int64)
+    bracketed = np.zeros(R, dtype=np.int64)
+    alive = np.searchsorted(-lens_s, -np.arange(n), side="left")  # runs with length > k
+    loop = _batch_loop_numpy if _KERNEL is None else _KERNEL
+    loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th.copy(), ph.copy(), grp, breaks, c_inv,
+         float(b0), float(b1), float(a0), float(a1), float(b_slope), float(b_floor), clamp,
+         float(dt), int(max_iter), out_th, out_ph, out_v, out_a, out_C, out_b, out_it, not_conv,
+         bracketed)
+    results = [None] * R
+    for j, o in enumerate(order):
+        L = lens_s[j]
+        results[o] = SimResult(theta=out_th[:L, j], phi=out_ph[:L, j], v=out_v[:L, j],
+                               C=out_C[:L, j], beta_tilde=out_b[:L, j], alpha=out_a[:L, j],
+                               n_iter=out_it[:L, j], n_not_converged=int(not_conv[j]),
+                               n_bracketed=int(bracketed[j]))
+    return results
+
+
+def _batch_loop_numpy(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
+                      b0, b1, a0, a1, b_slope, b_floor, clamp, dt, max_iter, out_th, out_ph,
+                      out_v, out_a, out_C, out_b, out_it, not_conv, bracketed):
+    """The time loop of :func:`simulate_alpha_batch` (numpy), and the contract of a compiled
+    replacement registered with :func:`set_kernel`.
+
+    Runs are columns, sorted longest first; ``alive[k]`` runs (a prefix) are still going at
+    step k.  Inputs: ``Rt``, ``RDt``, ``RDDt`` (n, R) reference and its derivatives; per run
+    ``kp_``, ``invI_`` (1/I), ``Cl_``, ``bl_``, the initial state ``th``, ``ph`` (overwritten),
+    the batch id ``grp`` (int64); the model: ``breaks``, ``c_inv`` (C(α)·I by np.interp),
+    β̃(α)·I = max(b0 + b_slope·(clip(α, a0, a1) − a0), b_floor) (clip only if ``clamp``);
+    ``dt``, ``max_iter``.  Outputs, filled in place for the alive runs: ``out_th``, ``out_ph``,
+    ``out_v``, ``out_a``, ``out_C``, ``out_b`` (n, R) float64, ``out_it`` (n, R) int32,
+    ``not_conv``, ``bracketed`` (R,) int64 (added to).
+    """
+    n = Rt.shape[0]
     maximum, absolute, clip = np.maximum, np.abs, np.clip
     # Operations that cannot change a bit, skipped: x - 0.0 == x; and with β̃ clamped to
     # [a0, a1] the line lies between b0 and b1, so a floor below half of both is never taken.
@@ -484,16 +540,6 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
         return vd2 - v * (kr - kp * (beta(a, inv_i) * v - Ca * ph))
 
     chunks = _chunks(max_iter)
-    out_th = np.zeros((n, R))
-    out_ph = np.zeros((n, R))
-    out_v = np.zeros((n, R))
-    out_a = np.zeros((n, R))
-    out_C = np.zeros((n, R))
-    out_b = np.zeros((n, R))
-    out_it = np.zeros((n, R), dtype=np.int32)
-    not_conv = np.zeros(R, dtype=np.int64)
-    bracketed = np.zeros(R, dtype=np.int64)
-    alive = np.searchsorted(-lens_s, -np.arange(n), side="left")  # runs with length > k
     m_prev = -1
     with np.errstate(all="ignore"):
         for k in range(n):
@@ -565,15 +611,6 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
                 u = b * v
                 th = th + g1 * ph + g2 * u
                 ph = E * ph + g1 * u
-    results = [None] * R
-    for j, o in enumerate(order):
-        L = lens_s[j]
-        results[o] = SimResult(theta=out_th[:L, j].copy(), phi=out_ph[:L, j].copy(),
-                               v=out_v[:L, j].copy(), C=out_C[:L, j].copy(),
-                               beta_tilde=out_b[:L, j].copy(), alpha=out_a[:L, j].copy(),
-                               n_iter=out_it[:L, j].copy(), n_not_converged=int(not_conv[j]),
-                               n_bracketed=int(bracketed[j]))
-    return results
 
 
 def _tolerance(alpha):

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from . import scoring
+from .csvformat import format_rows
 from .dataset import Run
 from .errors import UserError
 from .inertia import InertiaParameters
@@ -231,10 +232,9 @@ def write_predictions(folder: Path, runs: list[Run], predictions: dict[str, dict
     for run in runs:
         p = predictions[run.name]
         data = np.column_stack([run.t, run.theta, p["theta_linear"], p["theta_alpha"]])
-        row = "%.17g,%.17g,%.17g,%.17g\n"
         with open(folder / "predictions" / f"{run.name}.csv", "w", newline="\n") as fh:
             fh.write("t,theta,theta_linear,theta_alpha\n")
-            fh.write((row * len(data)) % tuple(data.ravel()))
+            fh.write(format_rows(data).decode("ascii"))  # "%.17g" per number
 
 
 def validate_runs(runs: list[Run], params: Params) -> tuple[dict, dict]:

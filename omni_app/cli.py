@@ -165,6 +165,8 @@ def _dispatch(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    from .accel import install
+    install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
     try:
         return _dispatch(args) or 0
     except UserError as exc:

@@ -52,6 +52,8 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     """
     from tqdm import tqdm
 
+    from .accel import install
+    install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
     in_memory = model is not None and model_path is None
     if model is None:
         model = om.load_model(model_path)

@@ -381,6 +381,8 @@ def _reproduce(spec, model, values: dict, settings, pipe: dict) -> tuple[dict, d
     from omni_sim import experiments as ex
     from omni_sim import truth
 
+    from .accel import install
+    install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
     exps = _campaign(pipe).experiments(values.get("amplitude_rad"))
     runs = ex.simulate(exps, settings=settings, jobs=1, model=model)
     ident = identify_runs(runs)

@@ -1,0 +1,68 @@
+"""Compiled kernels for the method layer, registered by the application.
+
+``identification`` is numpy/scipy only.  Where a compiled version of one of its loops exists,
+the application registers it here and the method uses it, with the same results bit for bit:
+
+* the α-model simulation's time loop (:mod:`omni_app.alpha_kernel`, registered with
+  :func:`identification.simulate.set_kernel`);
+* the ``%.17g`` CSV formatter of datasets and predictions (:mod:`omni_app.csv_kernel`,
+  registered with :func:`identification.csvformat.set_kernel`).
+
+Nothing is imported or compiled until the first call needs it (numba compiles a kernel then,
+or loads it from its on-disk cache); if numba is missing or fails, the numpy/Python code is
+kept, with a warning.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+_loaded: dict = {}     # name -> the compiled function, or None when it failed
+
+
+def _load(name: str):
+    if name not in _loaded:
+        try:
+            if name == "alpha":
+                from .alpha_kernel import loop as fn
+            else:
+                from .csv_kernel import format_rows as fn
+            _loaded[name] = fn
+        except Exception as exc:  # noqa: BLE001  (reported; the fallback gives the same results)
+            _loaded[name] = None
+            warnings.warn(f"numba kernel {name!r} unavailable ({type(exc).__name__}: {exc}); "
+                          "using the numpy code", RuntimeWarning, stacklevel=3)
+    return _loaded[name]
+
+
+def _lazy(name: str, module, fallback):
+    """A function for ``module.set_kernel``: on its first call loads the kernel, registers it in
+    place of itself, and runs it (``fallback`` if it is unavailable or fails)."""
+
+    def first_call(*args):
+        fn = _load(name)
+        module.set_kernel(fn)
+        if fn is None:
+            return fallback(*args)
+        try:
+            return fn(*args)
+        except Exception as exc:  # noqa: BLE001  (e.g. a compiler error at the first call)
+            _loaded[name] = None
+            module.set_kernel(None)
+            warnings.warn(f"numba kernel {name!r} failed ({type(exc).__name__}: {exc}); "
+                          "using the numpy code", RuntimeWarning, stacklevel=2)
+            return fallback(*args)
+
+    return first_call
+
+
+def install() -> None:
+    """Register the compiled kernels (where none is registered yet): the α simulation of
+    :func:`identification.simulate.simulate_alpha_batch` (and ``simulate_alpha``), and
+    :func:`identification.csvformat.format_rows` (datasets, predictions)."""
+    from identification import csvformat, simulate
+
+    for name, module, fallback in (("alpha", simulate, simulate._batch_loop_numpy),
+                                   ("csv", csvformat, csvformat.format_rows_reference)):
+        if module._KERNEL is None and _loaded.get(name, True) is not None:
+            module.set_kernel(_loaded.get(name) or _lazy(name, module, fallback))

@@ -1,0 +1,299 @@
+"""The α-model simulation's time loop compiled with numba (issue 14).
+
+:func:`identification.simulate.simulate_alpha_batch` runs a per-time-step recursion (the
+quasilinear iteration (44)–(46) and its bisection fallback, then an exact ZOH step) that numpy
+can only vectorise over runs: ~200 k sequential steps of a few small-array calls each.  This
+module is the same loop, operation for operation, in compiled code: the arguments and the
+numbers (bit for bit) of ``identification.simulate._batch_loop_numpy``, which is its
+reference.  The method layer stays numpy/scipy only: the application registers the kernel
+(:func:`omni_app.accel.install`), and the numpy loop is used wherever it is not registered or
+numba cannot compile.
+
+Bit-for-bit equality holds because every floating-point operation is the numpy loop's, in the
+same order, without fast-math (no reassociation, no FMA contraction): ``np.interp``'s formula
+(slope·(x − x_j) + f_j, with its NaN and end rules), ``np.maximum``/``np.clip``'s NaN rules,
+libm's ``exp`` and ``expm1`` (which numpy's float64 loops call too), and the bisection of each
+batch (``groups``) run to the batch's common stopping step.
+
+This module imports numba; :mod:`omni_app.accel` registers it lazily (numba is imported and
+the loop compiled or loaded at the first α simulation; the numpy loop is kept if that fails).
+Compiled functions are cached on disk (``cache=True``): in ``__pycache__`` next to this file
+when that folder is writable, else in numba's user cache (``NUMBA_CACHE_DIR``, or
+``~/.cache/numba``); where no cache can be written they are compiled in memory each run.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+_SERIES_BELOW = 0.02
+_N_SERIES = 7
+_G1 = np.array([1.0 / math.factorial(n + 1) for n in range(_N_SERIES)][::-1])
+_G2 = np.array([1.0 / math.factorial(n + 2) for n in range(_N_SERIES)][::-1])
+_MAX_BISECT = 200
+_MAX_CREEP = 61
+
+
+def _jit(fn):
+    """numba.njit with IEEE semantics (no fast-math; division by zero gives inf/NaN as in
+    numpy) and an on-disk cache where one can be written."""
+    try:
+        return numba.njit(cache=True, error_model="numpy", nogil=True)(fn)
+    except RuntimeError:  # no cache locator (nothing writable): compile in memory
+        return numba.njit(error_model="numpy", nogil=True)(fn)
+
+
+@_jit
+def interp(x, xp, fp):
+    """np.interp(x, xp, fp) for one x (numpy's arr_interp, default left/right)."""
+    n = xp.shape[0]
+    if n == 1:
+        return fp[0]
+    if math.isnan(x):
+        return x
+    if x > xp[n - 1]:
+        return fp[n - 1]
+    if x < xp[0]:
+        return fp[0]
+    j = 0
+    while j < n - 1 and xp[j + 1] <= x:
+        j += 1
+    if j == n - 1:
+        return fp[j]
+    if xp[j] == x:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    res = slope * (x - xp[j]) + fp[j]
+    if math.isnan(res):
+        res = slope * (x - xp[j + 1]) + fp[j + 1]
+        if math.isnan(res) and fp[j] == fp[j + 1]:
+            res = fp[j]
+    return res
+
+
+@_jit
+def npmax(a, b):
+    """np.maximum for two floats."""
+    return a if (a >= b or math.isnan(a)) else b
+
+
+@_jit
+def npmin(a, b):
+    """np.minimum for two floats."""
+    return a if (a <= b or math.isnan(a)) else b
+
+
+@_jit
+def tol(a):
+    """The stopping tolerance of (46): max(1e-6, 1e-3·|α|)."""
+    return npmax(1e-6, 1e-3 * abs(a))
+
+
+@_jit
+def beta(a, inv_i, b0, a0, a1, b_slope, b_floor, clamp):
+    x = a
+    if clamp:
+        x = npmin(npmax(x, a0), a1)
+    x = b0 + b_slope * (x - a0)
+    return npmax(x, b_floor) * inv_i
+
+
+@_jit
+def g(a, v, vd2, kr, ph, inv_i, kp, breaks, c_inv, b0, a0, a1, b_slope, b_floor, clamp):
+    Ca = interp(a, breaks, c_inv) * inv_i
+    return vd2 - v * (kr - kp * (beta(a, inv_i, b0, a0, a1, b_slope, b_floor, clamp) * v
+                                 - Ca * ph))
+
+
+@_jit
+def argmin_masked(A, H, last, negative):
+    """np.argmin of |A − last| where H ≤ 0 (``negative``) or H ≥ 0, +inf elsewhere: the
+    first minimum, or the first NaN."""
+    best = 0
+    bv = np.inf
+    for j in range(A.shape[0]):
+        sel = H[j] <= 0 if negative else H[j] >= 0
+        d = abs(A[j] - last) if sel else np.inf
+        if math.isnan(d):
+            return j
+        if j == 0 or d < bv:
+            bv = d
+            best = j
+    return best
+
+
+@_jit
+def loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv, b0, b1,
+         a0, a1, b_slope, b_floor, clamp, dt, max_iter, out_th, out_ph, out_v, out_a, out_C,
+         out_b, out_it, not_conv, bracketed):
+    n, R = Rt.shape
+    hist = np.empty((R, max_iter))
+    Hs = np.empty(max_iter)
+    a = np.empty(R)
+    v = np.empty(R)
+    vd2 = np.empty(R)
+    kr = np.empty(R)
+    conv = np.zeros(R, dtype=np.bool_)
+    pending = np.empty(R, dtype=np.int64)
+    ok = np.zeros(R, dtype=np.bool_)
+    lo = np.empty(R)
+    hi = np.empty(R)
+    h_lo = np.empty(R)
+    for k in range(n):
+        m = alive[k]
+        n_pending = 0
+        for j in range(m):
+            out_th[k, j] = th[j]
+            out_ph[k, j] = ph[j]
+            kp = kp_[j]
+            vj = kp * (Rt[k, j] - th[j])
+            vd = kp * (RDt[k, j] - ph[j])
+            vd2j = vd * vd
+            krj = kp * RDDt[k, j]
+            v[j] = vj
+            vd2[j] = vd2j
+            kr[j] = krj
+            # (45'): first iterate from the linear model's acceleration; α^(1) by (44)
+            x = vd2j - vj * (krj - kp * (bl_[j] * vj - Cl_[j] * ph[j]))
+            hist[j, 0] = x
+            its = max_iter
+            done = False
+            for i in range(2, max_iter + 1):
+                xn = g(x, vj, vd2j, krj, ph[j], invI_[j], kp, breaks, c_inv, b0, a0, a1,
+                       b_slope, b_floor, clamp)
+                hist[j, i - 1] = xn
+                if abs(xn - x) < tol(xn):
+                    x = xn
+                    its = i
+                    done = True
+                    break
+                x = xn
+            a[j] = x
+            out_it[k, j] = its
+            if not done:
+                pending[n_pending] = j
+                n_pending += 1
+        # (46) not met within max_iter: bisection, batch by batch (the numpy loop's
+        # _bisect_fallback on each batch's pending runs)
+        for p0 in range(n_pending):
+            gid = grp[pending[p0]]
+            first = True
+            for p1 in range(p0):
+                if grp[pending[p1]] == gid:
+                    first = False
+                    break
+            if not first:
+                continue
+            any_ok = False
+            for p in range(p0, n_pending):
+                j = pending[p]
+                if grp[j] != gid:
+                    continue
+                A = hist[j]
+                L = max_iter
+                last = A[L - 1]
+                for q in range(L - 1):
+                    Hs[q] = A[q] - A[q + 1]
+                h_last = last - g(last, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j], breaks,
+                                  c_inv, b0, a0, a1, b_slope, b_floor, clamp)
+                Hs[L - 1] = h_last
+                neg = argmin_masked(A, Hs, last, True)
+                pos = argmin_masked(A, Hs, last, False)
+                okj = Hs[neg] <= 0 and Hs[pos] >= 0
+                a_n = A[neg]
+                a_p = A[pos]
+                h_n = Hs[neg]
+                h_p = Hs[pos]
+                if not okj:
+                    # no sign change among the iterates: step on in the direction of travel
+                    step = last - A[L - 2]
+                    found = False
+                    far = last
+                    h_far = h_last
+                    for mm in range(_MAX_CREEP):
+                        if step == 0:
+                            break
+                        xx = last + step * 2.0 ** mm
+                        hx = xx - g(xx, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j], breaks,
+                                    c_inv, b0, a0, a1, b_slope, b_floor, clamp)
+                        if hx * h_last <= 0:
+                            far = xx
+                            h_far = hx
+                            found = True
+                            break
+                    if found:
+                        a_n = last
+                        h_n = h_last
+                        a_p = far
+                        h_p = h_far
+                        okj = True
+                ok[j] = okj
+                any_ok = any_ok or okj
+                lo[j] = npmin(a_n, a_p)
+                hi[j] = npmax(a_n, a_p)
+                h_lo[j] = h_n if a_n <= a_p else h_p
+            for _ in range(_MAX_BISECT):
+                all_done = True
+                for p in range(p0, n_pending):
+                    j = pending[p]
+                    if grp[j] == gid and ok[j]:
+                        mid = 0.5 * (lo[j] + hi[j])
+                        if not (hi[j] - lo[j] < tol(mid)):
+                            all_done = False
+                            break
+                if all_done:
+                    break
+                for p in range(p0, n_pending):
+                    j = pending[p]
+                    if grp[j] != gid or not ok[j]:
+                        continue
+                    mid = 0.5 * (lo[j] + hi[j])
+                    h_mid = mid - g(mid, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j],
+                                    breaks, c_inv, b0, a0, a1, b_slope, b_floor, clamp)
+                    if h_lo[j] * h_mid <= 0:
+                        hi[j] = mid
+                    else:
+                        lo[j] = mid
+                        h_lo[j] = h_mid
+            for p in range(p0, n_pending):
+                j = pending[p]
+                if grp[j] != gid:
+                    continue
+                if ok[j]:
+                    a[j] = 0.5 * (lo[j] + hi[j])
+                    bracketed[j] += 1
+                else:
+                    a[j] = hist[j, max_iter - 1]
+                    not_conv[j] += 1
+        for j in range(m):
+            aj = a[j]
+            C = interp(aj, breaks, c_inv) * invI_[j]
+            b = beta(aj, invI_[j], b0, a0, a1, b_slope, b_floor, clamp)
+            out_v[k, j] = v[j]
+            out_a[k, j] = aj
+            out_C[k, j] = C
+            out_b[k, j] = b
+            if k + 1 < n:
+                # exact ZOH step (identification.simulate.zoh_coefficients)
+                x = C * dt
+                if abs(x) < _SERIES_BELOW:
+                    s1 = 0.0
+                    s2 = 0.0
+                    for c in range(_N_SERIES):
+                        s1 = s1 * (-x) + _G1[c]
+                        s2 = s2 * (-x) + _G2[c]
+                    G1 = s1
+                    G2 = s2
+                else:
+                    em1 = math.expm1(-x)
+                    G1 = -em1 / x
+                    G2 = (1.0 - G1) / x
+                E = math.exp(-x)
+                g1 = dt * G1
+                g2 = dt * dt * G2
+                u = b * v[j]
+                th[j] = th[j] + g1 * ph[j] + g2 * u
+                ph[j] = E * ph[j] + g1 * u
