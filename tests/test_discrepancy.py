@@ -1,6 +1,6 @@
 """omni discrepancy: replay against the reference loop, the effect library, the localisation,
-the workflow on hidden effects (fast representatives; the whole bank is marked slow), and the
-command's error paths."""
+the workflow on hidden effects (fast representatives; the whole bank: tests/test_discrepancy_bank.py,
+marked slow), and the command's error paths."""
 
 import json
 import os
@@ -124,15 +124,6 @@ def test_fast_unexplained_gap_is_flagged(tmp_path):
     md = (tmp_path / "report.md").read_text()
     assert "The gap is unexplained" in md
     assert json.loads((tmp_path / "report.json").read_text())["unexplained"] is True
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("case_name", [c.name for c in bank.CASES])
-def test_bank(case_name):
-    hidden = bank.case(case_name)
-    rep = run_discrepancy(bank.generate(hidden), None).report
-    ok, why = bank.assess(hidden, rep)
-    assert ok, (why, rep["effects"])
 
 
 # --- command line and bad input ------------------------------------------------------------
