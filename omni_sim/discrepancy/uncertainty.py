@@ -1,9 +1,51 @@
 """How far to trust a fitted effect's parameters: standard errors and the 95 % interval.
 
-Three sources are combined (:func:`uncertainty`): the spread of the parameters over the k folds
-(jackknife), the Jacobian at the all-runs optimum (:func:`omni_sim.discrepancy.fit.jacobian_se`)
-and the measurement process through the closed loop (:func:`measurement_effect`, a parametric
-bootstrap).
+Five sources are combined (:func:`uncertainty`):
+
+* statistical: the spread of the parameters over the k folds (jackknife), the Jacobian at the
+  all-runs optimum (:func:`omni_sim.discrepancy.fit.jacobian_se`) and the measurement process
+  through the closed loop (:func:`measurement_effect`, a parametric bootstrap);
+* numerical (they matter when the data hold little noise, e.g. exact simulated data, where the
+  statistical terms vanish): the optimiser's stopping point (:func:`optimiser_term`) and the
+  simulation's floor (:func:`numerical_floor`).
+
+The optimiser's term
+--------------------
+``least_squares`` stops on its tolerances (``xtol``, ``ftol`` in
+:meth:`omni_sim.discrepancy.fit.Problem.fit`), not at the optimum ``x*``.  Near ``x*`` the
+weighted residual is ``f(x) ~ f(x*) + J_t (x - x*)``; a Gauss-Newton step computed with the
+finite-difference Jacobian ``J`` at the final ``x`` is ``dx1 = -(J'J)^-1 J'f(x) = -(I - E)(x - x*)``
+with ``E = I - (J'J)^-1 J'J_t`` (the Jacobian's relative error; zero-residual or small-residual
+problem).  A second step from ``x + dx1`` is ``dx2 ~ -E dx1``-sized, so the iteration contracts
+with rate ``kappa ~ |dx2| / |dx1|`` and the distance still to travel is
+``|x - x*| <= |dx1| + |dx2| / (1 - kappa)`` (geometric tail; ``kappa`` capped at
+:data:`KAPPA_MAX`).  This half-width ``b_opt`` (per parameter, component-wise) costs one
+Jacobian evaluation at ``x + dx1`` (``p + 1`` simulations of all runs).
+
+The simulation's floor
+----------------------
+The replay is a deterministic function of the parameters, but not an exactly smooth one: float
+round-off of a closed-loop replay over thousands of steps, the constraint solver's tolerance
+(frictionloss, noslip, limits) and discrete events make ``f(x)`` deviate from its local
+linearisation by a small "numerical noise" ``e``.  Re-evaluating the residual at
+``x + eta_k`` and ``x + 2 eta_k`` (each parameter alone, ``eta_k`` = :data:`FLOOR_STEP` of its
+finite-difference step, so small that the curvature term is negligible; the sign flipped at an
+upper bound) gives ``e_k = (f(x + 2 eta_k) - 2 f(x + eta_k) + f(x)) / 2``, what a linear model
+cannot explain.  A residual perturbation ``e`` moves the
+least-squares solution by ``(J'J)^-1 J'e``, whose component ``i`` is bounded by
+``sqrt(((J'J)^-1)_ii) |e|`` (Cauchy-Schwarz); ``b_floor_i`` is that bound with the largest
+``|e_k|`` (``2 p`` simulations).
+
+Combination
+-----------
+The two numerical terms are bounds on errors whose sign is not known: they enter as Type B
+components of the GUM (JCGM 100:2008, 4.3.7), a uniform distribution of half-width ``b`` with
+standard uncertainty ``b / sqrt(3)``, root-sum-squared with the three statistical standard errors
+into ``se``.  The reported 95 % half-width (``workflow.py``) is the Student-t factor of the
+jackknife times ``se`` plus the bootstrap's mean shift; since ``t / sqrt(3) >= 1.13`` for any
+number of folds, a numerical term alone is always covered.  The coverage study
+(``scripts/discrepancy_coverage.py``, docs/discrepancy/) checks the whole interval on data with
+known truth, with and without noise, and reports the intervals' median width too.
 """
 
 from __future__ import annotations
@@ -22,8 +64,10 @@ def uncertainty(spec, s: Scored, runs, rep) -> dict:
 
     Returns a dict of arrays: ``jackknife`` (over the k folds' parameters), ``jacobian`` (at the
     all-runs optimum, :func:`jacobian_se`), ``measurement`` and ``measurement_bias`` (the
-    measurement process through the closed loop, :func:`measurement_effect`), and ``se``, the
-    root-sum-square of the three standard errors (the reported one).
+    measurement process through the closed loop, :func:`measurement_effect`), ``optimiser``
+    and ``numerical_floor`` (half-widths, :func:`optimiser_term`, :func:`numerical_floor`), and
+    ``se``, the root-sum-square of the three standard errors and the two half-widths / sqrt(3)
+    (the reported one; see the module docstring).
     """
     k = len(s.fold_x)
     X = np.array(s.fold_x)
@@ -31,8 +75,12 @@ def uncertainty(spec, s: Scored, runs, rep) -> dict:
     prob = Problem(spec, [], s.effects, runs, rep, s.target)
     se_jac = jacobian_se(prob, s.fit)
     se_meas, bias = measurement_effect(s, runs, rep, spec)
-    return {"se": np.sqrt(se_jk**2 + se_jac**2 + se_meas**2), "jackknife": se_jk, "jacobian": se_jac,
-            "measurement": se_meas, "measurement_bias": bias}
+    b_opt, opt_info = optimiser_term(prob, s.fit)
+    b_floor = numerical_floor(prob, s.fit)
+    se = np.sqrt(se_jk**2 + se_jac**2 + se_meas**2 + (b_opt**2 + b_floor**2) / 3.0)
+    return {"se": se, "jackknife": se_jk, "jacobian": se_jac, "measurement": se_meas,
+            "measurement_bias": bias, "optimiser": b_opt, "numerical_floor": b_floor,
+            "optimiser_info": opt_info}
 
 
 def coverage_factor(k: int) -> float:
@@ -132,3 +180,67 @@ def measurement_effect(s: Scored, runs: list[ReplayRun], rep: Replayer, spec,
             xs[d] = np.clip(xs[d] + dz * prob.scale, prob.lower, prob.upper)
     dx = np.array(xs) - s.fit.x
     return (dx.std(axis=0, ddof=1) if draws > 1 else np.zeros(p)), dx.mean(axis=0)
+
+
+#: Largest contraction rate of the Gauss-Newton iteration the optimiser's term trusts: a rate
+#: measured above it (steps that do not shrink, e.g. a rough objective) is taken as this, so the
+#: tail bound stays finite (the floor term covers the roughness itself).
+KAPPA_MAX = 0.5
+#: Perturbation of the floor test, as a fraction of each parameter's finite-difference step
+#: (:meth:`Problem._steps`, 5 % of its scale): small enough that the curvature term
+#: (~eta^2 f'') is far below the float round-off of the replay for the library's effects.
+FLOOR_STEP = 1e-4
+
+
+def _gn_step(prob: Problem, x: np.ndarray, f: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """Gauss-Newton step from ``x`` (scaled least squares, kept inside the bounds)."""
+    Js = J * prob.scale
+    dz, *_ = np.linalg.lstsq(Js, -f, rcond=1e-12)
+    return np.clip(x + dz * prob.scale, prob.lower, prob.upper) - x
+
+
+def optimiser_term(prob: Problem, fit) -> tuple[np.ndarray, dict]:
+    """Half-width [parameter units] of the distance between the fit's stopping point and the
+    optimum of its objective (module docstring, "The optimiser's term").
+
+    Returns ``(b_opt, info)``; ``info`` holds the two Gauss-Newton steps and the rate."""
+    p = len(fit.x)
+    if p == 0 or fit.jac is None or fit.resid is None:
+        return np.zeros(p), {}
+    dx1 = _gn_step(prob, fit.x, fit.resid, fit.jac)
+    if not np.any(dx1):
+        return np.zeros(p), {"step1": dx1.tolist(), "step2": [0.0] * p, "kappa": 0.0}
+    f2, J2, _ = prob.evaluate(fit.x + dx1)
+    dx2 = _gn_step(prob, fit.x + dx1, f2, J2)
+    n1 = float(np.linalg.norm(dx1 / prob.scale))
+    kappa = min(float(np.linalg.norm(dx2 / prob.scale)) / n1, KAPPA_MAX) if n1 > 0 else 0.0
+    b = np.abs(dx1) + np.abs(dx2) / (1.0 - kappa)
+    return b, {"step1": dx1.tolist(), "step2": dx2.tolist(), "kappa": kappa}
+
+
+def numerical_floor(prob: Problem, fit) -> np.ndarray:
+    """Half-width [parameter units] of the parameters' uncertainty from the replay's numerical
+    noise (module docstring, "The simulation's floor")."""
+    p = len(fit.x)
+    if p == 0 or fit.jac is None or fit.resid is None:
+        return np.zeros(p)
+    x = fit.x
+    etas = [FLOOR_STEP * abs(h) for h in prob._steps(x)]
+    pts = []
+    for i, eta in enumerate(etas):
+        e = np.zeros(p)
+        # one-sided second difference (f(x+2e) - 2 f(x+e) + f(x)): stays inside the bounds
+        e[i] = eta if x[i] + 2 * eta <= prob.upper[i] else -eta
+        pts += [x + e, x + 2 * e]
+    raws = prob.simulate(pts)
+    f0 = fit.resid
+    worst = 0.0
+    for i in range(p):
+        f1, f2 = prob.weighted(raws[2 * i]), prob.weighted(raws[2 * i + 1])
+        worst = max(worst, float(np.linalg.norm((f2 - 2 * f1 + f0) / 2)))
+    Js = fit.jac * prob.scale
+    try:
+        cov = np.linalg.pinv(Js.T @ Js)
+    except np.linalg.LinAlgError:
+        return np.full(p, np.inf)
+    return np.sqrt(np.maximum(np.diag(cov), 0.0)) * prob.scale * worst
