@@ -26,7 +26,6 @@ per-step iteration (44).
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 __all__ = [
     "DEFAULT_WINDOW_S",
@@ -162,6 +161,8 @@ def derivatives_from_samples(t, v, window_s=DEFAULT_WINDOW_S, polyorder=DEFAULT_
     -------
     v_s, v_dot, v_ddot : ndarray [X], [X/s], [X/s²]
     """
+    from scipy.signal import savgol_filter  # here: scipy.signal takes ~1 s to import
+
     t = np.asarray(t, dtype=float)
     v = np.asarray(v, dtype=float)
     if t.ndim != 1 or v.shape != t.shape or t.size < 3:

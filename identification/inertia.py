@@ -41,7 +41,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize, special
 
 from .errors import UserError
 
@@ -339,7 +339,9 @@ def fit_inertia_model(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear, *,
     cov_x = (vt.T * inv_sv2) @ vt if np.all(np.isfinite(inv_sv2)) else np.full((p, p), np.inf)
     cov_x = cov_x * s2
     to_phys = np.array([s, s, s, s, 1.0, c0_reg])
-    tq = float(stats.t.ppf(0.975, dof)) if dof > 0 else math.inf
+    # Student t quantile: scipy.stats.t.ppf(0.975, dof) is special.stdtrit(dof, 0.975)
+    # (without importing scipy.stats, ~1 s)
+    tq = float(special.stdtrit(dof, 0.975)) if dof > 0 else math.inf
     half = tq * np.sqrt(np.abs(np.diag(cov_x))) * to_phys
     values = np.array([getattr(params, k) for k in PARAM_NAMES])
     ci = {k: (float(v - h), float(v + h)) for k, v, h in zip(PARAM_NAMES, values, half)}

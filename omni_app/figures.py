@@ -222,9 +222,13 @@ def fig_step(folder: Path, res: dict) -> None:
                  "fig14_step.png")
 
 
+#: Every figure of the reproduce report, in drawing order.
+FIGURES = (fig_inertia, fig_inertia_truth, fig_nonlinear_vs_inertia, fig_alpha_vs_frequency,
+           fig_C_beta_vs_alpha, fig_bode, fig_time_sine, fig_step)
+
+
 def write_figures(folder: Path, res: dict) -> list[str]:
     """Write every figure into ``folder``; returns the file names."""
-    for fn in (fig_inertia, fig_inertia_truth, fig_nonlinear_vs_inertia, fig_alpha_vs_frequency,
-               fig_C_beta_vs_alpha, fig_bode, fig_time_sine, fig_step):
+    for fn in FIGURES:
         fn(folder, res)
     return sorted(p.name for p in folder.glob("*.png"))

@@ -128,10 +128,17 @@ def format_report(ident, source: str = "") -> str:
     return "\n".join(out) + "\n"
 
 
-def write_identify_report(ident, folder, source: str = "") -> None:
-    """Write ``report.md`` and the PNG figures into ``folder``."""
+def write_identify_report(ident, folder, source: str = "", figures: bool = True) -> None:
+    """Write ``report.md`` and (unless ``figures`` is False) the PNG figures into ``folder``."""
     folder = Path(folder)
     (folder / "report.md").write_text(format_report(ident, source))
+    if figures:
+        write_identify_figures(ident, folder)
+
+
+def write_identify_figures(ident, folder) -> None:
+    """The PNG figures of :func:`write_identify_report`."""
+    folder = Path(folder)
     _local_figure(ident, folder / "local_linear.png")
     if ident.inertia is not None:
         _inertia_figure(ident, folder / "inertia_fit.png")

@@ -93,14 +93,14 @@ def write_reproduce(folder: Path, res: dict, t0: float) -> None:
     """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
     params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
     (perf_counter), for the real-time factor."""
-    figures = _start_figures(folder, res)  # drawn in a child process meanwhile (POSIX)
+    (folder / "identify").mkdir()
+    figures = _start_figures(folder, res)  # drawn in child processes meanwhile (POSIX)
     (folder / "dataset").mkdir()
     for run in res["runs"]:
         write_run(folder / "dataset", run)
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
-    (folder / "identify").mkdir()
-    write_identify_report(res["ident"], folder / "identify", source="dataset/")
+    write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
     figures()
     summary = res["scores"]["summary"]
     summary["run"]["wall_s_total"] = time.perf_counter() - t0
@@ -111,49 +111,84 @@ def write_reproduce(folder: Path, res: dict, t0: float) -> None:
     (folder / "report.md").write_text(format_report(res))
 
 
-#: Longest wait [s] for the forked figure child (it takes ~3 s; 30x that on a loaded machine).
+#: Longest wait [s] for a forked figure child (it takes ~2 s; 30x that on a loaded machine).
 FIGURES_TIMEOUT_S = 120.0
+#: Forked children drawing the figures (the main process writes the CSVs meanwhile).
+FIGURE_CHILDREN = 2
+
+
+def _figure_tasks(folder: Path, res: dict) -> list[list]:
+    """The figures of one reproduction (``folder``: the report's; ``folder/identify``: the
+    identify report's) as ``FIGURE_CHILDREN`` lists of callables of similar drawing time."""
+    from . import figures as F
+    from . import identify_report as IR
+
+    ident, ident_dir = res["ident"], folder / "identify"
+    a = [F.fig_C_beta_vs_alpha, F.fig_alpha_vs_frequency, F.fig_inertia, F.fig_time_sine]
+    b = [F.fig_nonlinear_vs_inertia, F.fig_bode, F.fig_inertia_truth, F.fig_step]
+    tasks = [[lambda fn=fn: fn(folder, res) for fn in a],
+             [lambda: IR.write_identify_figures(ident, ident_dir)]
+             + [lambda fn=fn: fn(folder, res) for fn in b]]
+    assert sorted(fn.__name__ for fn in a + b) == sorted(fn.__name__ for fn in F.FIGURES)
+    if FIGURE_CHILDREN == 1:
+        return [tasks[0] + tasks[1]]
+    return tasks
 
 
 def _start_figures(folder: Path, res: dict):
-    """Start drawing the figures of ``res`` into ``folder``; returns a function that waits for
-    them (and raises if drawing failed).  Where ``fork`` exists the figures are drawn in a
-    forked child (matplotlib is imported there only), in parallel with the writing of the
-    dataset and predictions; elsewhere they are drawn at the wait."""
+    """Start drawing the figures of ``res`` into ``folder`` (and ``folder/identify``, which
+    must exist); returns a function that waits for them (and raises if drawing failed).  Where
+    ``fork`` exists the figures are drawn in forked children (matplotlib is imported there
+    only), in parallel with the writing of the dataset and predictions; elsewhere they are drawn
+    at the wait."""
     import multiprocessing as mp
     import os
 
-    def draw():
-        from .figures import write_figures
-        write_figures(folder, res)
+    groups = _figure_tasks(folder, res)
+
+    def draw(tasks):
+        for task in tasks:
+            task()
 
     if "fork" not in mp.get_all_start_methods() or os.environ.get("OMNI_FIGURES_INLINE"):
-        return draw
-    queue = mp.get_context("fork").SimpleQueue()
+        def draw_all():
+            for tasks in groups:
+                draw(tasks)
+        return draw_all
+    ctx = mp.get_context("fork")
+    children = []
+    for tasks in groups:
+        queue = ctx.SimpleQueue()
 
-    def child():
-        try:
-            draw()
-            queue.put(None)
-        except BaseException as exc:  # reported to the parent
-            queue.put(f"{type(exc).__name__}: {exc}")
+        def child(tasks=tasks, queue=queue):
+            try:
+                draw(tasks)
+                queue.put(None)
+            except BaseException as exc:  # reported to the parent
+                queue.put(f"{type(exc).__name__}: {exc}")
 
-    proc = mp.get_context("fork").Process(target=child, daemon=True)
-    proc.start()
+        proc = ctx.Process(target=child, daemon=True)
+        proc.start()
+        children.append((proc, queue, tasks))
 
     def wait():
-        # the message is a few bytes: the child never blocks on the pipe.  A forked child of a
+        # the message is a few bytes: a child never blocks on the pipe.  A forked child of a
         # threaded process can in principle hang on a lock another thread held at the fork:
-        # after FIGURES_TIMEOUT_S it is killed and the figures are drawn here instead.
-        proc.join(FIGURES_TIMEOUT_S)
-        if proc.is_alive():
-            proc.kill()
-            proc.join()
-            draw()
-            return
-        error = queue.get() if not queue.empty() else f"exit code {proc.exitcode}"
-        if error is not None:
-            raise RuntimeError(f"drawing the figures failed ({error})")
+        # after FIGURES_TIMEOUT_S it is killed and its figures are drawn here instead.
+        errors = []
+        deadline = time.monotonic() + FIGURES_TIMEOUT_S
+        for proc, queue, tasks in children:
+            proc.join(max(0.0, deadline - time.monotonic()))
+            if proc.is_alive():
+                proc.kill()
+                proc.join()
+                draw(tasks)
+                continue
+            error = queue.get() if not queue.empty() else f"exit code {proc.exitcode}"
+            if error is not None:
+                errors.append(error)
+        if errors:
+            raise RuntimeError(f"drawing the figures failed ({'; '.join(errors)})")
 
     return wait
 

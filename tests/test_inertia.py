@@ -109,3 +109,11 @@ def test_fit_of_table3_against_table5_modelled():
     assert fit.cost <= paper_cost  # measured 0.010597 vs 0.011094
     assert set(fit.poorly_determined) == {"I_base", "I2", "I3", "gamma_offs_deg"}
     assert fit.ci95["C0_bar"][0] < 36.693 < fit.ci95["C0_bar"][1]
+
+
+def test_t_quantile_is_scipy_stats():
+    """The confidence intervals' Student t quantile (special.stdtrit, without scipy.stats)."""
+    from scipy import special, stats
+
+    for dof in (1, 2, 5, 17, 42, 100, 1000):
+        assert float(special.stdtrit(dof, 0.975)) == float(stats.t.ppf(0.975, dof))

@@ -91,3 +91,17 @@ def test_dry_friction_biases_the_inertia_by_its_kind():
     assert np.median(errs) < 0, errs
     heavy = np.asarray(inertia) >= np.quantile(inertia, 2 / 3)
     assert np.all(np.asarray(errs)[heavy] < 0), errs
+
+
+def test_zoh_discretise_is_scipys_cont2discrete():
+    """truth's ZOH discretisation (without importing scipy.signal) gives cont2discrete's numbers."""
+    from scipy import signal
+
+    rng = np.random.default_rng(0)
+    for C, b, T in [(5.0, 200.0, 1e-3), (0.0, 150.0, 1e-3)] + [tuple(x) for x in rng.uniform(
+            [0.0, 100.0, 1e-4], [50.0, 300.0, 1e-2], (20, 3))]:
+        a, bb = np.array([[0.0, 1.0], [0.0, -C]]), np.array([[0.0], [b]])
+        ad, bd, *_ = signal.cont2discrete((a, bb, np.eye(2), np.zeros((2, 1))), T, "zoh")
+        ad2, bd2 = truth.zoh_discretise(a, bb, T)
+        np.testing.assert_array_equal(ad2, ad)
+        np.testing.assert_array_equal(bd2, bd)
