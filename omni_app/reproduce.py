@@ -38,12 +38,14 @@ def _model_label(model_path) -> str:
 
 
 def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
-                  campaign="paper") -> dict:
+                  campaign="paper", on_stage=None) -> dict:
     """Run every stage in memory; returns everything the writers need.
 
     ``model``: an already compiled (possibly modified) model to run instead of the file
     ``model_path`` (e.g. the friction study's scaled models); ``campaign``: the campaign to
-    generate (name or file, :func:`omni_sim.experiments.campaign`).
+    generate (name or file, :func:`omni_sim.experiments.campaign`); ``on_stage``: called as
+    ``on_stage("simulated", runs)`` and ``on_stage("identified", ident)`` as soon as those
+    exist (``omni reproduce`` starts writing the dataset and drawing figures then).
 
     Raises
     ------
@@ -62,12 +64,16 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     bar.set_description("simulating the paper campaign")
     exps = ex.campaign(campaign)
     runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
+    if on_stage is not None:
+        on_stage("simulated", runs)
     bar.update(1)
     bar.set_description("identifying")
     ident = identify_runs(runs)
     if ident.inertia is None or ident.alpha_model is None:
         bar.close()
         raise UserError("identification failed on the generated campaign: " + "; ".join(ident.warnings))
+    if on_stage is not None:
+        on_stage("identified", ident)
     params_dict = ident.to_params()
     bar.update(1)
     bar.set_description("validating")
@@ -89,19 +95,23 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
             "predictions": predictions, "linear_truth": lin, "bar": bar}
 
 
-def write_reproduce(folder: Path, res: dict, t0: float) -> None:
+def write_reproduce(folder: Path, res: dict, t0: float, workers: "_Workers | None" = None) -> None:
     """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
     params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
-    (perf_counter), for the real-time factor."""
-    (folder / "identify").mkdir()
-    figures = _start_figures(folder, res)  # drawn in child processes meanwhile (POSIX)
-    (folder / "dataset").mkdir()
-    for run in res["runs"]:
-        write_run(folder / "dataset", run)
+    (perf_counter), for the real-time factor.  ``workers``: those :func:`_early_writer` started
+    on the way (the dataset and the identification's figures under way already); else they are
+    started here.  The dataset and the figures are written by forked children (POSIX) while
+    this process writes the rest."""
+    if workers is None:
+        workers = _Workers()
+        stage = _early_writer(folder, workers)
+        stage("simulated", res["runs"])
+        stage("identified", res["ident"])
+    workers.start([lambda fn=fn: fn(folder, res) for fn in _late_figures()])
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
     write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
-    figures()
+    workers.wait()
     summary = res["scores"]["summary"]
     summary["run"]["wall_s_total"] = time.perf_counter() - t0
     summary["run"]["real_time_factor"] = summary["run"]["simulated_time_s"] / summary["run"]["wall_s_total"]
@@ -111,86 +121,110 @@ def write_reproduce(folder: Path, res: dict, t0: float) -> None:
     (folder / "report.md").write_text(format_report(res))
 
 
-#: Longest wait [s] for a forked figure child (it takes ~2 s; 30x that on a loaded machine).
-FIGURES_TIMEOUT_S = 120.0
-#: Forked children drawing the figures (the main process writes the CSVs meanwhile).
-FIGURE_CHILDREN = 2
-
-
-def _figure_tasks(folder: Path, res: dict) -> list[list]:
-    """The figures of one reproduction (``folder``: the report's; ``folder/identify``: the
-    identify report's) as ``FIGURE_CHILDREN`` lists of callables of similar drawing time."""
+def _ident_figures():
+    """Figures that need only the identification (drawn while validation runs)."""
     from . import figures as F
+    return [F.fig_C_beta_vs_alpha, F.fig_alpha_vs_frequency, F.fig_nonlinear_vs_inertia]
+
+
+def _late_figures():
+    """The other figures (they need the validation's scores and predictions)."""
+    from . import figures as F
+    early = _ident_figures()
+    return [fn for fn in F.FIGURES if fn not in early]
+
+
+def _early_writer(folder: Path, workers: "_Workers"):
+    """An ``on_stage`` for :func:`run_reproduce`: starts writing ``folder/dataset/`` once the
+    runs exist, and drawing the figures that need only the identification (``folder/identify/``
+    and the report's) once it exists, in ``workers``."""
     from . import identify_report as IR
 
-    ident, ident_dir = res["ident"], folder / "identify"
-    a = [F.fig_C_beta_vs_alpha, F.fig_alpha_vs_frequency, F.fig_inertia, F.fig_time_sine]
-    b = [F.fig_nonlinear_vs_inertia, F.fig_bode, F.fig_inertia_truth, F.fig_step]
-    tasks = [[lambda fn=fn: fn(folder, res) for fn in a],
-             [lambda: IR.write_identify_figures(ident, ident_dir)]
-             + [lambda fn=fn: fn(folder, res) for fn in b]]
-    assert sorted(fn.__name__ for fn in a + b) == sorted(fn.__name__ for fn in F.FIGURES)
-    if FIGURE_CHILDREN == 1:
-        return [tasks[0] + tasks[1]]
-    return tasks
+    def on_stage(stage, value):
+        if stage == "simulated":
+            (folder / "dataset").mkdir()
+            workers.start([lambda: [write_run(folder / "dataset", run) for run in value]])
+        elif stage == "identified":
+            (folder / "identify").mkdir()
+            res = {"ident": value}
+            workers.start([lambda: IR.write_identify_figures(value, folder / "identify")]
+                          + [lambda fn=fn: fn(folder, res) for fn in _ident_figures()])
+
+    return on_stage
 
 
-def _start_figures(folder: Path, res: dict):
-    """Start drawing the figures of ``res`` into ``folder`` (and ``folder/identify``, which
-    must exist); returns a function that waits for them (and raises if drawing failed).  Where
-    ``fork`` exists the figures are drawn in forked children (matplotlib is imported there
-    only), in parallel with the writing of the dataset and predictions; elsewhere they are drawn
-    at the wait."""
-    import multiprocessing as mp
-    import os
+#: Longest wait [s] for the forked children (together; they take ~3 s, 30x that on a loaded
+#: machine): a child still running then is killed and its work done in the main process.
+FIGURES_TIMEOUT_S = 120.0
 
-    groups = _figure_tasks(folder, res)
 
-    def draw(tasks):
+class _Workers:
+    """Work (lists of callables) done by forked children while the main process goes on.
+
+    Where ``fork`` is missing, or ``OMNI_FIGURES_INLINE`` is set, the work is done at
+    :meth:`wait` instead.  A forked child of a threaded process can in principle hang on a lock
+    another thread held at the fork: a child not done within ``FIGURES_TIMEOUT_S`` is killed and
+    its work done in the main process.  A child's error is raised by :meth:`wait`.
+    """
+
+    def __init__(self):
+        import multiprocessing as mp
+        import os
+
+        self.fork = "fork" in mp.get_all_start_methods() and not os.environ.get("OMNI_FIGURES_INLINE")
+        self.ctx = mp.get_context("fork") if self.fork else None
+        self.jobs = []      # (process or None, queue or None, tasks)
+
+    @staticmethod
+    def _run(tasks):
         for task in tasks:
             task()
 
-    if "fork" not in mp.get_all_start_methods() or os.environ.get("OMNI_FIGURES_INLINE"):
-        def draw_all():
-            for tasks in groups:
-                draw(tasks)
-        return draw_all
-    ctx = mp.get_context("fork")
-    children = []
-    for tasks in groups:
-        queue = ctx.SimpleQueue()
+    def start(self, tasks) -> None:
+        if not self.fork:
+            self.jobs.append((None, None, tasks))
+            return
+        queue = self.ctx.SimpleQueue()
 
-        def child(tasks=tasks, queue=queue):
+        def child():
             try:
-                draw(tasks)
+                self._run(tasks)
                 queue.put(None)
             except BaseException as exc:  # reported to the parent
                 queue.put(f"{type(exc).__name__}: {exc}")
 
-        proc = ctx.Process(target=child, daemon=True)
+        proc = self.ctx.Process(target=child, daemon=True)
         proc.start()
-        children.append((proc, queue, tasks))
+        self.jobs.append((proc, queue, tasks))
 
-    def wait():
-        # the message is a few bytes: a child never blocks on the pipe.  A forked child of a
-        # threaded process can in principle hang on a lock another thread held at the fork:
-        # after FIGURES_TIMEOUT_S it is killed and its figures are drawn here instead.
+    def wait(self) -> None:
         errors = []
         deadline = time.monotonic() + FIGURES_TIMEOUT_S
-        for proc, queue, tasks in children:
+        jobs, self.jobs = self.jobs, []
+        for proc, queue, tasks in jobs:
+            if proc is None:
+                self._run(tasks)
+                continue
+            # the message is a few bytes: a child never blocks on the pipe
             proc.join(max(0.0, deadline - time.monotonic()))
             if proc.is_alive():
                 proc.kill()
                 proc.join()
-                draw(tasks)
+                self._run(tasks)
                 continue
             error = queue.get() if not queue.empty() else f"exit code {proc.exitcode}"
             if error is not None:
                 errors.append(error)
         if errors:
-            raise RuntimeError(f"drawing the figures failed ({'; '.join(errors)})")
+            raise RuntimeError(f"writing the dataset or drawing the figures failed ({'; '.join(errors)})")
 
-    return wait
+    def kill(self) -> None:
+        """Stop every child (the output is being abandoned)."""
+        for proc, _, _ in self.jobs:
+            if proc is not None and proc.is_alive():
+                proc.kill()
+                proc.join()
+        self.jobs = []
 
 
 def _print_summary(res: dict, label: str = "") -> None:
@@ -225,11 +259,19 @@ def reproduce_command(args) -> int:
     model_path = None if (args.model is None and friction is None) else om.model_path(args.model, friction)
     _check_out(out, args.force)
     t0 = time.perf_counter()
-    res = run_reproduce(model_path, args.jobs, progress=sys.stderr.isatty())
-    bar = res["bar"]
-    bar.set_description("writing report and figures")
     with atomic_output_dir(out, force=args.force) as tmp:
-        write_reproduce(tmp, res, t0)
+        workers = _Workers()
+        try:
+            # the dataset is written, and the identification's figures drawn, by forked
+            # children as soon as the runs and the identification exist
+            res = run_reproduce(model_path, args.jobs, progress=sys.stderr.isatty(),
+                                on_stage=_early_writer(tmp, workers))
+            bar = res["bar"]
+            bar.set_description("writing report and figures")
+            write_reproduce(tmp, res, t0, workers)
+        except BaseException:
+            workers.kill()
+            raise
     bar.update(1)
     bar.close()
     _print_summary(res)
