@@ -291,7 +291,8 @@ def fit_inertia_model(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear, *,
     hi = np.full(6, np.inf)
 
     def solve_fixed_gamma(gam):
-        a = s * _basis(g1, g2, gam)
+        basis = _basis(g1, g2, gam)
+        a = s * basis
         x4, _ = optimize.nnls(a * b[:, None], np.ones(n))
         if not np.any(x4 > 0):
             x4 = np.full(4, 0.25)
@@ -301,8 +302,9 @@ def fit_inertia_model(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear, *,
         x0 = np.r_[x4, k]
         x0 = np.maximum(x0, [0, 0, 0, 0, 1e-6]) + [1e-9, 1e-9, 1e-9, 1e-9, 0]
 
-        def f5(y):
-            return resid(np.r_[y[:4], gam, y[4]])
+        def f5(y):  # resid(np.r_[y[:4], gam, y[4]]) with the basis at gam computed once
+            inert = s * (basis @ np.ascontiguousarray(y[:4]))
+            return np.concatenate([1.0 / (inert * b) - 1.0, 1.0 / (y[4] * c0_reg * inert * c) - 1.0])
 
         r = optimize.least_squares(f5, x0, bounds=(np.delete(lo, 4), np.delete(hi, 4)),
                                    method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12)
