@@ -227,6 +227,21 @@ class _Workers:
         self.jobs = []
 
 
+def _one_blas_thread():
+    """A context limiting BLAS (numpy's and scipy's OpenBLAS) to one thread.  The method's
+    least-squares problems are small (thousands of samples by at most 7 columns): a second
+    BLAS thread gains nothing, and while the forked writers and figure children keep the other
+    core busy it only waits (identification and scoring took several times longer).  The
+    numbers do not depend on it (the same files, byte for byte)."""
+    import contextlib
+
+    try:
+        from threadpoolctl import threadpool_limits
+        return threadpool_limits(limits=1, user_api="blas")
+    except Exception:  # noqa: BLE001  (threadpoolctl missing or failing: BLAS as configured)
+        return contextlib.nullcontext()
+
+
 def _print_summary(res: dict, label: str = "") -> None:
     s = res["scores"]["summary"]
     st, sn, inr = s["step"], s["sine"], s["inertia"]
@@ -259,7 +274,7 @@ def reproduce_command(args) -> int:
     model_path = None if (args.model is None and friction is None) else om.model_path(args.model, friction)
     _check_out(out, args.force)
     t0 = time.perf_counter()
-    with atomic_output_dir(out, force=args.force) as tmp:
+    with _one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp:
         workers = _Workers()
         try:
             # the dataset is written, and the identification's figures drawn, by forked
@@ -286,9 +301,14 @@ def reproduce_all(out: Path, force: bool = False, jobs: int | None = None,
     ``out/<family>/`` and their comparison (``out/comparison.json``, ``comparison.md``,
     overlay figures; :mod:`omni_app.comparison`).  ``campaign``: the paper's (the command's),
     or a smaller one (tests)."""
+    _check_out(out, force)
+    with _one_blas_thread():
+        return _reproduce_all(out, force, jobs, campaign)
+
+
+def _reproduce_all(out: Path, force: bool, jobs: int | None, campaign: str) -> int:
     from .comparison import write_comparison
 
-    _check_out(out, force)
     results, starts = {}, {}
     for fam in om.FRICTION_FAMILIES:
         starts[fam] = time.perf_counter()
