@@ -107,7 +107,8 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: "_Workers | Non
         stage = _early_writer(folder, workers)
         stage("simulated", res["runs"])
         stage("identified", res["ident"])
-    workers.start([lambda fn=fn: fn(folder, res) for fn in _late_figures()])
+    # the dataset's writer, which has the runs and matplotlib loaded by now, draws the rest
+    workers.send_late({k: res[k] for k in ("ident", "scores", "predictions")})
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
     write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
@@ -134,16 +135,30 @@ def _late_figures():
     return [fn for fn in F.FIGURES if fn not in early]
 
 
+def _load_matplotlib() -> None:
+    from .figures import _plt
+    _plt()
+
+
 def _early_writer(folder: Path, workers: "_Workers"):
-    """An ``on_stage`` for :func:`run_reproduce`: starts writing ``folder/dataset/`` once the
-    runs exist, and drawing the figures that need only the identification (``folder/identify/``
-    and the report's) once it exists, in ``workers``."""
+    """An ``on_stage`` for :func:`run_reproduce`, starting work in ``workers`` as soon as it can
+    be done: once the runs exist, a child writes ``folder/dataset/``, loads matplotlib and
+    waits for the validation's results to draw the figures that need them
+    (:meth:`_Workers.send_late`); once the identification exists, another draws the figures
+    that need only it (``folder/identify/`` and the report's)."""
     from . import identify_report as IR
 
     def on_stage(stage, value):
         if stage == "simulated":
             (folder / "dataset").mkdir()
-            workers.start([lambda: [write_run(folder / "dataset", run) for run in value]])
+
+            def late(payload, runs=value):
+                res = {**payload, "runs": runs}
+                for fn in _late_figures():
+                    fn(folder, res)
+
+            workers.start([lambda: [write_run(folder / "dataset", run) for run in value],
+                           _load_matplotlib], then=late)
         elif stage == "identified":
             (folder / "identify").mkdir()
             res = {"ident": value}
@@ -161,10 +176,13 @@ FIGURES_TIMEOUT_S = 120.0
 class _Workers:
     """Work (lists of callables) done by forked children while the main process goes on.
 
-    Where ``fork`` is missing, or ``OMNI_FIGURES_INLINE`` is set, the work is done at
-    :meth:`wait` instead.  A forked child of a threaded process can in principle hang on a lock
-    another thread held at the fork: a child not done within ``FIGURES_TIMEOUT_S`` is killed and
-    its work done in the main process.  A child's error is raised by :meth:`wait`.
+    :meth:`start` forks a child for a list of tasks, optionally followed by ``then(payload)``
+    once :meth:`send_late` gives the payload (passed through a temporary pickle file, so that
+    the sender never blocks).  Where ``fork`` is missing, or ``OMNI_FIGURES_INLINE`` is set,
+    the work is done at :meth:`wait` instead.  A forked child of a threaded process can in
+    principle hang on a lock another thread held at the fork: a child not done within
+    ``FIGURES_TIMEOUT_S`` is killed and its work done in the main process.  A child's error is
+    raised by :meth:`wait`.
     """
 
     def __init__(self):
@@ -173,57 +191,100 @@ class _Workers:
 
         self.fork = "fork" in mp.get_all_start_methods() and not os.environ.get("OMNI_FIGURES_INLINE")
         self.ctx = mp.get_context("fork") if self.fork else None
-        self.jobs = []      # (process or None, queue or None, tasks)
+        self.jobs = []      # dicts: proc, queue, conn (or None), tasks, then, payload, file
 
-    @staticmethod
-    def _run(tasks):
-        for task in tasks:
-            task()
-
-    def start(self, tasks) -> None:
+    def start(self, tasks, then=None) -> None:
+        job = {"proc": None, "queue": None, "conn": None, "tasks": tasks, "then": then,
+               "payload": None, "file": None}
+        self.jobs.append(job)
         if not self.fork:
-            self.jobs.append((None, None, tasks))
             return
+        import pickle
+
         queue = self.ctx.SimpleQueue()
+        recv, send = self.ctx.Pipe(duplex=False) if then is not None else (None, None)
 
         def child():
+            import os
             try:
-                self._run(tasks)
+                for task in tasks:
+                    task()
+                if then is not None:
+                    path = recv.recv()
+                    with open(path, "rb") as fh:
+                        payload = pickle.load(fh)
+                    os.unlink(path)
+                    then(payload)
                 queue.put(None)
             except BaseException as exc:  # reported to the parent
                 queue.put(f"{type(exc).__name__}: {exc}")
 
         proc = self.ctx.Process(target=child, daemon=True)
         proc.start()
-        self.jobs.append((proc, queue, tasks))
+        job.update(proc=proc, queue=queue, conn=send)
+
+    def send_late(self, payload) -> None:
+        """Give ``payload`` to the job started with ``then`` (none: nothing to do)."""
+        for job in self.jobs:
+            if job["then"] is None or job["payload"] is not None:
+                continue
+            job["payload"] = payload
+            if job["conn"] is not None:
+                import os
+                import pickle
+                import tempfile
+
+                fd, path = tempfile.mkstemp(prefix="omni-figures-", suffix=".pkl")
+                with os.fdopen(fd, "wb") as fh:
+                    pickle.dump(payload, fh, protocol=pickle.HIGHEST_PROTOCOL)
+                job["file"] = path
+                job["conn"].send(path)   # a few bytes: never blocks
+
+    @staticmethod
+    def _run(job) -> None:
+        for task in job["tasks"]:
+            task()
+        if job["then"] is not None:
+            job["then"](job["payload"])
 
     def wait(self) -> None:
+        import os
+
         errors = []
         deadline = time.monotonic() + FIGURES_TIMEOUT_S
         jobs, self.jobs = self.jobs, []
-        for proc, queue, tasks in jobs:
+        for job in jobs:
+            proc = job["proc"]
             if proc is None:
-                self._run(tasks)
+                self._run(job)
                 continue
             # the message is a few bytes: a child never blocks on the pipe
             proc.join(max(0.0, deadline - time.monotonic()))
             if proc.is_alive():
                 proc.kill()
                 proc.join()
-                self._run(tasks)
-                continue
-            error = queue.get() if not queue.empty() else f"exit code {proc.exitcode}"
-            if error is not None:
-                errors.append(error)
+                self._run(job)
+            else:
+                queue = job["queue"]
+                error = queue.get() if not queue.empty() else f"exit code {proc.exitcode}"
+                if error is not None:
+                    errors.append(error)
+            if job["file"] is not None and os.path.exists(job["file"]):
+                os.unlink(job["file"])
         if errors:
             raise RuntimeError(f"writing the dataset or drawing the figures failed ({'; '.join(errors)})")
 
     def kill(self) -> None:
         """Stop every child (the output is being abandoned)."""
-        for proc, _, _ in self.jobs:
+        import os
+
+        for job in self.jobs:
+            proc = job["proc"]
             if proc is not None and proc.is_alive():
                 proc.kill()
                 proc.join()
+            if job["file"] is not None and os.path.exists(job["file"]):
+                os.unlink(job["file"])
         self.jobs = []
 
 

@@ -26,6 +26,29 @@ def test_workers_run_tasks_and_report_errors(tmp_path, monkeypatch, inline):
         w.wait()
 
 
+@pytest.mark.parametrize("inline", [False, True])
+def test_work_waiting_for_a_payload(tmp_path, monkeypatch, inline):
+    """A child started with ``then`` runs its tasks, then ``then(payload)`` once it is sent
+    (through a temporary file, removed after)."""
+    import glob
+    import tempfile
+
+    import numpy as np
+
+    if inline:
+        monkeypatch.setenv("OMNI_FIGURES_INLINE", "1")
+    before = set(glob.glob(f"{tempfile.gettempdir()}/omni-figures-*"))
+    w = rp._Workers()
+    w.start([lambda: (tmp_path / "first").write_text("1")],
+            then=lambda p: np.save(tmp_path / "late.npy", p["x"]))
+    w.start([lambda: (tmp_path / "other").write_text("2")])
+    w.send_late({"x": np.arange(100000.0)})
+    w.wait()
+    np.testing.assert_array_equal(np.load(tmp_path / "late.npy"), np.arange(100000.0))
+    assert (tmp_path / "first").exists() and (tmp_path / "other").exists()
+    assert set(glob.glob(f"{tempfile.gettempdir()}/omni-figures-*")) == before
+
+
 def test_hung_child_is_killed_and_its_work_done_here(tmp_path, monkeypatch):
     import os
     import time
@@ -42,8 +65,11 @@ def test_hung_child_is_killed_and_its_work_done_here(tmp_path, monkeypatch):
     if not w.fork:
         pytest.skip("no fork")
     w.start([task])
+    w.start([], then=lambda p: task() or (tmp_path / "late").write_text(p))
+    w.send_late("payload")
     w.wait()
     assert (tmp_path / "done").read_text() == "here"
+    assert (tmp_path / "late").read_text() == "payload"
 
 
 def test_failed_reproduction_leaves_nothing(tmp_path, monkeypatch):
