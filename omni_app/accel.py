@@ -66,3 +66,35 @@ def install() -> None:
                                    ("csv", csvformat, csvformat.format_rows_reference)):
         if module._KERNEL is None and _loaded.get(name, True) is not None:
             module.set_kernel(_loaded.get(name) or _lazy(name, module, fallback))
+
+
+def prewarm() -> None:
+    """Load the registered kernels now (numba's import, its JIT and the cached machine code:
+    ~0.5 s warm, several seconds when they must be compiled) by running each once on a tiny
+    input of the real argument types."""
+    import numpy as np
+
+    from identification import csvformat, simulate
+    from identification.nonlinear import paper_alpha_model
+
+    install()
+    simulate.simulate_alpha_batch(paper_alpha_model(), [0.005], [np.zeros(4)], 1e-3, [2.0],
+                                  C_linear=[1.0], beta_tilde_linear=[1.0], groups=[0])
+    csvformat.format_rows(np.zeros((1, 4)))
+
+
+def start_prewarm():
+    """:func:`prewarm` in a background thread (e.g. while MuJoCo's rollout threads run, which
+    release the GIL); returns the thread, to be joined (before any fork)."""
+    import threading
+
+    def run():
+        try:
+            prewarm()
+        except Exception:  # noqa: BLE001  (the first real call reports any problem)
+            pass
+
+    thread = threading.Thread(target=run, name="omni-prewarm", daemon=True)
+    thread.start()
+    return thread
+

@@ -54,7 +54,7 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     """
     from tqdm import tqdm
 
-    from .accel import install
+    from .accel import install, start_prewarm
     install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
     in_memory = model is not None and model_path is None
     if model is None:
@@ -63,7 +63,13 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     bar = tqdm(total=5, disable=not progress, unit="stage", leave=False)
     bar.set_description("simulating the paper campaign")
     exps = ex.campaign(campaign)
-    runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
+    # the kernels are loaded by a thread while MuJoCo simulates (its threads release the GIL),
+    # and joined before anything forks
+    warm = start_prewarm()
+    try:
+        runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
+    finally:
+        warm.join()
     if on_stage is not None:
         on_stage("simulated", runs)
     bar.update(1)
