@@ -113,8 +113,8 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: "_Workers | Non
         stage = _early_writer(folder, workers)
         stage("simulated", res["runs"])
         stage("identified", res["ident"])
-    # the dataset's writer, which has the runs and matplotlib loaded by now, draws the rest
-    workers.send_late({k: res[k] for k in ("ident", "scores", "predictions")})
+    # the dataset's writer, which has the runs and matplotlib loaded, draws the rest
+    workers.send({k: res[k] for k in ("ident", "scores", "predictions")})
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
     write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
@@ -128,48 +128,69 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: "_Workers | Non
     (folder / "report.md").write_text(format_report(res))
 
 
-def _ident_figures():
-    """Figures that need only the identification (drawn while validation runs)."""
+def _figure_groups():
+    """The figures as drawn by the children: (a) and (b) need only the identification, (c) the
+    validation's scores and predictions too; each with ~1/3 of the drawing time."""
     from . import figures as F
-    return [F.fig_C_beta_vs_alpha, F.fig_alpha_vs_frequency, F.fig_nonlinear_vs_inertia]
+    from . import identify_report as IR
+
+    a = [lambda folder, res: IR.write_identify_figures(res["ident"], folder / "identify"),
+         F.fig_C_beta_vs_alpha]
+    b = [F.fig_alpha_vs_frequency, F.fig_nonlinear_vs_inertia, F.fig_inertia]
+    c = [F.fig_inertia_truth, F.fig_bode, F.fig_time_sine, F.fig_step]
+    assert sorted(f.__name__ for f in b + c + a[1:]) == sorted(f.__name__ for f in F.FIGURES)
+    return a, b, c
 
 
-def _late_figures():
-    """The other figures (they need the validation's scores and predictions)."""
-    from . import figures as F
-    early = _ident_figures()
-    return [fn for fn in F.FIGURES if fn not in early]
+def _warm_matplotlib() -> None:
+    """Import matplotlib and draw a throw-away figure (fonts, Agg, PNG writer loaded)."""
+    import io
 
-
-def _load_matplotlib() -> None:
     from .figures import _plt
-    _plt()
+
+    plt = _plt()
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1], "o-", label="x")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(io.BytesIO(), format="png")
+    plt.close(fig)
 
 
 def _early_writer(folder: Path, workers: "_Workers"):
-    """An ``on_stage`` for :func:`run_reproduce`, starting work in ``workers`` as soon as it can
-    be done: once the runs exist, a child writes ``folder/dataset/``, loads matplotlib and
-    waits for the validation's results to draw the figures that need them
-    (:meth:`_Workers.send_late`); once the identification exists, another draws the figures
-    that need only it (``folder/identify/`` and the report's)."""
-    from . import identify_report as IR
+    """An ``on_stage`` for :func:`run_reproduce`: once the runs exist, a forked child writes
+    ``folder/dataset/`` and loads matplotlib; it is then sent the identification (it forks a
+    second drawer for part of its figures and draws the rest) and later the validation's results
+    (:meth:`_Workers.send` in :func:`write_reproduce`), with which it draws the other figures.
+    So the figures are drawn by two processes that never import matplotlib on the critical
+    path, mostly while the main process validates and writes."""
 
     def on_stage(stage, value):
         if stage == "simulated":
             (folder / "dataset").mkdir()
+            runs = value
+            inner = []
 
-            def late(payload, runs=value):
+            def identified(payload):
                 res = {**payload, "runs": runs}
-                for fn in _late_figures():
+                group_a, group_b, _ = _figure_groups()
+                drawer = _Workers()
+                drawer.start([lambda fn=fn: fn(folder, res) for fn in group_a])
+                inner.append(drawer)
+                for fn in group_b:
                     fn(folder, res)
 
-            workers.start([lambda: [write_run(folder / "dataset", run) for run in value],
-                           _load_matplotlib], then=late)
+            def validated(payload):
+                res = {**payload, "runs": runs}
+                for fn in _figure_groups()[2]:
+                    fn(folder, res)
+                inner.pop().wait()
+
+            workers.start([lambda: [write_run(folder / "dataset", run) for run in runs],
+                           _warm_matplotlib], then=[identified, validated])
         elif stage == "identified":
             (folder / "identify").mkdir()
-            res = {"ident": value}
-            workers.start([lambda: IR.write_identify_figures(value, folder / "identify")]
-                          + [lambda fn=fn: fn(folder, res) for fn in _ident_figures()])
+            workers.send({"ident": value})
 
     return on_stage
 
@@ -180,15 +201,15 @@ FIGURES_TIMEOUT_S = 120.0
 
 
 class _Workers:
-    """Work (lists of callables) done by forked children while the main process goes on.
+    """Work done by forked children while the main process goes on.
 
-    :meth:`start` forks a child for a list of tasks, optionally followed by ``then(payload)``
-    once :meth:`send_late` gives the payload (passed through a temporary pickle file, so that
-    the sender never blocks).  Where ``fork`` is missing, or ``OMNI_FIGURES_INLINE`` is set,
-    the work is done at :meth:`wait` instead.  A forked child of a threaded process can in
-    principle hang on a lock another thread held at the fork: a child not done within
-    ``FIGURES_TIMEOUT_S`` is killed and its work done in the main process.  A child's error is
-    raised by :meth:`wait`.
+    :meth:`start` forks a child for a list of tasks (callables), optionally followed by
+    ``then``, callables of one argument run in turn with the payloads given by :meth:`send`
+    (each passed through a temporary pickle file, so that the sender never blocks).  Where
+    ``fork`` is missing, or ``OMNI_FIGURES_INLINE`` is set, the work is done at :meth:`wait`
+    instead.  A forked child of a threaded process can in principle hang on a lock another
+    thread held at the fork: a child not done within ``FIGURES_TIMEOUT_S`` is killed and its
+    work done in the main process.  A child's error is raised by :meth:`wait`.
     """
 
     def __init__(self):
@@ -197,44 +218,46 @@ class _Workers:
 
         self.fork = "fork" in mp.get_all_start_methods() and not os.environ.get("OMNI_FIGURES_INLINE")
         self.ctx = mp.get_context("fork") if self.fork else None
-        self.jobs = []      # dicts: proc, queue, conn (or None), tasks, then, payload, file
+        self.jobs = []      # dicts: proc, queue, conn (or None), tasks, then, payloads, files
 
-    def start(self, tasks, then=None) -> None:
-        job = {"proc": None, "queue": None, "conn": None, "tasks": tasks, "then": then,
-               "payload": None, "file": None}
+    def start(self, tasks, then=()) -> None:
+        job = {"proc": None, "queue": None, "conn": None, "tasks": list(tasks),
+               "then": list(then), "payloads": [], "files": []}
         self.jobs.append(job)
         if not self.fork:
             return
         import pickle
 
         queue = self.ctx.SimpleQueue()
-        recv, send = self.ctx.Pipe(duplex=False) if then is not None else (None, None)
+        recv, send = self.ctx.Pipe(duplex=False) if job["then"] else (None, None)
 
         def child():
             import os
             try:
-                for task in tasks:
+                for task in job["tasks"]:
                     task()
-                if then is not None:
+                for stage in job["then"]:
                     path = recv.recv()
                     with open(path, "rb") as fh:
                         payload = pickle.load(fh)
                     os.unlink(path)
-                    then(payload)
+                    stage(payload)
                 queue.put(None)
             except BaseException as exc:  # reported to the parent
                 queue.put(f"{type(exc).__name__}: {exc}")
 
-        proc = self.ctx.Process(target=child, daemon=True)
+        # not a daemon: a child may start children of its own (every child is waited for or
+        # killed by this object)
+        proc = self.ctx.Process(target=child, daemon=False)
         proc.start()
         job.update(proc=proc, queue=queue, conn=send)
 
-    def send_late(self, payload) -> None:
-        """Give ``payload`` to the job started with ``then`` (none: nothing to do)."""
+    def send(self, payload) -> None:
+        """Give ``payload`` to the next ``then`` stage waiting for one (none: nothing to do)."""
         for job in self.jobs:
-            if job["then"] is None or job["payload"] is not None:
+            if len(job["payloads"]) == len(job["then"]):
                 continue
-            job["payload"] = payload
+            job["payloads"].append(payload)
             if job["conn"] is not None:
                 import os
                 import pickle
@@ -243,19 +266,29 @@ class _Workers:
                 fd, path = tempfile.mkstemp(prefix="omni-figures-", suffix=".pkl")
                 with os.fdopen(fd, "wb") as fh:
                     pickle.dump(payload, fh, protocol=pickle.HIGHEST_PROTOCOL)
-                job["file"] = path
-                job["conn"].send(path)   # a few bytes: never blocks
+                job["files"].append(path)
+                try:
+                    job["conn"].send(path)   # a few bytes: never blocks
+                except OSError:              # the child has failed: wait() reports it
+                    pass
+            return
 
     @staticmethod
     def _run(job) -> None:
         for task in job["tasks"]:
             task()
-        if job["then"] is not None:
-            job["then"](job["payload"])
+        for stage, payload in zip(job["then"], job["payloads"]):
+            stage(payload)
 
-    def wait(self) -> None:
+    @staticmethod
+    def _clean(job) -> None:
         import os
 
+        for path in job["files"]:
+            if os.path.exists(path):
+                os.unlink(path)
+
+    def wait(self) -> None:
         errors = []
         deadline = time.monotonic() + FIGURES_TIMEOUT_S
         jobs, self.jobs = self.jobs, []
@@ -269,28 +302,25 @@ class _Workers:
             if proc.is_alive():
                 proc.kill()
                 proc.join()
+                self._clean(job)
                 self._run(job)
             else:
                 queue = job["queue"]
                 error = queue.get() if not queue.empty() else f"exit code {proc.exitcode}"
                 if error is not None:
                     errors.append(error)
-            if job["file"] is not None and os.path.exists(job["file"]):
-                os.unlink(job["file"])
+            self._clean(job)
         if errors:
             raise RuntimeError(f"writing the dataset or drawing the figures failed ({'; '.join(errors)})")
 
     def kill(self) -> None:
         """Stop every child (the output is being abandoned)."""
-        import os
-
         for job in self.jobs:
             proc = job["proc"]
             if proc is not None and proc.is_alive():
                 proc.kill()
                 proc.join()
-            if job["file"] is not None and os.path.exists(job["file"]):
-                os.unlink(job["file"])
+            self._clean(job)
         self.jobs = []
 
 

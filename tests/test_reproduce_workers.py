@@ -40,11 +40,14 @@ def test_work_waiting_for_a_payload(tmp_path, monkeypatch, inline):
     before = set(glob.glob(f"{tempfile.gettempdir()}/omni-figures-*"))
     w = rp._Workers()
     w.start([lambda: (tmp_path / "first").write_text("1")],
-            then=lambda p: np.save(tmp_path / "late.npy", p["x"]))
+            then=[lambda p: (tmp_path / "mid").write_text(p),
+                  lambda p: np.save(tmp_path / "late.npy", p["x"])])
     w.start([lambda: (tmp_path / "other").write_text("2")])
-    w.send_late({"x": np.arange(100000.0)})
+    w.send("stage 1")
+    w.send({"x": np.arange(100000.0)})
     w.wait()
     np.testing.assert_array_equal(np.load(tmp_path / "late.npy"), np.arange(100000.0))
+    assert (tmp_path / "mid").read_text() == "stage 1"
     assert (tmp_path / "first").exists() and (tmp_path / "other").exists()
     assert set(glob.glob(f"{tempfile.gettempdir()}/omni-figures-*")) == before
 
@@ -65,8 +68,8 @@ def test_hung_child_is_killed_and_its_work_done_here(tmp_path, monkeypatch):
     if not w.fork:
         pytest.skip("no fork")
     w.start([task])
-    w.start([], then=lambda p: task() or (tmp_path / "late").write_text(p))
-    w.send_late("payload")
+    w.start([], then=[lambda p: task() or (tmp_path / "late").write_text(p)])
+    w.send("payload")
     w.wait()
     assert (tmp_path / "done").read_text() == "here"
     assert (tmp_path / "late").read_text() == "payload"
