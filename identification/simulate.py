@@ -137,7 +137,8 @@ class SimResult:
     """Output of :func:`simulate_alpha` / :func:`simulate_linear`.
 
     All arrays have the shape of ``r`` ((n_runs, n_samples), or (n_samples,) for one run);
-    entry k belongs to sample time t_k.
+    entry k belongs to sample time t_k.  An array not asked for (``keep`` of
+    :func:`simulate_alpha_batch`) is None.
 
     Attributes
     ----------
@@ -417,7 +418,7 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
 
 def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_linear,
                          theta0=0.0, phi0=0.0, r_dot=None, r_ddot=None, groups=None,
-                         max_iter=DEFAULT_MAX_ITER) -> list[SimResult]:
+                         max_iter=DEFAULT_MAX_ITER, keep=None) -> list[SimResult]:
     """:func:`simulate_alpha` of runs of different lengths (and gains) in one time loop.
 
     Parameters
@@ -431,6 +432,9 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
         all one batch).  The bisection fallback of a step stops when all the runs of a batch
         meet its tolerance, so the batch decides the last bits of a bisected α; with the
         groups given, each run's numbers are those of its own batch's reference call.
+    keep : iterable of str, optional
+        The arrays of :class:`SimResult` to return (e.g. ``("theta",)``); the others are
+        None and not stored (less memory).  Default: all.
 
     Returns
     -------
@@ -485,8 +489,19 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
     clamp = bool(model.options.get("beta_clamp", False))
     # outputs (n, R) indexed [step, run], stored run-major so that each run's result is a
     # contiguous view (no copies)
-    out_th, out_ph, out_v, out_a, out_C, out_b = (np.zeros((R, n)).T for _ in range(6))
-    out_it = np.zeros((R, n), dtype=np.int32).T
+    names = ("theta", "phi", "v", "alpha", "C", "beta_tilde", "n_iter")
+    keep = set(names) if keep is None else set(keep)
+    if keep - set(names):
+        raise ValueError(f"keep: unknown arrays {sorted(keep - set(names))}; known: {names}")
+
+    def output(name, dtype=float):
+        if name in keep:
+            return np.zeros((R, n), dtype=dtype).T
+        # not kept: every element is one scratch value (zero strides; written, never read)
+        return np.lib.stride_tricks.as_strided(np.zeros(1, dtype=dtype), (n, R), (0, 0))
+
+    out_th, out_ph, out_v, out_a, out_C, out_b = (output(k) for k in names[:6])
+    out_it = output("n_iter", np.int32)
     not_conv = np.zeros(R, dtype=np.int64)
     bracketed = np.zeros(R, dtype=np.int64)
     alive = np.searchsorted(-lens_s, -np.arange(n), side="left")  # runs with length > k
@@ -498,9 +513,9 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
     results = [None] * R
     for j, o in enumerate(order):
         L = lens_s[j]
-        results[o] = SimResult(theta=out_th[:L, j], phi=out_ph[:L, j], v=out_v[:L, j],
-                               C=out_C[:L, j], beta_tilde=out_b[:L, j], alpha=out_a[:L, j],
-                               n_iter=out_it[:L, j], n_not_converged=int(not_conv[j]),
+        arrays = {k: (x[:L, j] if k in keep else None) for k, x in
+                  zip(names, (out_th, out_ph, out_v, out_a, out_C, out_b, out_it))}
+        results[o] = SimResult(**arrays, n_not_converged=int(not_conv[j]),
                                n_bracketed=int(bracketed[j]))
     return results
 

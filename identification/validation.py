@@ -144,7 +144,7 @@ def simulate_runs(runs: list[Run], params: Params) -> dict[str, dict]:
         res = simulate_alpha_batch(params.alpha, I, [run.r for run in rs], dt, kp, C_linear=Cl,
                                    beta_tilde_linear=bl, theta0=th0, phi0=ph0,
                                    r_dot=[d[0] for d in derivs], r_ddot=[d[1] for d in derivs],
-                                   groups=gids)
+                                   groups=gids, keep=("theta",))
         for run, a in zip(rs, res):
             out[run.name].update(theta_alpha=a.theta, n_not_converged=int(a.n_not_converged),
                                  n_bracketed=int(a.n_bracketed))

@@ -78,8 +78,10 @@ def prewarm() -> None:
     from identification.nonlinear import paper_alpha_model
 
     install()
-    simulate.simulate_alpha_batch(paper_alpha_model(), [0.005], [np.zeros(4)], 1e-3, [2.0],
-                                  C_linear=[1.0], beta_tilde_linear=[1.0], groups=[0])
+    for keep in (None, ("theta",)):  # all arrays, and validation's theta only
+        simulate.simulate_alpha_batch(paper_alpha_model(), [0.005], [np.zeros(4)], 1e-3, [2.0],
+                                      C_linear=[1.0], beta_tilde_linear=[1.0], groups=[0],
+                                      keep=keep)
     csvformat.format_rows(np.zeros((1, 4)))
 
 

@@ -150,3 +150,26 @@ def test_prewarm_thread_loads_both_kernels(monkeypatch):
     finally:
         sim.set_kernel(previous)
         csvformat.set_kernel(previous_csv)
+
+
+@pytest.mark.parametrize("compiled", [False, True], ids=["numpy", "kernel"])
+def test_keep_only_theta(compiled):
+    """``keep=("theta",)`` (validation's call): the same θ, the other arrays None."""
+    previous = sim.set_kernel(loop if compiled else None)
+    try:
+        model = AlphaModel.from_dict(IDENTIFIED)
+        r, rd, rdd = _sines([2.0, 3.5, 6.0], 1000)
+        I = np.array([0.004, 0.005, 0.006])
+        kw = dict(C_linear=1 / (36.693 * I), beta_tilde_linear=1 / I, r_dot=list(rd),
+                  r_ddot=list(rdd), groups=[0, 0, 0])
+        full = simulate_alpha_batch(model, I, list(r), DT, KP, **kw)
+        some = simulate_alpha_batch(model, I, list(r), DT, KP, keep=("theta",), **kw)
+        for a, b in zip(full, some):
+            np.testing.assert_array_equal(b.theta, a.theta)
+            assert b.phi is None and b.alpha is None and b.n_iter is None
+            assert (b.n_bracketed, b.n_not_converged) == (a.n_bracketed, a.n_not_converged)
+        assert sum(x.n_bracketed for x in full) > 0
+        with pytest.raises(ValueError, match="unknown"):
+            simulate_alpha_batch(model, I, list(r), DT, KP, keep=("thetta",), **kw)
+    finally:
+        sim.set_kernel(previous)
