@@ -117,13 +117,25 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
     return figures
 
 
+#: Runs argv[2:] and writes its wall time and peak RSS (with its children's) to argv[1].
+_LAUNCHER = """
+import json, os, sys, time
+t0 = time.perf_counter()
+pid = os.posix_spawn(sys.argv[2], sys.argv[2:], os.environ)
+_, status, ru = os.wait4(pid, 0)
+wall = time.perf_counter() - t0
+with open(sys.argv[1], "w") as fh:
+    json.dump({"wall_s": wall, "maxrss_kb": ru.ru_maxrss}, fh)
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+
+
 def _bench_reproduce(jobs: int, friction: str | None = None, ceiling_steps_per_s: float | None = None,
                      physics_steps: int | None = None) -> dict:
     """``omni reproduce --out TMP`` as a user runs it: a child process, wall time (imports,
     simulation, identification, validation, writing and figures), its peak memory, and the
     ratio of that wall time to the raw rollout time of the campaign's physics steps."""
     import json
-    import resource
     import subprocess
     import sys
 
@@ -132,16 +144,19 @@ def _bench_reproduce(jobs: int, friction: str | None = None, ceiling_steps_per_s
         cmd = [sys.executable, "-m", "omni_app", "reproduce", "--out", out, "--jobs", str(jobs)]
         if friction:
             cmd += ["--friction", friction]
-        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        t0 = time.perf_counter()
-        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-        wall = time.perf_counter() - t0
-        peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        measured = os.path.join(tmp, "measured.json")
+        # started by a small launcher: a child's peak RSS counts the memory of the process it
+        # was spawned from (this one, hundreds of MB by now), the launcher's is ~10 MB
+        subprocess.run([sys.executable, "-c", _LAUNCHER, measured, *cmd], check=True,
+                       stdout=subprocess.DEVNULL)
+        with open(measured) as fh:
+            m = json.load(fh)
+        wall = m["wall_s"]
         with open(os.path.join(out, "summary.json")) as fh:
             sim = json.load(fh)["run"]["simulated_time_s"]
     fig = {"wall_s": round(wall, 2), "simulated_time_s": sim, "real_time_factor": round(sim / wall, 1),
-           # ru_maxrss of the children is the largest child so far (KiB on Linux)
-           "peak_rss_mb": round(peak_kb / 1024, 1) if peak_kb > before else None}
+           # the reproduce process and its children (the largest of them; KiB on Linux)
+           "peak_rss_mb": round(m["maxrss_kb"] / 1024, 1) if m["maxrss_kb"] else None}
     if ceiling_steps_per_s and physics_steps:
         raw = physics_steps / ceiling_steps_per_s
         fig["raw_rollout_s"] = round(raw, 3)
