@@ -40,7 +40,15 @@ def main(argv=None) -> int:
     for c in cases:
         t0 = time.perf_counter()
         runs = bank.generate(c, jobs=args.jobs)
-        rep = run_discrepancy(runs, None, jobs=args.jobs).report
+        try:
+            rep = run_discrepancy(runs, None, jobs=args.jobs).report
+        except Exception as exc:  # a crash of the workflow is a result of the bank, not its end
+            wall = time.perf_counter() - t0
+            raw[c.name] = {"pass": False, "why": f"workflow crashed: {type(exc).__name__}: {exc}",
+                           "seconds": wall}
+            rows.append(f"| {c.name} | CRASH | | | | | | | | | FAIL ({raw[c.name]['why']}) | {wall:.0f} |")
+            print(rows[-1], flush=True)
+            continue
         wall = time.perf_counter() - t0
         ok, why = bank.assess(c, rep)
         raw[c.name] = {"hidden": [list(e) for e in c.effects], "outside": [list(e) for e in c.outside],

@@ -54,7 +54,7 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     d = 1 + z * z / n
     c = (p + z * z / (2 * n)) / d
     h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return (c - h, c + h)
+    return (max(c - h, 0.0), min(c + h, 1.0))
 
 
 def one_draw(effect: str, values: tuple, condition: str, seed: int, exps, jobs: int | None) -> dict:
@@ -134,8 +134,8 @@ def figure(summary: dict, draws: list[dict], path: Path) -> None:
         if not xs:
             continue
         cov = [rows[e]["coverage"] for e in effects if e in rows]
-        lo = [rows[e]["coverage"] - rows[e]["coverage_wilson95"][0] for e in effects if e in rows]
-        hi = [rows[e]["coverage_wilson95"][1] - rows[e]["coverage"] for e in effects if e in rows]
+        lo = [max(rows[e]["coverage"] - rows[e]["coverage_wilson95"][0], 0.0) for e in effects if e in rows]
+        hi = [max(rows[e]["coverage_wilson95"][1] - rows[e]["coverage"], 0.0) for e in effects if e in rows]
         a1.bar(xs, cov, w, yerr=[lo, hi], capsize=2, label=f"{cond} (overall "
                f"{summary['overall'].get(cond, {}).get('coverage', math.nan):.0%})",
                color=("C0", "C1")[i])
@@ -230,7 +230,7 @@ def main(argv=None) -> int:
                     plan.append((eff, values[eff][i], cond, seed))
     try:
         from tqdm import tqdm
-        bar = tqdm(total=len(plan), desc="coverage", unit="fit")
+        bar = tqdm(total=len(plan), desc="coverage", unit="fit") if plan else None
     except ImportError:  # pragma: no cover
         bar = None
     t_all = time.perf_counter()
