@@ -204,3 +204,29 @@ def test_cli_exact_data_names_none(tmp_path, capsys):
     assert rep["gap_before"] == 0.0 and [e["name"] for e in rep["effects"]] == ["none"]
     assert "exactly" in rep["effects"][0]["reason"] and rep["unexplained"] is False
     assert "named: none" in capsys.readouterr().out
+
+
+def test_simulate_grouped_mixes_structures(spec):
+    """Candidates of different structure (added bodies, actuators, delay buffers, filters) in one
+    call: grouped into batches the engine can step, each trajectory equal to the model replayed
+    alone (a crash here once stopped the pair search: equal state sizes, different addresses)."""
+    import itertools
+
+    from omni_sim.discrepancy.select import simulate_grouped
+    exps = _short([ex.sine_experiment(65, 90, 3.0, record_s=1.0), ex.square_experiment(25, 115)], 300)
+    m0 = spec.compile()
+    rr = prepare_runs(ex.simulate(exps, model=m0, jobs=1), m0)
+    names = ["drive_compliance", "backlash", "time_delay", "actuator_lag", "cogging", "stribeck_friction"]
+    models = [m0]
+    for a, b in itertools.combinations(names, 2):
+        changes = [(fx.get(n), fx.get(n).grid(fx.nominal_values(fx.get(n), spec))[1]) for n in (a, b)]
+        models.append(fx.compile_with(spec, changes))
+    pairs = [(i, j) for i in range(len(models)) for j in range(len(rr))]
+    with Replayer(1) as rep:
+        th = simulate_grouped(rep, models, rr, pairs)
+    with Replayer(1) as rep:
+        # each model alone, its runs in one batch (the same rollout path; a one-row replay steps
+        # with mj_step, which differs in the last bit for the backlash's limit constraint)
+        alone = [rep.simulate([m], rr) for m in models]
+    for (i, j), t in zip(pairs, th):
+        np.testing.assert_array_equal(t, alone[i][j])

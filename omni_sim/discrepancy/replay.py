@@ -45,6 +45,8 @@ MIN_SAMPLES = 200
 #: pair replayed again (a grid point that is also the fit's start, a fit's end point scored
 #: again) is not simulated twice.
 CACHE_SAMPLES = 4_000_000
+#: Devices (compiled models with their start-state caches) a :class:`Replayer` keeps.
+MAX_DEVICES = 512
 
 
 @dataclass
@@ -184,7 +186,7 @@ class Replayer:
         # one thread: rollouts run on the calling thread (Rollout(nthread=0)), not handed to a
         # one-thread pool at every control period; the trajectories are the same
         self._pool = rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0)
-        self._devices: dict = {}
+        self._devices: OrderedDict = OrderedDict()
         self.steps = 0  # physics steps simulated so far (for timings)
         self.unstable_warnings = 0  # MuJoCo's instability warnings during replays
         self.first_warning = ""
@@ -216,6 +218,12 @@ class Replayer:
         if key not in self._devices:
             # [device, model (kept alive with its id), content digest (made when first needed)]
             self._devices[key] = [Device(model, target=self.target), model, None]
+        else:
+            self._devices.move_to_end(key)
+        # the least recently used devices go (each keeps its compiled model alive): a fit
+        # compiles a model per parameter point, thousands over a workflow
+        while len(self._devices) > MAX_DEVICES:
+            self._devices.popitem(last=False)
         return self._devices[key]
 
     def _model_key(self, model: mujoco.MjModel) -> bytes:

@@ -267,10 +267,11 @@ class Prescreened:
     gap: float
 
 
-def signature(model: mujoco.MjModel) -> tuple:
-    """What models must share to be stepped in one batch (state size, controls, sensors)."""
-    return (mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS), model.nu,
-            model.nsensordata, model.opt.timestep)
+def signature(rep: Replayer, model: mujoco.MjModel) -> tuple:
+    """What models must share to be stepped in one batch: the device engine's conditions (state
+    size, substeps, the joint and actuator addresses) and the rollout's (controls, sensors)."""
+    dev = rep.device(model)
+    return (dev.nstate, dev.substeps, dev.ix, model.nu, model.nsensordata)
 
 
 def simulate_grouped(rep: Replayer, models: list, runs: list[ReplayRun],
@@ -279,7 +280,7 @@ def simulate_grouped(rep: Replayer, models: list, runs: list[ReplayRun],
     per group of models that can share a batch (:func:`signature`); results in pair order."""
     groups: dict = {}
     for b, (i, _) in enumerate(pairs):
-        groups.setdefault(signature(models[i]), []).append(b)
+        groups.setdefault(signature(rep, models[i]), []).append(b)
     out: list = [None] * len(pairs)
     for rows in groups.values():
         th = rep.simulate(models, runs, [pairs[b] for b in rows])
