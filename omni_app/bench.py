@@ -51,12 +51,14 @@ def _rollout_ceiling(model: mujoco.MjModel, nbatch: int, nstep: int, nthread: in
 
 
 def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
-              friction: str | None = None) -> dict:
+              friction: str | None = None, discrepancy_campaign: bool = False) -> dict:
     """Measure the figures above (best of ``repeats``) and return them as a dict.
 
     ``extended=False`` measures only the campaign figures (fast).  ``friction``: the built-in
     scene of that friction family (default: ``scene.xml``) for the campaign and reproduce
     figures; the discrepancy figure always runs the demo case on the default scene.
+    ``discrepancy_campaign``: also time the discrepancy workflow on the whole paper campaign
+    with the whole library (minutes: off by default).
     """
     from identification.dataset import write_dataset
 
@@ -108,6 +110,10 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
         from .discrepancy import bench_discrepancy
 
         figures["discrepancy"] = bench_discrepancy(jobs=jobs)
+        if discrepancy_campaign:
+            from .discrepancy import bench_discrepancy_campaign
+
+            figures["discrepancy_campaign"] = bench_discrepancy_campaign(jobs=jobs)
         from .sweep import bench_sweep
 
         one, two = bench_sweep(1), bench_sweep(2)

@@ -118,6 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="write the figures as JSON to this file")
     _friction_option(p, what="the campaign and reproduce figures on: ")
     p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
+    p.add_argument("--discrepancy-campaign", action="store_true",
+                   help="also time omni discrepancy on the whole paper campaign (106 runs) with the "
+                        "whole effect library (takes minutes)")
 
     p = sub.add_parser("sweep", help="a study of many model variants on Dask (local or a cluster)")
     p.add_argument("spec", nargs="?", default=None, metavar="SPEC.toml",

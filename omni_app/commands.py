@@ -70,7 +70,8 @@ def bench(args: argparse.Namespace) -> int:
     from .bench import run_bench
 
     jobs = _check_jobs(args.jobs)
-    figures = run_bench(jobs=jobs, friction=getattr(args, "friction", None))
+    figures = run_bench(jobs=jobs, friction=getattr(args, "friction", None),
+                        discrepancy_campaign=getattr(args, "discrepancy_campaign", False))
     text = json.dumps(figures, indent=2, sort_keys=True)
     print(text)
     if args.out:
