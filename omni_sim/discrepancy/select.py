@@ -431,7 +431,7 @@ PAIR_GRID_SAMPLES = 700
 #: Pairs (best by their grid) fitted and screened; the best ``n_confirm`` of them confirmed.
 PAIR_FITS = 8
 #: Points per effect of a pair's starting grid (each effect's grid thinned to this many).
-PAIR_GRID_POINTS = 4
+PAIR_GRID_POINTS = 5
 #: Pairs are searched when the best single candidate removes less than this share of the gap.
 PAIR_SEARCH_SHARE = 0.5
 

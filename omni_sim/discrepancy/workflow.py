@@ -179,15 +179,19 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 entry["tie"] = True
                 entry["separating_experiment"] = sel.separating_experiment(best.name, runner.name)
             entries.append(entry)
-            if (rnd == 0 and max_effects >= 2 and best.share < sel.PAIR_SEARCH_SHARE
-                    and gap_start >= sel.REMAINDER_FACTOR * noise):
-                # no single effect explains most of the gap: effects that mask each other are
-                # only visible together, so pairs are fitted jointly too (each pair holds one of
-                # the round's screened candidates)
-                anchors = tuple(c.name for c in scored if c.method != "prescreen")
-                log(f"round 1: the best single candidate removes only {best.share:.0%}: scoring pairs")
+            if (rnd == 0 and max_effects >= 2 and gap_start >= sel.REMAINDER_FACTOR * noise
+                    and (best.share < sel.PAIR_SEARCH_SHARE
+                         or best.heldout_gap >= sel.REMAINDER_FACTOR * noise)):
+                # no single effect explains the gap down to the noise: effects that mask each
+                # other (a loop delay takes damping away, dry friction adds it) are only visible
+                # together, and one effect at a time can settle on a stand-in for the pair (a
+                # Stribeck curve for delay + friction), so every pair is fitted jointly too (not
+                # only pairs of the round's best candidates: the delay alone explains nothing,
+                # and the friction can be outranked by a stand-in)
+                log(f"round 1: the best single candidate removes {best.share:.0%} and leaves "
+                    f"{best.heldout_gap / max(noise, 1e-300):.1f} x the noise floor: scoring pairs")
                 pairs = sel.score_pairs(spec, fit_runs, rep, gap_start, k=k, candidates=tuple(names),
-                                        log=log, target=tgt, anchors=anchors)
+                                        log=log, target=tgt)
                 bp = pairs[0]
                 gain = sel.share_of(bp.heldout_gap, best.heldout_gap)
                 pair_ok = (bp.share >= sel.MIN_SHARE and gain >= sel.MIN_SHARE
@@ -276,11 +280,16 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                                 for p, s, b in zip(eff.params, se[sl], bias[sl])},
                 "uncertainty_kind": f"95 % half-width: {cover:.2f} x standard error (Student t, "
                                     f"{len(best_accepted.folds) - 1} dof of the fold jackknife) "
-                                    "+ |measurement bias|",
+                                    "+ |measurement bias|; the standard error includes the "
+                                    "optimiser's and the replay's numerical terms (Type B)",
                 "standard_error": {p.name: float(s) for p, s in zip(eff.params, se[sl])},
                 **{f"standard_error_{kind}": {p.name: float(s) for p, s in zip(eff.params, unc[kind][sl])}
                    for kind in ("jackknife", "jacobian", "measurement")},
                 "measurement_bias": {p.name: float(b) for p, b in zip(eff.params, bias[sl])},
+                # numerical terms inside the standard error (GUM Type B half-widths, uniform:
+                # b / sqrt(3) each; omni_sim/discrepancy/uncertainty.py)
+                **{f"{kind}_half_width": {p.name: float(b) for p, b in zip(eff.params, unc[kind][sl])}
+                   for kind in ("optimiser", "numerical_floor")},
                 "units": {p.name: p.unit for p in eff.params},
                 "share_of_round_gap": ent["share"],
                 "runner_up": ent["runner_up"],
