@@ -205,13 +205,16 @@ def test_bench_friction(campaigns, monkeypatch):
 
     seen = {}
 
-    def fake_bench(jobs=None, friction=None):
+    def fake_bench(jobs=None, friction=None, discrepancy_campaign=False):
         seen["friction"] = friction
+        seen["discrepancy_campaign"] = discrepancy_campaign
         return {}
 
     monkeypatch.setattr(bench, "run_bench", fake_bench)
     assert main(["bench", "--friction", "coulomb"]) == 0
-    assert seen["friction"] == "coulomb"
+    assert seen == {"friction": "coulomb", "discrepancy_campaign": False}
+    assert main(["bench", "--discrepancy-campaign"]) == 0
+    assert seen == {"friction": None, "discrepancy_campaign": True}
 
 
 # -- gymnasium ------------------------------------------------------------------------------------
