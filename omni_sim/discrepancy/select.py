@@ -447,18 +447,15 @@ def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_s
                 k: int = 5, n_confirm: int = 3, n_fit: int = PAIR_FITS,
                 grid_samples: int = PAIR_GRID_SAMPLES, candidates: tuple[str, ...] | None = None,
                 screen_nfev: int = 8, log=None, target: fx.Target = fx.OMNI,
-                anchors: tuple[str, ...] | None = None,
                 grid_points: int = PAIR_GRID_POINTS) -> list[Scored]:
     """Fit and score *pairs* of candidates jointly; best first.
 
     Two effects can mask each other: a loop delay takes damping away, dry friction adds it, so
     neither alone explains the data (fitted alone, the delay even stays at zero) while together
     they explain it down to the noise.  One effect at a time, as :func:`score_round` adds them,
-    cannot find such a pair.  Here every pair (with ``anchors``: every pair holding at least one
-    of them, e.g. the candidates a round screened, since the masking partner of one that
-    explains part of the gap may explain nothing alone) starts from the best point of the
-    product of the two effects' grids (each thinned to ``grid_points``), all pairs' grid points
-    simulated together on the first ``grid_samples`` samples of each run; the ``n_fit`` best
+    cannot find such a pair.  Here every pair starts from the best point of the product of the
+    two effects' grids (each thinned to ``grid_points``), all pairs' grid points simulated
+    together on the first ``grid_samples`` samples of each run; the ``n_fit`` best
     pairs are fitted on all runs and screened on held-out runs like the single candidates, and
     the best ``n_confirm`` are confirmed with exact per-fold refits.
     """
@@ -467,8 +464,7 @@ def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_s
     folds = kfolds(runs, k)
     grid_runs = [r.truncated(grid_samples) for r in runs]
     t0 = time.perf_counter()
-    combos = [(a, b) for a, b in itertools.combinations(names, 2)
-              if anchors is None or a in anchors or b in anchors]
+    combos = list(itertools.combinations(names, 2))
     nr = len(grid_runs)
     models, pairs, pts_of = [], [], []
     for a, b in combos:
