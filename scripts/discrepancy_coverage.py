@@ -137,7 +137,7 @@ def figure(summary: dict, draws: list[dict], path: Path) -> None:
         lo = [max(rows[e]["coverage"] - rows[e]["coverage_wilson95"][0], 0.0) for e in effects if e in rows]
         hi = [max(rows[e]["coverage_wilson95"][1] - rows[e]["coverage"], 0.0) for e in effects if e in rows]
         a1.bar(xs, cov, w, yerr=[lo, hi], capsize=2, label=f"{cond} (overall "
-               f"{summary['overall'].get(cond, {}).get('coverage', math.nan):.0%})",
+               f"{summary['overall'].get(cond, {}).get('coverage', math.nan):.1%})",
                color=("C0", "C1")[i])
         for d in draws:
             if d["condition"] != cond or d["covered"] is None or d["effect"] not in effects:
