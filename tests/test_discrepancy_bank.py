@@ -103,7 +103,7 @@ def compiled_values(name: str, m: mujoco.MjModel, nominal: mujoco.MjModel) -> li
         assert not np.any(m.actuator_biasprm[a, 1:])
         return [m.actuator_biasprm[a, 0]]
     # passive dcmotors: LuGre sigma0, sigma1 compile to dynprm[5:7], Fc, Fs, vs to biasprm[3:6];
-    # cogging (amplitude, periods, phase) to biasprm[0:3] (facts.md; tests/test_model.py)
+    # cogging (amplitude, periods, phase) to biasprm[0:3] (layout checked in tests/test_effects_library.py)
     extra = list(range(nominal.nactuator, m.nactuator))  # actuators the truth added
     if name == "cogging":
         found = [i for i in extra if m.actuator_biasprm[i, 1] == bank.COGGING_PERIODS_PER_TURN]

@@ -212,7 +212,7 @@ def _truth_presliding(spec, v):
     with the model's bristle damping sigma1 kept.  MuJoCo feature: the scene's passive dcmotor
     ``yaw_friction`` rebuilt with ``set_to_dcmotor(lugre=...)``."""
     a = spec.actuator(FRICTION)
-    sigma1 = float(a.dynprm[6])  # LuGre sigma1 compiles to dynprm[6] (facts.md)
+    sigma1 = float(a.dynprm[6])  # LuGre sigma1 compiles to dynprm[6] (layout checked in tests/test_effects_library.py)
     a.set_to_dcmotor(motorconst=[0.0, 0.0], resistance=1.0,
                      lugre=[float(v[0]), sigma1, float(v[1]), float(v[2]), float(v[3])],
                      cogging=[0.0, 0.0, 0.0], ctrlspec=int(mujoco.mjtCtrlInput.mjINPUT_NONE))
@@ -406,7 +406,7 @@ def _single(name: str, values: tuple, note: str) -> HiddenCase:
 
 
 #: The bank.  Magnitudes: see the ``note`` of each case (models/README.md and
-#: ../shared/notes/facts.md give the device estimates quoted there).
+#: the effect library's docstring give the device estimates quoted there).
 CASES: tuple[HiddenCase, ...] = (
     _single("coulomb_friction", (0.015,),
             "hard-stick frictionloss 15 mN*m on top of the LuGre drive friction (Fc 12.9 mN*m): "
@@ -429,7 +429,7 @@ CASES: tuple[HiddenCase, ...] = (
             "plus the amplifier's input filter (estimate, upper end)"),
     _single("time_delay", (0.004,),
             "4 ms loop delay: USB frames of 1 ms plus the driver's scheduling on 700-900 Hz "
-            "units (facts: servo loop 700-900 Hz measured on some USB units)"),
+            "units (models/README.md: servo loop 700-900 Hz measured on some USB units)"),
     _single("torque_saturation", (0.1,),
             "drive limited to 100 mN*m: half the vendor demo's 200 mN*m waist limit (thermal "
             "foldback of the amplifier); only the 0.2 rad steps ask for more"),
