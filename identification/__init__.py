@@ -7,14 +7,36 @@ or measured on a real Phantom Omni.  :mod:`identification.alpha` ((33)–(36)) a
 paper's published tables.
 """
 
-from .dataset import Run, read_dataset, read_run, write_run
-from .errors import UserError
-from .alpha import alpha_cycle_average, alpha_from_samples, alpha_invariant
-from .sine_fit import SineFit, RunSineFit, fit_sine, fit_run, steady_state_window
-from .linear import (FrequencyPoint, PoseLinearModel, alpha_sine, fit_pose, global_coefficients,
-                     local_coefficients)
-from .inertia import (InertiaFit, InertiaParameters, c0_bar_regression, fit_inertia_model,
-                      inertia_analytic, inertia_minimal, minimal_from_analytic)
+import importlib
+
+#: The package's public names and the module each lives in.  They are imported on first use
+#: (PEP 562), so that ``import identification.errors`` or ``identification.dataset`` does not
+#: load scipy (the command line forks its figure worker before the heavy imports).
+_EXPORTS = {
+    "dataset": ("Run", "read_dataset", "read_run", "write_run"),
+    "errors": ("UserError",),
+    "alpha": ("alpha_cycle_average", "alpha_from_samples", "alpha_invariant"),
+    "sine_fit": ("SineFit", "RunSineFit", "fit_sine", "fit_run", "steady_state_window"),
+    "linear": ("FrequencyPoint", "PoseLinearModel", "alpha_sine", "fit_pose", "global_coefficients",
+               "local_coefficients"),
+    "inertia": ("InertiaFit", "InertiaParameters", "c0_bar_regression", "fit_inertia_model",
+                "inertia_analytic", "inertia_minimal", "minimal_from_analytic"),
+}
+_WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
+
+
+def __getattr__(name: str):
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module 'identification' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))
+
 
 __all__ = ["Run", "UserError", "read_dataset", "read_run", "write_run",
            "alpha_invariant", "alpha_from_samples", "alpha_cycle_average",

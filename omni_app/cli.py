@@ -165,12 +165,33 @@ def _dispatch(args: argparse.Namespace) -> int:
     raise AssertionError(args.command)
 
 
+def _reproduce_worker(argv: list[str]):
+    """``omni reproduce``'s figure worker (:func:`omni_app.workers.start_reproduce_worker`),
+    forked before the parser and the command import MuJoCo, scipy and the simulator: it loads
+    matplotlib on the core that would otherwise wait for them.  None for other commands, for
+    ``--help`` and for ``--friction all`` (which draws after its runs); a worker forked for
+    arguments the parser then rejects is stopped by :func:`main`."""
+    if not argv or argv[0] != "reproduce":
+        return None
+    if any(a in ("-h", "--help") for a in argv):
+        return None
+    if any(a == "--friction=all" or (a == "--friction" and nxt == "all")
+           for a, nxt in zip(argv, list(argv[1:]) + [None])):
+        return None
+    from .figure_worker import start_reproduce_worker
+    return start_reproduce_worker()
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    from .accel import install
-    install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    worker = _reproduce_worker(argv)
     try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if worker is not None:
+            args.figure_worker = worker
+        from .accel import install
+        install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
         return _dispatch(args) or 0
     except UserError as exc:
         sys.stderr.write(f"error: {exc}\n")
@@ -178,6 +199,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("error: interrupted\n")
         return 130
+    finally:
+        if worker is not None:
+            worker.kill()  # stopped if the command failed before using it (else a no-op)
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 
-from identification.dataset import atomic_output_dir, write_run
+from identification.dataset import atomic_output_dir
 from identification.errors import UserError
 from identification.identify import identify_runs
 from identification.validation import Params, validate_runs, write_predictions
@@ -25,6 +25,8 @@ from omni_sim import model as om
 from omni_sim import truth
 
 from .identify_report import write_identify_report
+from .figure_worker import start_reproduce_worker
+from .workers import Workers
 
 def _model_label(model_path) -> str:
     """``built-in scene_coulomb.xml`` for a built-in scene (where it is installed says
@@ -101,7 +103,7 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
             "predictions": predictions, "linear_truth": lin, "bar": bar}
 
 
-def write_reproduce(folder: Path, res: dict, t0: float, workers: "_Workers | None" = None) -> None:
+def write_reproduce(folder: Path, res: dict, t0: float, workers: "Workers | None" = None) -> None:
     """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
     params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
     (perf_counter), for the real-time factor.  ``workers``: those :func:`_early_writer` started
@@ -109,7 +111,7 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: "_Workers | Non
     started here.  The dataset and the figures are written by forked children (POSIX) while
     this process writes the rest."""
     if workers is None:
-        workers = _Workers()
+        workers = start_reproduce_worker()
         stage = _early_writer(folder, workers)
         stage("simulated", res["runs"])
         stage("identified", res["ident"])
@@ -128,200 +130,25 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: "_Workers | Non
     (folder / "report.md").write_text(format_report(res))
 
 
-def _figure_groups():
-    """The figures as drawn by the children: (a) and (b) need only the identification, (c) the
-    validation's scores and predictions too; each with ~1/3 of the drawing time."""
-    from . import figures as F
-    from . import identify_report as IR
-
-    a = [lambda folder, res: IR.write_identify_figures(res["ident"], folder / "identify"),
-         F.fig_C_beta_vs_alpha]
-    b = [F.fig_alpha_vs_frequency, F.fig_nonlinear_vs_inertia, F.fig_inertia]
-    c = [F.fig_inertia_truth, F.fig_bode, F.fig_time_sine, F.fig_step]
-    assert sorted(f.__name__ for f in b + c + a[1:]) == sorted(f.__name__ for f in F.FIGURES)
-    return a, b, c
-
-
-def _warm_matplotlib() -> None:
-    """Import matplotlib and draw a throw-away figure (fonts, Agg, PNG writer loaded)."""
-    import io
-
-    from .figures import _plt
-
-    plt = _plt()
-    fig, ax = plt.subplots()
-    ax.plot([0, 1], [0, 1], "o-", label="x")
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(io.BytesIO(), format="png")
-    plt.close(fig)
-
-
-def _early_writer(folder: Path, workers: "_Workers"):
-    """An ``on_stage`` for :func:`run_reproduce`: once the runs exist, a forked child writes
-    ``folder/dataset/`` and loads matplotlib; it is then sent the identification (it forks a
-    second drawer for part of its figures and draws the rest) and later the validation's results
-    (:meth:`_Workers.send` in :func:`write_reproduce`), with which it draws the other figures.
-    So the figures are drawn by two processes that never import matplotlib on the critical
-    path, mostly while the main process validates and writes."""
+def _early_writer(folder: Path, workers: "Workers"):
+    """An ``on_stage`` for :func:`run_reproduce` feeding the figure worker ``workers``
+    (:func:`omni_app.workers.start_reproduce_worker`, started before this process's heavy
+    imports, matplotlib loaded by now): once the runs exist it gets them and the folder and
+    writes ``folder/dataset/``; then the identification (it draws part of the figures itself
+    and part in a child of its own); the validation's results follow from
+    :func:`write_reproduce`.  So the figures are drawn by two processes that never load
+    matplotlib on the critical path, mostly while the main process identifies, validates and
+    writes."""
 
     def on_stage(stage, value):
         if stage == "simulated":
             (folder / "dataset").mkdir()
-            runs = value
-            inner = []
-
-            def identified(payload):
-                res = {**payload, "runs": runs}
-                group_a, group_b, _ = _figure_groups()
-                drawer = _Workers()
-                drawer.start([lambda fn=fn: fn(folder, res) for fn in group_a])
-                inner.append(drawer)
-                for fn in group_b:
-                    fn(folder, res)
-
-            def validated(payload):
-                res = {**payload, "runs": runs}
-                for fn in _figure_groups()[2]:
-                    fn(folder, res)
-                inner.pop().wait()
-
-            workers.start([lambda: [write_run(folder / "dataset", run) for run in runs],
-                           _warm_matplotlib], then=[identified, validated])
+            workers.send({"folder": str(folder), "runs": value})
         elif stage == "identified":
             (folder / "identify").mkdir()
             workers.send({"ident": value})
 
     return on_stage
-
-
-#: Longest wait [s] for the forked children (together; they take ~3 s, 30x that on a loaded
-#: machine): a child still running then is killed and its work done in the main process.
-FIGURES_TIMEOUT_S = 120.0
-
-
-class _Workers:
-    """Work done by forked children while the main process goes on.
-
-    :meth:`start` forks a child for a list of tasks (callables), optionally followed by
-    ``then``, callables of one argument run in turn with the payloads given by :meth:`send`
-    (each passed through a temporary pickle file, so that the sender never blocks).  Where
-    ``fork`` is missing, or ``OMNI_FIGURES_INLINE`` is set, the work is done at :meth:`wait`
-    instead.  A forked child of a threaded process can in principle hang on a lock another
-    thread held at the fork: a child not done within ``FIGURES_TIMEOUT_S`` is killed and its
-    work done in the main process.  A child's error is raised by :meth:`wait`.
-    """
-
-    def __init__(self):
-        import multiprocessing as mp
-        import os
-
-        self.fork = "fork" in mp.get_all_start_methods() and not os.environ.get("OMNI_FIGURES_INLINE")
-        self.ctx = mp.get_context("fork") if self.fork else None
-        self.jobs = []      # dicts: proc, queue, conn (or None), tasks, then, payloads, files
-
-    def start(self, tasks, then=()) -> None:
-        job = {"proc": None, "queue": None, "conn": None, "tasks": list(tasks),
-               "then": list(then), "payloads": [], "files": []}
-        self.jobs.append(job)
-        if not self.fork:
-            return
-        import pickle
-
-        queue = self.ctx.SimpleQueue()
-        recv, send = self.ctx.Pipe(duplex=False) if job["then"] else (None, None)
-
-        def child():
-            import os
-            try:
-                for task in job["tasks"]:
-                    task()
-                for stage in job["then"]:
-                    path = recv.recv()
-                    with open(path, "rb") as fh:
-                        payload = pickle.load(fh)
-                    os.unlink(path)
-                    stage(payload)
-                queue.put(None)
-            except BaseException as exc:  # reported to the parent
-                queue.put(f"{type(exc).__name__}: {exc}")
-
-        # not a daemon: a child may start children of its own (every child is waited for or
-        # killed by this object)
-        proc = self.ctx.Process(target=child, daemon=False)
-        proc.start()
-        job.update(proc=proc, queue=queue, conn=send)
-
-    def send(self, payload) -> None:
-        """Give ``payload`` to the next ``then`` stage waiting for one (none: nothing to do)."""
-        for job in self.jobs:
-            if len(job["payloads"]) == len(job["then"]):
-                continue
-            job["payloads"].append(payload)
-            if job["conn"] is not None:
-                import os
-                import pickle
-                import tempfile
-
-                fd, path = tempfile.mkstemp(prefix="omni-figures-", suffix=".pkl")
-                with os.fdopen(fd, "wb") as fh:
-                    pickle.dump(payload, fh, protocol=pickle.HIGHEST_PROTOCOL)
-                job["files"].append(path)
-                try:
-                    job["conn"].send(path)   # a few bytes: never blocks
-                except OSError:              # the child has failed: wait() reports it
-                    pass
-            return
-
-    @staticmethod
-    def _run(job) -> None:
-        for task in job["tasks"]:
-            task()
-        for stage, payload in zip(job["then"], job["payloads"]):
-            stage(payload)
-
-    @staticmethod
-    def _clean(job) -> None:
-        import os
-
-        for path in job["files"]:
-            if os.path.exists(path):
-                os.unlink(path)
-
-    def wait(self) -> None:
-        errors = []
-        deadline = time.monotonic() + FIGURES_TIMEOUT_S
-        jobs, self.jobs = self.jobs, []
-        for job in jobs:
-            proc = job["proc"]
-            if proc is None:
-                self._run(job)
-                continue
-            # the message is a few bytes: a child never blocks on the pipe
-            proc.join(max(0.0, deadline - time.monotonic()))
-            if proc.is_alive():
-                proc.kill()
-                proc.join()
-                self._clean(job)
-                self._run(job)
-            else:
-                queue = job["queue"]
-                error = queue.get() if not queue.empty() else f"exit code {proc.exitcode}"
-                if error is not None:
-                    errors.append(error)
-            self._clean(job)
-        if errors:
-            raise RuntimeError(f"writing the dataset or drawing the figures failed ({'; '.join(errors)})")
-
-    def kill(self) -> None:
-        """Stop every child (the output is being abandoned)."""
-        for job in self.jobs:
-            proc = job["proc"]
-            if proc is not None and proc.is_alive():
-                proc.kill()
-                proc.join()
-            self._clean(job)
-        self.jobs = []
 
 
 def _one_blas_thread():
@@ -372,7 +199,9 @@ def reproduce_command(args) -> int:
     _check_out(out, args.force)
     t0 = time.perf_counter()
     with _one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp:
-        workers = _Workers()
+        # the figure worker: started by the command line before its heavy imports (matplotlib
+        # is loaded there while this process loads the rest), else now
+        workers = getattr(args, "figure_worker", None) or start_reproduce_worker()
         try:
             # the dataset is written, and the identification's figures drawn, by forked
             # children as soon as the runs and the identification exist

@@ -1,4 +1,4 @@
-"""omni reproduce's forked writers (omni_app.reproduce._Workers, _early_writer): work done in
+"""omni reproduce's forked writers (omni_app.workers.Workers, reproduce._early_writer): work done in
 children while the main process goes on, errors reported, the inline fallback, and nothing
 left behind when a reproduction fails after the children started."""
 
@@ -8,13 +8,14 @@ import pytest
 
 from identification.errors import UserError
 from omni_app import reproduce as rp
+from omni_app.workers import Workers
 
 
 @pytest.mark.parametrize("inline", [False, True])
 def test_workers_run_tasks_and_report_errors(tmp_path, monkeypatch, inline):
     if inline:
         monkeypatch.setenv("OMNI_FIGURES_INLINE", "1")
-    w = rp._Workers()
+    w = Workers()
     assert not (inline and w.fork)
     w.start([lambda: (tmp_path / "a").write_text("a"), lambda: (tmp_path / "b").write_text("b")])
     w.start([lambda: (tmp_path / "c").write_text("c")])
@@ -38,7 +39,7 @@ def test_work_waiting_for_a_payload(tmp_path, monkeypatch, inline):
     if inline:
         monkeypatch.setenv("OMNI_FIGURES_INLINE", "1")
     before = set(glob.glob(f"{tempfile.gettempdir()}/omni-figures-*"))
-    w = rp._Workers()
+    w = Workers()
     w.start([lambda: (tmp_path / "first").write_text("1")],
             then=[lambda p: (tmp_path / "mid").write_text(p),
                   lambda p: np.save(tmp_path / "late.npy", p["x"])])
@@ -56,7 +57,9 @@ def test_hung_child_is_killed_and_its_work_done_here(tmp_path, monkeypatch):
     import os
     import time
 
-    monkeypatch.setattr(rp, "FIGURES_TIMEOUT_S", 1.0)
+    from omni_app import workers as wk
+
+    monkeypatch.setattr(wk, "FIGURES_TIMEOUT_S", 1.0)
     parent = os.getpid()
 
     def task():
@@ -64,7 +67,7 @@ def test_hung_child_is_killed_and_its_work_done_here(tmp_path, monkeypatch):
             time.sleep(60)                      # the child hangs
         (tmp_path / "done").write_text("here")
 
-    w = rp._Workers()
+    w = Workers()
     if not w.fork:
         pytest.skip("no fork")
     w.start([task])
@@ -92,3 +95,49 @@ def test_failed_reproduction_leaves_nothing(tmp_path, monkeypatch):
     with pytest.raises(UserError, match="test"):
         rp.reproduce_command(args)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--jobs", "0"], "must be >= 1"),
+    (["--bogus"], "unrecognized arguments"),
+    (["--model", "no/such/model.xml"], "no/such/model.xml"),
+])
+def test_rejected_reproduce_stops_the_early_worker(tmp_path, extra, message):
+    """The command line forks the figure worker before parsing; arguments rejected then (by
+    the parser or the command) end with the one-line error and exit 2, promptly, with no child
+    left running (a child left waiting would keep the process from exiting)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "results"
+    proc = subprocess.run([sys.executable, "-m", "omni_app", "reproduce", "--out", str(out), *extra],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.startswith("error:") and message in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
+    assert not out.exists()
+
+
+def test_worker_is_forked_before_the_heavy_imports(monkeypatch):
+    """``omni reproduce`` starts its figure worker before the command line imports MuJoCo or
+    scipy (that is the point of forking early); other commands and --help start none."""
+    import sys
+
+    from omni_app import cli, figure_worker
+
+    seen = {}
+
+    def fake_start():
+        seen["mods"] = {m for m in ("mujoco", "scipy", "omni_sim") if m in sys.modules}
+        return None
+
+    monkeypatch.setattr(figure_worker, "start_reproduce_worker", fake_start)
+    for m in ("mujoco", "scipy", "omni_sim"):
+        monkeypatch.delitem(sys.modules, m, raising=False)
+    cli._reproduce_worker(["reproduce", "--out", "x"])
+    assert seen["mods"] == set()
+    seen.clear()
+    for argv in (["generate"], ["reproduce", "--help"], ["reproduce", "--friction", "all"],
+                 ["reproduce", "--friction=all"]):
+        cli._reproduce_worker(argv)
+        assert not seen

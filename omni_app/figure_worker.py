@@ -1,0 +1,113 @@
+"""The figure worker of ``omni reproduce`` (:func:`omni_app.workers.start_reproduce_worker`):
+what its forked child does, stage by stage.
+
+Import-light: the child is forked before the parent's heavy imports and loads only what
+drawing and writing need (matplotlib, the CSV kernel, the method's modules the payloads
+name), not MuJoCo or the simulator.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .workers import Workers
+
+
+def _figure_groups():
+    """The figures as drawn by the worker and its children: (a) and (b) need only the
+    identification, (c) and (d) the validation's scores and predictions too; (a) is drawn by
+    a child of the worker while the worker draws (b), (c) by a second child while the worker
+    draws (d) (the main process is done by then: its core is free)."""
+    from . import figures as F
+    from . import identify_report as IR
+
+    a = [lambda folder, res: IR.write_identify_figures(res["ident"], folder / "identify"),
+         F.fig_C_beta_vs_alpha]
+    b = [F.fig_alpha_vs_frequency, F.fig_nonlinear_vs_inertia, F.fig_inertia]
+    c = [F.fig_inertia_truth, F.fig_bode]
+    d = [F.fig_time_sine, F.fig_step]
+    assert sorted(f.__name__ for f in a[1:] + b + c + d) == sorted(f.__name__ for f in F.FIGURES)
+    return a, b, c, d
+
+
+def _warm_matplotlib() -> None:
+    """Import matplotlib and draw a throw-away figure (fonts, Agg, PNG writer loaded)."""
+    import io
+
+    from .figures import _plt
+
+    plt = _plt()
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1], "o-", label="x")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(io.BytesIO(), format="png")
+    plt.close(fig)
+
+
+def _worker_warm(state, _=None) -> None:
+    """The figure worker's first task (before any payload): matplotlib loaded and a figure
+    drawn once (fonts, Agg, PNG writer), the compiled CSV writer loaded."""
+    from .accel import install
+
+    install()
+    _warm_matplotlib()
+    import numpy as np
+
+    from identification.csvformat import format_rows
+
+    format_rows(np.zeros((1, 4)))
+    # what unpickling the identification will need (scipy's optimisers): loaded while waiting
+    import identification.identify  # noqa: F401
+
+
+def _worker_simulated(state, payload) -> None:
+    """Stage 1: the runs and the output folder; writes ``dataset/``."""
+    from identification.dataset import write_run
+
+    state["folder"], state["runs"] = Path(payload["folder"]), payload["runs"]
+    for run in state["runs"]:
+        write_run(state["folder"] / "dataset", run)
+
+
+def _worker_identified(state, payload) -> None:
+    """Stage 2: the identification; a child of this worker draws group (a) while this one
+    draws group (b)."""
+    res = {**payload, "runs": state["runs"]}
+    group_a, group_b, _, _ = _figure_groups()
+    drawer = Workers()
+    drawer.start([lambda fn=fn: fn(state["folder"], res) for fn in group_a])
+    state["drawer"] = drawer
+    for fn in group_b:
+        fn(state["folder"], res)
+
+
+def _worker_validated(state, payload) -> None:
+    """Stage 3: the validation's scores and predictions; a second child draws group (c) while
+    this worker draws group (d)."""
+    res = {**payload, "runs": state["runs"]}
+    _, _, group_c, group_d = _figure_groups()
+    drawer = Workers()
+    drawer.start([lambda fn=fn: fn(state["folder"], res) for fn in group_c])
+    for fn in group_d:
+        fn(state["folder"], res)
+    state.pop("drawer").wait()
+    drawer.wait()
+
+
+def start_reproduce_worker() -> Workers:
+    """Fork ``omni reproduce``'s figure worker now: it loads matplotlib and the CSV kernel, then
+    waits for three payloads (:func:`omni_app.reproduce._early_writer` sends them): the runs
+    and the output folder (it writes ``dataset/``), the identification (it draws the
+    identification's figures, part in a child of its own), and the validation's results (it
+    draws the rest): the ``_worker_*`` stages above, sharing ``state``."""
+    state: dict = {}
+
+    def stage(fn):
+        return lambda payload=None: fn(state, payload)
+
+    workers = Workers()
+    workers.start([stage(_worker_warm)],
+                  then=[stage(_worker_simulated), stage(_worker_identified),
+                        stage(_worker_validated)])
+    return workers
