@@ -107,9 +107,9 @@ def write_run(folder: str | os.PathLike, run: Run) -> None:
     cols = {"t": run.t, "r": run.r, "theta": run.theta, "v": run.v, **run.extra}
     names = list(cols)
     data = np.column_stack([np.asarray(cols[k], dtype=float) for k in names])
-    with open(folder / f"{run.name}.csv", "w", newline="\n") as fh:
-        fh.write(",".join(names) + "\n")
-        fh.write(format_rows(data).decode("ascii"))
+    with open(folder / f"{run.name}.csv", "wb") as fh:  # ASCII bytes as they are
+        fh.write((",".join(names) + "\n").encode("ascii"))
+        fh.write(format_rows(data))
     with open(folder / f"{run.name}.json", "w", newline="\n") as fh:
         json.dump(run.meta, fh, indent=2, sort_keys=True)
         fh.write("\n")

@@ -232,9 +232,9 @@ def write_predictions(folder: Path, runs: list[Run], predictions: dict[str, dict
     for run in runs:
         p = predictions[run.name]
         data = np.column_stack([run.t, run.theta, p["theta_linear"], p["theta_alpha"]])
-        with open(folder / "predictions" / f"{run.name}.csv", "w", newline="\n") as fh:
-            fh.write("t,theta,theta_linear,theta_alpha\n")
-            fh.write(format_rows(data).decode("ascii"))  # "%.17g" per number
+        with open(folder / "predictions" / f"{run.name}.csv", "wb") as fh:
+            fh.write(b"t,theta,theta_linear,theta_alpha\n")
+            fh.write(format_rows(data))  # "%.17g" per number, ASCII
 
 
 def validate_runs(runs: list[Run], params: Params) -> tuple[dict, dict]:
