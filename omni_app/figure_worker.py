@@ -1,9 +1,9 @@
-"""The figure worker of ``omni reproduce`` (:func:`omni_app.workers.start_reproduce_worker`):
-what its forked child does, stage by stage.
+"""The figure worker of ``omni reproduce`` (:func:`start_reproduce_worker`): what its forked
+child does, stage by stage.
 
 Import-light: the child is forked before the parent's heavy imports and loads only what
-drawing and writing need (matplotlib, the CSV kernel, the method's modules the payloads
-name), not MuJoCo or the simulator.
+drawing needs (matplotlib and the method's modules the payloads name), not MuJoCo or the
+simulator.
 """
 
 from __future__ import annotations
@@ -47,27 +47,15 @@ def _warm_matplotlib() -> None:
 
 def _worker_warm(state, _=None) -> None:
     """The figure worker's first task (before any payload): matplotlib loaded and a figure
-    drawn once (fonts, Agg, PNG writer), the compiled CSV writer loaded."""
-    from .accel import install
-
-    install()
+    drawn once (fonts, Agg, PNG writer), and the modules that unpickling the identification
+    needs (scipy's optimisers)."""
     _warm_matplotlib()
-    import numpy as np
-
-    from identification.csvformat import format_rows
-
-    format_rows(np.zeros((1, 4)))
-    # what unpickling the identification will need (scipy's optimisers): loaded while waiting
     import identification.identify  # noqa: F401
 
 
 def _worker_simulated(state, payload) -> None:
-    """Stage 1: the runs and the output folder; writes ``dataset/``."""
-    from identification.dataset import write_run
-
+    """Stage 1: the runs and the output folder (the main process writes the dataset)."""
     state["folder"], state["runs"] = Path(payload["folder"]), payload["runs"]
-    for run in state["runs"]:
-        write_run(state["folder"] / "dataset", run)
 
 
 def _worker_identified(state, payload) -> None:
@@ -96,11 +84,11 @@ def _worker_validated(state, payload) -> None:
 
 
 def start_reproduce_worker() -> Workers:
-    """Fork ``omni reproduce``'s figure worker now: it loads matplotlib and the CSV kernel, then
-    waits for three payloads (:func:`omni_app.reproduce._early_writer` sends them): the runs
-    and the output folder (it writes ``dataset/``), the identification (it draws the
-    identification's figures, part in a child of its own), and the validation's results (it
-    draws the rest): the ``_worker_*`` stages above, sharing ``state``."""
+    """Fork ``omni reproduce``'s figure worker now: it loads matplotlib, then waits for three
+    payloads (:class:`omni_app.reproduce._EarlyWriter` sends them): the runs and the output
+    folder, the identification (it draws part of the figures, and a child of its own another
+    part), and the validation's results (it draws the rest, with a second child): the
+    ``_worker_*`` stages above, sharing ``state``."""
     state: dict = {}
 
     def stage(fn):

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 
-from identification.dataset import atomic_output_dir
+from identification.dataset import atomic_output_dir, write_run
 from identification.errors import UserError
 from identification.identify import identify_runs
 from identification.validation import Params, validate_runs, write_predictions
@@ -103,23 +103,23 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
             "predictions": predictions, "linear_truth": lin, "bar": bar}
 
 
-def write_reproduce(folder: Path, res: dict, t0: float, workers: "Workers | None" = None) -> None:
+def write_reproduce(folder: Path, res: dict, t0: float, writer: "_EarlyWriter | None" = None) -> None:
     """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
     params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
-    (perf_counter), for the real-time factor.  ``workers``: those :func:`_early_writer` started
-    on the way (the dataset and the identification's figures under way already); else they are
-    started here.  The dataset and the figures are written by forked children (POSIX) while
-    this process writes the rest."""
-    if workers is None:
-        workers = start_reproduce_worker()
-        stage = _early_writer(folder, workers)
-        stage("simulated", res["runs"])
-        stage("identified", res["ident"])
-    # the dataset's writer, which has the runs and matplotlib loaded, draws the rest
+    (perf_counter), for the real-time factor.  ``writer``: the :class:`_EarlyWriter` that
+    :func:`run_reproduce` fed on the way (the dataset and the identification's figures under
+    way already); else one is started here.  The figures are drawn by forked children (POSIX)
+    while this process writes the rest."""
+    if writer is None:
+        writer = _EarlyWriter(folder, start_reproduce_worker())
+        writer("simulated", res["runs"])
+        writer("identified", res["ident"])
+    workers = writer.workers
     workers.send({k: res[k] for k in ("ident", "scores", "predictions")})
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
     write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
+    writer.join()
     workers.wait()
     summary = res["scores"]["summary"]
     summary["run"]["wall_s_total"] = time.perf_counter() - t0
@@ -130,25 +130,49 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: "Workers | None
     (folder / "report.md").write_text(format_report(res))
 
 
-def _early_writer(folder: Path, workers: "Workers"):
-    """An ``on_stage`` for :func:`run_reproduce` feeding the figure worker ``workers``
-    (:func:`omni_app.workers.start_reproduce_worker`, started before this process's heavy
-    imports, matplotlib loaded by now): once the runs exist it gets them and the folder and
-    writes ``folder/dataset/``; then the identification (it draws part of the figures itself
-    and part in a child of its own); the validation's results follow from
-    :func:`write_reproduce`.  So the figures are drawn by two processes that never load
-    matplotlib on the critical path, mostly while the main process identifies, validates and
-    writes."""
+class _EarlyWriter:
+    """The ``on_stage`` of :func:`run_reproduce` in ``omni reproduce``: writes as soon as the
+    stages' results exist.
 
-    def on_stage(stage, value):
+    Once the runs exist, ``folder/dataset/`` is written by a thread of this process (the CSV
+    kernel runs without the GIL, so it overlaps the identification), and the figure worker
+    ``workers`` (:func:`omni_app.figure_worker.start_reproduce_worker`, matplotlib loaded by
+    now) is sent the runs and the folder; then the identification (it draws part of the
+    figures and a child of its own another part); the validation's results follow from
+    :func:`write_reproduce`.  :meth:`join` waits for the dataset and raises its error."""
+
+    def __init__(self, folder: Path, workers: "Workers"):
+        self.folder, self.workers = folder, workers
+        self._thread = None
+        self._error: BaseException | None = None
+
+    def __call__(self, stage, value) -> None:
         if stage == "simulated":
-            (folder / "dataset").mkdir()
-            workers.send({"folder": str(folder), "runs": value})
-        elif stage == "identified":
-            (folder / "identify").mkdir()
-            workers.send({"ident": value})
+            import threading
 
-    return on_stage
+            (self.folder / "dataset").mkdir()
+            self._thread = threading.Thread(target=self._write_dataset, args=(value,),
+                                            name="omni-dataset", daemon=True)
+            self._thread.start()
+            self.workers.send({"folder": str(self.folder), "runs": value})
+        elif stage == "identified":
+            (self.folder / "identify").mkdir()
+            self.workers.send({"ident": value})
+
+    def _write_dataset(self, runs) -> None:
+        try:
+            for run in runs:
+                write_run(self.folder / "dataset", run)
+        except BaseException as exc:  # noqa: BLE001  (raised by join)
+            self._error = exc
+
+    def join(self) -> None:
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+        if self._error is not None:
+            error, self._error = self._error, None
+            raise error
 
 
 def _one_blas_thread():
@@ -202,16 +226,21 @@ def reproduce_command(args) -> int:
         # the figure worker: started by the command line before its heavy imports (matplotlib
         # is loaded there while this process loads the rest), else now
         workers = getattr(args, "figure_worker", None) or start_reproduce_worker()
+        writer = _EarlyWriter(tmp, workers)
         try:
-            # the dataset is written, and the identification's figures drawn, by forked
-            # children as soon as the runs and the identification exist
+            # the dataset is written, and the identification's figures drawn, as soon as the
+            # runs and the identification exist
             res = run_reproduce(model_path, args.jobs, progress=sys.stderr.isatty(),
-                                on_stage=_early_writer(tmp, workers))
+                                on_stage=writer)
             bar = res["bar"]
             bar.set_description("writing report and figures")
-            write_reproduce(tmp, res, t0, workers)
+            write_reproduce(tmp, res, t0, writer)
         except BaseException:
             workers.kill()
+            try:
+                writer.join()  # before the temporary folder is removed
+            except BaseException:  # noqa: BLE001  (the first error is the one reported)
+                pass
             raise
     bar.update(1)
     bar.close()
