@@ -16,7 +16,45 @@ from .model import (DEFAULT_SCENE, FRICTION_FAMILIES, MODELS_DIR, equilibrium_po
 __all__ = ["DEFAULT_SCENE", "FRICTION_FAMILIES", "MODELS_DIR", "Device", "Encoder", "Engine",
            "equilibrium_pose", "load_model", "yaw_inertia"]
 
-import gymnasium as _gym  # register the environment (omni_sim/env.py) once per process
-if "omni_sim/OmniYaw-v0" not in _gym.registry:
-    _gym.register(id="omni_sim/OmniYaw-v0", entry_point="omni_sim.env:OmniYawEnv",
-                  vector_entry_point="omni_sim.vector_env:OmniYawVectorEnv")
+
+
+def _register_env() -> None:
+    """Register the environment (omni_sim/env.py) with gymnasium, once per process."""
+    import gymnasium as gym
+
+    if "omni_sim/OmniYaw-v0" not in gym.registry:
+        gym.register(id="omni_sim/OmniYaw-v0", entry_point="omni_sim.env:OmniYawEnv",
+                     vector_entry_point="omni_sim.vector_env:OmniYawVectorEnv")
+
+
+class _RegisterWhenGymnasiumLoads:
+    """A meta-path finder that registers the environment right after ``gymnasium`` is first
+    imported: importing gymnasium takes ~0.3 s, which the command line (simulation,
+    identification) does not need, while ``import omni_sim`` then ``gym.make(...)`` works in
+    either order."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "gymnasium":
+            return None
+        import importlib.util
+
+        sys.meta_path.remove(self)  # find the real spec without this finder
+        spec = importlib.util.find_spec(name)
+        if spec is None or spec.loader is None:
+            return spec
+        exec_module = spec.loader.exec_module
+
+        def exec_and_register(module):
+            exec_module(module)
+            _register_env()
+
+        spec.loader.exec_module = exec_and_register
+        return spec
+
+
+import sys  # noqa: E402
+
+if "gymnasium" in sys.modules:
+    _register_env()
+elif not any(isinstance(f, _RegisterWhenGymnasiumLoads) for f in sys.meta_path):
+    sys.meta_path.insert(0, _RegisterWhenGymnasiumLoads())

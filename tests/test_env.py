@@ -419,3 +419,20 @@ def test_render_rgb_array(tmp_path):
         assert r["tip_on_robot"], f"the arm's tip is not where the pose puts it ({pose}): {r}"
     a, b = (np.load(tmp_path / f"img_{g:g}.npy") for g in (25.0, 65.0))
     assert np.mean(np.any(a != b, axis=2)) > 0.005  # the two poses look different
+
+
+@pytest.mark.parametrize("order", ["omni_sim first", "gymnasium first"])
+def test_environment_registered_in_either_import_order(order):
+    """``import omni_sim`` does not load gymnasium (~0.3 s the simulator does not need); the
+    environment is registered when gymnasium is imported, before or after omni_sim."""
+    import subprocess
+    import sys
+
+    imports = ("import omni_sim, sys; assert 'gymnasium' not in sys.modules; import gymnasium as gym"
+               if order == "omni_sim first" else "import gymnasium as gym; import omni_sim")
+    code = (f"{imports}\n"
+            "env = gym.make('omni_sim/OmniYaw-v0')\n"
+            "print(type(env.unwrapped).__name__)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "OmniYawEnv"
