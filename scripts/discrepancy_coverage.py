@@ -202,8 +202,16 @@ def main(argv=None) -> int:
     draws: list[dict] = []
     if jpath.exists():
         old = json.loads(jpath.read_text())
-        if old.get("settings", {}).get("seed") == args.seed and old["settings"].get("experiments") == args.experiments:
-            draws = [d for d in old.get("draws", []) if d["effect"] in effects]
+        had = old.get("settings", {})
+        if args.summarise_only:  # summarise what is there, as it was made
+            settings.update({k: had[k] for k in ("seed", "experiments") if k in had})
+        elif (had.get("seed"), had.get("experiments")) != (args.seed, args.experiments):
+            # its draws cannot be resumed with other settings, and are not silently dropped
+            print(f"error: {jpath} holds draws made with --seed {had.get('seed')} --experiments "
+                  f"{had.get('experiments')}; run with those, or with another --out",
+                  file=sys.stderr)
+            return 2
+        draws = [d for d in old.get("draws", []) if d["effect"] in effects]
     for f in args.merge:
         try:
             other = json.loads(Path(f).read_text())
