@@ -230,3 +230,51 @@ def test_simulate_grouped_mixes_structures(spec):
         alone = [rep.simulate([m], rr) for m in models]
     for (i, j), t in zip(pairs, th):
         np.testing.assert_array_equal(t, alone[i][j])
+
+
+def test_polish_moves_a_stalled_backlash_fit_into_its_basin(spec):
+    """A backlash's replay error is jagged in the slack (contact events at discrete samples):
+    the trust-region fit stops where it starts; the basin search (Problem.polish) brings the
+    slack to the truth hidden by the bank's independent truth model (1 mrad), within the
+    basin's smallest bracket (fit.BASIN_SMALLEST of the value)."""
+    from omni_sim.discrepancy.fit import BASIN_SMALLEST, Problem
+    hidden = bank.case("backlash")
+    truth = hidden.effects[0][1][0]
+    m0 = spec.compile()
+    rr = prepare_runs(bank.generate(hidden, _one_pose_exps(), jobs=JOBS), m0)
+    from omni_sim.discrepancy.fit import FitResult
+    with Replayer(JOBS) as rep:
+        prob = Problem(spec, [], [fx.get("backlash")], rr, rep)
+        for start in (0.6 * truth, 1.6 * truth):  # a fit stalled 40 % low / 60 % high
+            x0 = np.array([start])
+            f, J, raw = prob.evaluate(x0)
+            stalled = FitResult([fx.get("backlash")], x0, x0, float(np.sqrt(np.mean([np.mean(r**2) for r in raw]))),
+                                J, f, 0, raw)
+            polished = prob.polish(stalled)
+            assert abs(polished.x[0] - truth) <= BASIN_SMALLEST * truth, (start, polished.x)
+            assert polished.gap_train < stalled.gap_train
+
+
+def test_member_runner_up_is_the_best_set_without_it():
+    """Each member's runner-up: the best scored set that lacks it, named by what it holds
+    instead (None: dropped); margin 1 - best / alternative."""
+    from omni_sim.discrepancy.fit import FitResult
+    from omni_sim.discrepancy.select import Scored, member_runner_up
+
+    def s(names, g):
+        effs = [fx.get(n) for n in names]
+        return Scored("+".join(names), effs, FitResult(effs, np.zeros(0), np.zeros(0), g), heldout_gap=g)
+
+    best = s(["coulomb_friction", "time_delay", "armature"], 1.0)
+    others = [s(["coulomb_friction", "time_delay", "arm_mass"], 2.0),
+              s(["coulomb_friction", "actuator_lag", "armature"], 4.0),
+              s(["coulomb_friction", "time_delay"], 5.0),
+              s(["armature", "presliding_friction"], 8.0),
+              s(["time_delay", "armature", "viscous_damping"], float("inf"))]  # not scored
+    ru = member_runner_up(best, [best] + others)
+    assert ru[0] == ("presliding_friction", 1 - 1.0 / 8.0)  # coulomb: only the LuGre pair lacks it
+    assert ru[1] == ("actuator_lag", 1 - 1.0 / 4.0)
+    assert ru[2] == ("arm_mass", 1 - 1.0 / 2.0)
+    assert member_runner_up(best, [best]) == [(None, 1.0)] * 3
+    # the member dropped: the pair without it
+    assert member_runner_up(best, [best, others[2]])[2] == (None, 1 - 1.0 / 5.0)

@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 
 from . import effects as fx
-from .fit import FitResult, Problem, gap
+from .fit import BASIN_SMALLEST, FitResult, Problem, gap, rough
 from .replay import Replayer, ReplayRun
 
 #: Least share of the round's starting held-out gap the best candidate must remove.
@@ -192,12 +192,35 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start
     return xs
 
 
+def _polish_folds(problem: Problem, folds: list[list[int]], start: list[np.ndarray]) -> list[np.ndarray]:
+    """Per-fold fits of a candidate with rough parameters: each fold's training runs, from its
+    one-step start, by :meth:`Problem.polish` (one cycle; the basin's first bracket at its
+    smallest width, as the fold's basin lies near the all-runs one)."""
+    out = []
+    for idx, x0 in zip(folds, start):
+        held = set(idx)
+        train = [r for j, r in enumerate(problem.runs) if j not in held]
+        pf = Problem(problem.spec, problem.fixed, problem.free, train, problem.rep, problem.target)
+        f, J, raw = pf.evaluate(x0)
+        fit = pf.polish(FitResult(list(pf.free), np.asarray(x0, float), np.asarray(x0, float), gap(raw), J, f,
+                                  pf.nsim, raw), cycles=1, basin_start=BASIN_SMALLEST)
+        problem.nsim += pf.nsim
+        out.append(fit.x)
+    return out
+
+
 def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.ndarray,
                 runs: list[ReplayRun], rep: Replayer, gap_start: float, k: int = 5,
                 n_confirm: int = 3, candidates: tuple[str, ...] | None = None,
                 screen_nfev: int = 4, log=None, target: fx.Target = fx.OMNI,
-                n_screen: int | None = None, prescreen_samples: int | None = None) -> list[Scored]:
+                n_screen: int | None = None, prescreen_samples: int | None = None,
+                bases: list | None = None) -> list[Scored]:
     """Fit and score every candidate not yet accepted; best first.
+
+    With ``bases`` (a beam: several sets of effects with their fitted values, e.g. the pairs
+    the pair search confirmed), every candidate is added to every base it is not in, all of
+    them prescreened in one lockstep; the scored sets are named ``"a+b+c"`` (base, then the
+    candidate) and the best set wins, whichever base it grew from.
 
     Parameters
     ----------
@@ -227,8 +250,12 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
     n_screen = N_SCREEN if n_screen is None else n_screen
     prescreen_samples = PRESCREEN_SAMPLES if prescreen_samples is None else prescreen_samples
     folds = kfolds(runs, k)
+    jobs = None
+    if bases:
+        jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or fx.NAMES)
+                if n not in [e.name for e in b]]
     pre = prescreen(spec, accepted, accepted_x, names, runs, rep, target=target,
-                    samples=prescreen_samples, log=log)
+                    samples=prescreen_samples, log=log, jobs=jobs)
     keep = {c.name for c in pre[:n_screen]}
     scored: list[Scored] = []
     for c in pre:
@@ -240,7 +267,8 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
         t0 = time.perf_counter()
         prob = Problem(spec, [], c.effects, runs, rep, target)
         fit = prob.fit(c.x, None, max_nfev=screen_nfev)
-        sc = _screened(c.name, c.effects, prob, fit, folds, gap_start, t0, log, width=18)
+        sc = _screened(c.name, c.effects, prob, fit, folds, gap_start, t0, log,
+                       width=36 if bases else 18)
         sc.prescreen_gap = c.gap
         scored.append(sc)
     return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
@@ -292,7 +320,7 @@ def simulate_grouped(rep: Replayer, models: list, runs: list[ReplayRun],
 def prescreen(spec: mujoco.MjSpec, accepted: list, accepted_x: np.ndarray, names: list[str],
               runs: list[ReplayRun], rep: Replayer, target: fx.Target = fx.OMNI,
               samples: int = PRESCREEN_SAMPLES, iterations: int = PRESCREEN_ITERATIONS,
-              log=None) -> list[Prescreened]:
+              log=None, jobs: list | None = None) -> list[Prescreened]:
     """Fit every candidate coarsely on the first ``samples`` samples of each run; best first.
 
     All candidates advance together: their grid points form one batch (per group of models
@@ -304,11 +332,17 @@ def prescreen(spec: mujoco.MjSpec, accepted: list, accepted_x: np.ndarray, names
     t0 = time.perf_counter()
     short = [r.truncated(samples) for r in runs]
     probs, x0s, grids = [], [], []
-    for name in names:
+    # ``jobs``: (base effects, their values, candidate name) per candidate -- several bases
+    # scored in one lockstep (the beam of :func:`score_round`); by default every name on
+    # ``accepted``
+    beam = jobs is not None
+    jobs = [(list(accepted), accepted_x, n) for n in names] if jobs is None else jobs
+    labels = ["+".join([e.name for e in b] + [n]) if beam else n for b, _, n in jobs]
+    for base, base_x, name in jobs:
         eff = fx.get(name)
-        effects = list(accepted) + [eff]
+        effects = list(base) + [eff]
         prob = Problem(spec, [], effects, short, rep, target)
-        x0 = np.clip(np.concatenate([np.asarray(accepted_x, float), fx.nominal_values(eff, spec, target)]),
+        x0 = np.clip(np.concatenate([np.asarray(base_x, float), fx.nominal_values(eff, spec, target)]),
                      prob.lower, prob.upper)
         i0 = len(x0) - eff.nparam
         pts = []
@@ -375,10 +409,10 @@ def prescreen(spec: mujoco.MjSpec, accepted: list, accepted_x: np.ndarray, names
             p = len(h)
             dz = np.linalg.solve(A + lam[c] * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p), -J.T @ f0)
             xs[c] = np.clip(xs[c] + dz * prob.scale, prob.lower, prob.upper)
-    out = [Prescreened(name, probs[c].free, x0s[c], best_x[c], best_gap[c]) for c, name in enumerate(names)]
+    out = [Prescreened(name, probs[c].free, x0s[c], best_x[c], best_gap[c]) for c, name in enumerate(labels)]
     out.sort(key=lambda c: c.gap)
     if log:
-        log(f"  prescreen of {len(names)} candidates on {samples}-sample records: "
+        log(f"  prescreen of {len(labels)} candidates on {samples}-sample records: "
             f"{time.perf_counter() - t0:.1f} s; best " + ", ".join(f"{c.name} ({c.gap:.2e})" for c in out[:N_SCREEN]))
     return out
 
@@ -415,8 +449,15 @@ def _confirm(spec, s: Scored, runs, rep, folds, gap_start: float, log=None) -> N
     # converging fit starts there without simulating it again
     prob.seed(s.fit)
     s.fit = prob.fit(s.fit.x, None, max_nfev=20)  # converge the all-runs fit
+    # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
+    # minimum wherever it started; the basin search moves it to the basin's centre
+    s.fit = prob.polish(s.fit)
     s.fold_x = _onestep_folds(prob, s.fit, folds)
-    s.fold_x = _refit_folds(prob, s.fit, folds, s.fold_x)
+    if rough(s.effects):
+        # the folds are estimated the same way (so the jackknife sees the estimator's spread)
+        s.fold_x = _polish_folds(prob, folds, s.fold_x)
+    else:
+        s.fold_x = _refit_folds(prob, s.fit, folds, s.fold_x)
     s.heldout_raw = _heldout(prob, s.fold_x, folds)
     s.heldout_gap = gap(s.heldout_raw)
     s.share = share_of(s.heldout_gap, gap_start)
@@ -523,4 +564,25 @@ def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> 
         single = [s for s in singles if s.name == other]
         g = single[0].heldout_gap if single else math.inf
         out.append((None, share_of(best.heldout_gap, g) if math.isfinite(g) else 1.0))
+    return out
+
+
+def member_runner_up(best: Scored, scored: list[Scored]) -> list[tuple[str | None, float]]:
+    """For each member of the set ``best``: the best alternative and the margin.
+
+    The alternative is the best other scored set (finite held-out gap) that does not hold the
+    member; it is named by what it holds instead of the member (its members not in ``best``,
+    joined by ``+``; ``None`` when it holds nothing else: the member dropped).  Margin =
+    ``1 - best gap / alternative's gap``; 1.0 when no scored set lacks the member."""
+    names = [e.name for e in best.effects]
+    out = []
+    for m in names:
+        alt = [s for s in scored if s is not best and math.isfinite(s.heldout_gap)
+               and m not in [e.name for e in s.effects]]
+        if not alt:
+            out.append((None, 1.0))
+            continue
+        a = min(alt, key=lambda s: s.heldout_gap)
+        instead = [e.name for e in a.effects if e.name not in names]
+        out.append(("+".join(instead) if instead else None, share_of(best.heldout_gap, a.heldout_gap)))
     return out

@@ -148,6 +148,8 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         accepted, accepted_x, rounds, entries, effect_entries = [], np.zeros(0), [], [], []
         gap_start = fit_before
         best_accepted = None
+        beam = None  # the pair search's confirmed pairs, grown together in the next round
+        pairs_scored: list = []
         t0 = time.perf_counter()
         rnd = -1
         while len(accepted) < max_effects:
@@ -163,7 +165,10 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 break
             log(f"round {rnd + 1}: scoring {len(names)} candidates")
             scored = sel.score_round(spec, accepted, accepted_x, fit_runs, rep, gap_start, k=k,
-                                     candidates=tuple(names), log=log, target=tgt)
+                                     # a beam grows every confirmed pair by any candidate
+                                     # not in it (the accepted pair's members included)
+                                     candidates=tuple(candidates if beam else names), log=log,
+                                     target=tgt, bases=beam)
             rounds.append(scored)
             best = scored[0]
             runner = scored[1] if len(scored) > 1 and math.isfinite(scored[1].heldout_gap) else None
@@ -218,6 +223,15 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                         f"{gain:.0%} of what the best single candidate leaves)")
                     accepted, accepted_x, best_accepted = bp.effects, bp.fit.x, bp
                     gap_start = bp.heldout_gap
+                    # a beam: the next round adds each candidate to each confirmed pair, not
+                    # only to the accepted one (with a third effect present the best pair can
+                    # be a stand-in: armature + LuGre explains more of delay + Coulomb +
+                    # armature than Coulomb + delay, whose fit then compensates the missing
+                    # armature; the triple grows from Coulomb + delay)
+                    confirmed = [p for p in pairs if p.method == "refit" and math.isfinite(p.heldout_gap)]
+                    if len(confirmed) > 1:
+                        beam = [(p.effects, p.fit.x) for p in confirmed]
+                        pairs_scored = [p for p in pairs if math.isfinite(p.heldout_gap)]
                     continue  # forward selection goes on from the pair
                 log(f"round 1: best pair {bp.name} removes {bp.share:.0%} ({gain:.0%} of what the best "
                     "single leaves): not accepted")
@@ -226,8 +240,26 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 break
             log(f"round {rnd + 1}: accepted {best.name} (removes {best.share:.0%}; runner-up "
                 f"{entry['runner_up']}, margin {margin:.2f})")
+            if beam:
+                # the set may have grown from another pair than the one accepted: every member's
+                # runner-up is the best scored set without it (this round's sets and the pairs)
+                effect_entries = []
+                for eff, (ru, mg) in zip(best.effects, sel.member_runner_up(best, scored + pairs_scored)):
+                    pe = {"round": rnd + 1, "pair": best.name, "best": eff.name, "share": best.share,
+                          "runner_up": ru, "runner_up_share": None, "margin": mg,
+                          "gap_start_rad": gap_start, "gap_heldout_rad": best.heldout_gap,
+                          "accepted": True,
+                          "runner_up_note": "the best scored set without this effect (named by "
+                                            "what it holds instead; none: the effect dropped)"}
+                    if ru is not None and "+" not in ru and mg < sel.TIE_MARGIN:
+                        pe["tie"] = True
+                        pe["separating_experiment"] = sel.separating_experiment(eff.name, ru)
+                    entries.append(pe)
+                    effect_entries.append(pe)
+                beam = None
+            else:
+                effect_entries.append(entry)
             accepted, accepted_x, best_accepted = best.effects, best.fit.x, best
-            effect_entries.append(entry)
             gap_start = best.heldout_gap
         timings["naming_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
