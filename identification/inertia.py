@@ -41,7 +41,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize, special
 
 from .errors import UserError
 
@@ -258,6 +257,8 @@ def _start_fixed_gamma(a, b, c, c0_reg):
     """Start of the fixed-γoffs problem: a non-negative least squares of the linearised β̃
     residuals ``I β̃ − 1`` for the I terms, then the C̄0 factor that closes the C residuals in
     the least-squares sense; ``a``: the basis times the inertia scale at that γoffs."""
+    from scipy import optimize
+
     n = b.size
     x4, _ = optimize.nnls(a * b[:, None], np.ones(n))
     if not np.any(x4 > 0):
@@ -272,6 +273,8 @@ def _start_fixed_gamma(a, b, c, c0_reg):
 def _solve_fixed_gamma(g1, g2, b, c, s, c0_reg, gam):
     """The fit at fixed γoffs = ``gam`` [deg] by scipy's bounded trust-region least squares
     (the reference of :func:`_profile_costs`): returns (cost, x = [I terms/s, γoffs, C̄0/c0_reg])."""
+    from scipy import optimize
+
     basis = _basis(g1, g2, gam)
     x0 = _start_fixed_gamma(s * basis, b, c, c0_reg)
 
@@ -387,6 +390,8 @@ def fit_inertia_model(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear, *,
     UserError
         Fewer than :data:`MIN_POSES` poses, non-finite or non-positive coefficients.
     """
+    from scipy import optimize, special  # here: the results' classes load without scipy
+
     g1, g2, c, b = _check_inputs(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear)
     n = g1.size
     s = float(np.median(1.0 / b))  # inertia scale [β̄ = 1 units]

@@ -71,7 +71,6 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-from scipy.optimize import nnls
 
 from . import paper
 from .errors import UserError
@@ -301,6 +300,8 @@ def _beta_basis(alpha, alpha_bar):
 
 def _nnls_values(A, y, monotone):
     """Least squares for breakpoint values with C >= 0 (and non-increasing if ``monotone``)."""
+    from scipy.optimize import nnls  # here: the model's classes load without scipy
+
     if A.shape[0] == 0:
         return np.zeros(A.shape[1])
     if monotone:

@@ -47,10 +47,9 @@ def _warm_matplotlib() -> None:
 
 def _worker_warm(state, _=None) -> None:
     """The figure worker's first task (before any payload): matplotlib loaded and a figure
-    drawn once (fonts, Agg, PNG writer), and the modules that unpickling the identification
-    needs (scipy's optimisers)."""
+    drawn once (fonts, Agg, PNG writer).  (The method's modules load with the payloads, without
+    scipy: they import it where they fit.)"""
     _warm_matplotlib()
-    import identification.identify  # noqa: F401
 
 
 def _worker_simulated(state, payload) -> None:
