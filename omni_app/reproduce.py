@@ -66,12 +66,14 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     bar.set_description("simulating the paper campaign")
     exps = ex.campaign(campaign)
     # the kernels are loaded by a thread while MuJoCo simulates (its threads release the GIL),
-    # and joined before anything forks
-    warm = start_prewarm()
+    # and joined before anything forks; unless ``on_stage`` loads them itself (omni reproduce's
+    # writer, while the identification runs: a core is free then, none is while MuJoCo runs)
+    warm = None if getattr(on_stage, "loads_kernels", False) else start_prewarm()
     try:
         runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
     finally:
-        warm.join()
+        if warm is not None:
+            warm.join()
     if on_stage is not None:
         on_stage("simulated", runs)
     bar.update(1)
@@ -134,8 +136,9 @@ class _EarlyWriter:
     """The ``on_stage`` of :func:`run_reproduce` in ``omni reproduce``: writes as soon as the
     stages' results exist.
 
-    Once the runs exist, ``folder/dataset/`` is written by a thread of this process (the CSV
-    kernel runs without the GIL, so it overlaps the identification), and the figure worker
+    Once the runs exist, a thread of this process loads the compiled kernels and writes
+    ``folder/dataset/`` (the CSV kernel runs without the GIL, so it overlaps the
+    identification), and the figure worker
     ``workers`` (:func:`omni_app.figure_worker.start_reproduce_worker`, matplotlib loaded by
     now) is sent the runs and the folder; then the identification (it draws part of the
     figures and a child of its own another part); the validation's results follow from
@@ -159,8 +162,14 @@ class _EarlyWriter:
             (self.folder / "identify").mkdir()
             self.workers.send({"ident": value})
 
+    #: :func:`run_reproduce` leaves the compiled kernels to this writer's thread
+    loads_kernels = True
+
     def _write_dataset(self, runs) -> None:
         try:
+            from .accel import prewarm
+
+            prewarm()  # the CSV kernel for the dataset, the α kernel for the validation
             for run in runs:
                 write_run(self.folder / "dataset", run)
         except BaseException as exc:  # noqa: BLE001  (raised by join)
