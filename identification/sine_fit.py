@@ -259,3 +259,41 @@ def fit_run(
             f"{abs(p_r):.3g} rad, amplitude_rad {ar:g}); is frequency_hz right?")
     p = ar * complex(th.A2, th.A1) / p_r
     return RunSineFit(run.name, f, ar, p.imag, p.real, th, rf, n_cycles, float(t[0]), float(t[-1]))
+
+
+def _fundamental_columns(t: np.ndarray, frequency_hz: float) -> np.ndarray:
+    """The first three columns of :func:`fit_sine`'s design matrix, computed the same way
+    (``[1, cos ωt, sin ωt]``), so a fit on them gives its fundamental bit for bit."""
+    w = 2.0 * math.pi * frequency_hz
+    return np.column_stack([np.ones_like(t), np.cos(1 * w * t), np.sin(1 * w * t)])
+
+
+def fundamentals(run, thetas, **window) -> list[tuple[float, float]]:
+    """``(A1, A2)`` of :func:`fit_run` for the run with each of ``thetas`` in place of its θ,
+    the same numbers: the same window, the reference fitted once, the fundamental only (no
+    harmonics, goodness of fit or record of the fits; what scoring model predictions needs).
+
+    Raises
+    ------
+    UserError
+        As :func:`fit_run`.
+    """
+    f = run.frequency_hz
+    ar = run.amplitude_rad
+    if not ar > 0:
+        raise UserError(f"{run.name}: sine amplitude_rad must be > 0, got {ar!r}")
+    win, _ = steady_state_window(run.t, f, name=run.name, **window)
+    a = _fundamental_columns(np.asarray(run.t[win], dtype=float), f)
+    rc, *_ = np.linalg.lstsq(a, np.asarray(run.r[win], dtype=float), rcond=None)
+    p_r = complex(float(rc[2]), float(rc[1]))
+    if abs(p_r) < 1e-3 * ar:
+        raise UserError(
+            f"{run.name}: the reference r has no component at {f:g} Hz (fitted amplitude "
+            f"{abs(p_r):.3g} rad, amplitude_rad {ar:g}); is frequency_hz right?")
+    out = []
+    for theta in thetas:
+        c, *_ = np.linalg.lstsq(a, np.asarray(theta[win], dtype=float), rcond=None)
+        p = ar * complex(float(c[2]), float(c[1])) / p_r
+        out.append((p.imag, p.real))
+    return out
+

@@ -34,7 +34,7 @@ from .errors import UserError
 from .inertia import InertiaParameters
 from .nonlinear import AlphaModel
 from .simulate import simulate_alpha_batch, simulate_linear
-from .sine_fit import fit_run
+from .sine_fit import fundamentals
 
 #: A pose of a run counts as an identification pose if both angles agree within this [deg].
 POSE_MATCH_DEG = 0.5
@@ -160,12 +160,6 @@ def _pose_key(run: Run) -> tuple[float, float]:
     return round(float(g1), 2), round(float(g2), 2)
 
 
-def _fundamental(run: Run, theta: np.ndarray) -> tuple[float, float]:
-    sim = Run(run.name, run.t, run.r, theta, run.v, run.meta)
-    f = fit_run(sim)
-    return f.A1, f.A2
-
-
 def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict:
     """Tables 8 and 11 for both models, and the summary (contract keys plus details)."""
     sine_rows, step_rows = [], []
@@ -175,9 +169,9 @@ def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict
             by_pose.setdefault(_pose_key(run), []).append(run)
     for key, group in sorted(by_pose.items()):
         group.sort(key=lambda r: r.frequency_hz)
-        data = [_fundamental(r, r.theta) for r in group]
-        lin = [_fundamental(r, predictions[r.name]["theta_linear"]) for r in group]
-        alp = [_fundamental(r, predictions[r.name]["theta_alpha"]) for r in group]
+        fits = [fundamentals(r, (r.theta, predictions[r.name]["theta_linear"],
+                                 predictions[r.name]["theta_alpha"])) for r in group]
+        data, lin, alp = ([f[i] for f in fits] for i in range(3))
         ar = np.array([r.amplitude_rad for r in group])
         d1, d2 = np.array(data).T
         row = {"gamma1_set_deg": key[0], "gamma2_set_deg": key[1],

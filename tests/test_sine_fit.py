@@ -83,3 +83,32 @@ def test_reference_without_the_frequency_is_an_error():
     t = np.arange(6000) / 1000.0
     with pytest.raises(UserError, match="r1: the reference r has no component at 3 Hz"):
         fit_run(_run(t, 0 * t, np.sin(t), 3.0))
+
+
+@settings(max_examples=25, deadline=None)
+@given(f=st.sampled_from([1.5, 2.5, 4.0, 7.0]), lag=st.floats(0.0, 1.2),
+       gain=st.floats(0.3, 1.5), dist=st.floats(0.0, 0.3), seed=st.integers(0, 10_000))
+def test_fundamentals_equal_fit_run_bit_for_bit(f, lag, gain, dist, seed):
+    """Validation's fundamental-only fits (the reference fitted once for several θ) give
+    fit_run's A1, A2 exactly, on distorted, noisy, lagging responses."""
+    from identification.sine_fit import fundamentals
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, 6.0, 1e-3)
+    r = 0.1 * np.sin(2 * math.pi * f * t)
+    thetas = [gain * 0.1 * np.sin(2 * math.pi * f * t - lag) + dist * 0.01 * np.sin(6 * math.pi * f * t)
+              + 1e-4 * rng.standard_normal(t.size) for _ in range(3)]
+    run = _run(t, r, thetas[0], f)
+    got = fundamentals(run, thetas)
+    for theta, (a1, a2) in zip(thetas, got):
+        ref = fit_run(Run(run.name, t, r, theta, run.v, run.meta))
+        assert (a1, a2) == (ref.A1, ref.A2)
+
+
+def test_fundamentals_reject_what_fit_run_rejects():
+    from identification.sine_fit import fundamentals
+
+    t = np.arange(0, 6.0, 1e-3)
+    run = _run(t, 0.1 * np.sin(2 * math.pi * 3.0 * t), np.zeros_like(t), 2.0)
+    with pytest.raises(UserError, match="no component"):
+        fundamentals(run, [run.theta])
