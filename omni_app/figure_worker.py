@@ -2,8 +2,8 @@
 child does, stage by stage.
 
 Import-light: the child is forked before the parent's heavy imports and loads only what
-drawing needs (matplotlib and the method's modules the payloads name), not MuJoCo or the
-simulator.
+drawing and writing need (matplotlib, the CSV kernel, the method's modules the payloads name),
+not MuJoCo, scipy or the simulator.
 """
 
 from __future__ import annotations
@@ -53,8 +53,16 @@ def _worker_warm(state, _=None) -> None:
 
 
 def _worker_simulated(state, payload) -> None:
-    """Stage 1: the runs and the output folder (the main process writes the dataset)."""
+    """Stage 1: the runs and the output folder; writes ``dataset/`` (while the main process
+    identifies) with the compiled CSV writer, loaded now."""
+    from identification.dataset import write_run
+
+    from .accel import install
+
+    install()
     state["folder"], state["runs"] = Path(payload["folder"]), payload["runs"]
+    for run in state["runs"]:
+        write_run(state["folder"] / "dataset", run)
 
 
 def _worker_identified(state, payload) -> None:
@@ -85,7 +93,7 @@ def _worker_validated(state, payload) -> None:
 def start_reproduce_worker() -> Workers:
     """Fork ``omni reproduce``'s figure worker now: it loads matplotlib, then waits for three
     payloads (:class:`omni_app.reproduce._EarlyWriter` sends them): the runs and the output
-    folder, the identification (it draws part of the figures, and a child of its own another
+    folder (it writes the dataset), the identification (it draws part of the figures, and a child of its own another
     part), and the validation's results (it draws the rest, with a second child): the
     ``_worker_*`` stages above, sharing ``state``."""
     state: dict = {}

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 
-from identification.dataset import atomic_output_dir, write_run
+from identification.dataset import atomic_output_dir
 from identification.errors import UserError
 from identification.identify import identify_runs
 from identification.validation import Params, validate_runs, write_predictions
@@ -65,15 +65,14 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     bar = tqdm(total=5, disable=not progress, unit="stage", leave=False)
     bar.set_description("simulating the paper campaign")
     exps = ex.campaign(campaign)
-    # the kernels are loaded by a thread while MuJoCo simulates (its threads release the GIL),
-    # and joined before anything forks; unless ``on_stage`` loads them itself (omni reproduce's
-    # writer, while the identification runs: a core is free then, none is while MuJoCo runs)
-    warm = None if getattr(on_stage, "loads_kernels", False) else start_prewarm()
+    # the kernels are loaded by a thread while MuJoCo simulates (its threads release the GIL:
+    # the loading, which holds it, costs the simulation less than the identification), and
+    # joined before anything forks
+    warm = start_prewarm()
     try:
         runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
     finally:
-        if warm is not None:
-            warm.join()
+        warm.join()
     if on_stage is not None:
         on_stage("simulated", runs)
     bar.update(1)
@@ -121,7 +120,6 @@ def write_reproduce(folder: Path, res: dict, t0: float, writer: "_EarlyWriter | 
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
     write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
-    writer.join()
     workers.wait()
     summary = res["scores"]["summary"]
     summary["run"]["wall_s_total"] = time.perf_counter() - t0
@@ -133,55 +131,23 @@ def write_reproduce(folder: Path, res: dict, t0: float, writer: "_EarlyWriter | 
 
 
 class _EarlyWriter:
-    """The ``on_stage`` of :func:`run_reproduce` in ``omni reproduce``: writes as soon as the
-    stages' results exist.
-
-    Once the runs exist, a thread of this process loads the compiled kernels and writes
-    ``folder/dataset/`` (the CSV kernel runs without the GIL, so it overlaps the
-    identification), and the figure worker
+    """The ``on_stage`` of :func:`run_reproduce` in ``omni reproduce``: feeds the figure worker
     ``workers`` (:func:`omni_app.figure_worker.start_reproduce_worker`, matplotlib loaded by
-    now) is sent the runs and the folder; then the identification (it draws part of the
-    figures and a child of its own another part); the validation's results follow from
-    :func:`write_reproduce`.  :meth:`join` waits for the dataset and raises its error."""
+    now) as soon as the stages' results exist: the runs and the folder (it writes
+    ``folder/dataset/`` while this process identifies), then the identification (it draws part
+    of the figures and a child of its own another part); the validation's results follow from
+    :func:`write_reproduce`."""
 
     def __init__(self, folder: Path, workers: "Workers"):
         self.folder, self.workers = folder, workers
-        self._thread = None
-        self._error: BaseException | None = None
 
     def __call__(self, stage, value) -> None:
         if stage == "simulated":
-            import threading
-
             (self.folder / "dataset").mkdir()
-            self._thread = threading.Thread(target=self._write_dataset, args=(value,),
-                                            name="omni-dataset", daemon=True)
-            self._thread.start()
             self.workers.send({"folder": str(self.folder), "runs": value})
         elif stage == "identified":
             (self.folder / "identify").mkdir()
             self.workers.send({"ident": value})
-
-    #: :func:`run_reproduce` leaves the compiled kernels to this writer's thread
-    loads_kernels = True
-
-    def _write_dataset(self, runs) -> None:
-        try:
-            from .accel import prewarm
-
-            prewarm()  # the CSV kernel for the dataset, the α kernel for the validation
-            for run in runs:
-                write_run(self.folder / "dataset", run)
-        except BaseException as exc:  # noqa: BLE001  (raised by join)
-            self._error = exc
-
-    def join(self) -> None:
-        if self._thread is not None:
-            self._thread.join()
-            self._thread = None
-        if self._error is not None:
-            error, self._error = self._error, None
-            raise error
 
 
 def _one_blas_thread():
@@ -246,10 +212,6 @@ def reproduce_command(args) -> int:
             write_reproduce(tmp, res, t0, writer)
         except BaseException:
             workers.kill()
-            try:
-                writer.join()  # before the temporary folder is removed
-            except BaseException:  # noqa: BLE001  (the first error is the one reported)
-                pass
             raise
     bar.update(1)
     bar.close()
