@@ -36,11 +36,12 @@ ROUGH_PARAMETERS = {"backlash": (0,)}
 #: 7-61 points put the vertex at 0.98-0.99 mrad), the bracket's first half-width as a share of
 #: ``max(|x|, scale)`` (20 %: the stalled fits ended 12-38 % off), its smallest (5 %: several
 #: of the 1-2 % spaced jagged minima inside, so the parabola averages them) and the most
-#: brackets (6).
+#: brackets (10: from a start 50 % off, two doublings reach the basin, then 2 halvings to the
+#: smallest bracket and a few moves of the centre).
 BASIN_POINTS = 9
 BASIN_START = 0.2
 BASIN_SMALLEST = 0.05
-BASIN_ROUNDS = 6
+BASIN_ROUNDS = 10
 #: Cycles of :meth:`Problem.polish` (basin of the rough parameters, then the smooth ones
 #: refitted): 2, the smooth ones move little (Coulomb 0.01504 -> 0.01500 N*m on the bank data).
 POLISH_CYCLES = 2
@@ -261,17 +262,18 @@ class Problem:
               rounds: int = BASIN_ROUNDS, points: int = BASIN_POINTS) -> float:
         """Centre of the objective's basin along parameter ``i`` (the others fixed at ``x``).
 
-        Each round simulates ``points`` values of the parameter evenly over a bracket around the
-        current centre (one batch) and fits a parabola to the objective by least squares; a
-        convex parabola's vertex (kept inside the bracket) becomes the centre, else the best
-        point of the bracket.  The bracket halves when the centre moved by less than a quarter of
-        it, down to ``smallest`` times ``max(|x_i|, scale_i)``.  The regression averages the
-        jagged local minima of a rough objective (:data:`ROUGH_PARAMETERS`), which a local fit
-        stops in; on a smooth objective it returns the minimum up to the bracket's cubic term,
-        so it is used only for rough parameters."""
+        Each round simulates ``points`` values of the parameter evenly over a bracket
+        ``c +- w`` (one batch) and fits a parabola to the objective by least squares.  A convex
+        parabola whose vertex lies inside the bracket moves the centre ``c`` to the vertex, and
+        the bracket halves once the centre moved by less than a quarter of it (down to
+        ``smallest`` times ``max(|c|, scale_i)``; then the search stops); otherwise (vertex
+        outside, or not convex: the basin lies beyond the bracket) the centre moves to the
+        bracket's best point and the bracket doubles.  The regression averages the jagged local
+        minima of a rough objective (:data:`ROUGH_PARAMETERS`), which a local fit stops in; on a
+        smooth objective it returns the minimum up to the bracket's cubic term, so it is used
+        only for rough parameters."""
         c = float(x[i])
         w = start * max(abs(c), self.scale[i])
-        w_min = smallest * max(abs(c), self.scale[i])
         for _ in range(rounds):
             vals = np.unique(np.clip(c + w * np.linspace(-1, 1, points), self.lower[i], self.upper[i]))
             pts = []
@@ -280,14 +282,19 @@ class Problem:
                 xp[i] = v
                 pts.append(xp)
             costs = np.array([self._cost(r) for r in self.simulate(pts)])
-            new = float(vals[int(np.argmin(costs))])
+            vertex = None
             if len(vals) >= 3:
                 t = (vals - c) / w
                 a2, a1, _ = np.polyfit(t, costs, 2)
-                if a2 > 0:
-                    new = float(np.clip(c - w * a1 / (2 * a2), vals[0], vals[-1]))
-            moved = abs(new - c)
-            c = new
+                if a2 > 0 and vals[0] <= c - w * a1 / (2 * a2) <= vals[-1]:
+                    vertex = float(c - w * a1 / (2 * a2))
+            if vertex is None:  # the basin lies beyond the bracket: follow it, wider
+                c = float(vals[int(np.argmin(costs))])
+                w = min(2 * w, 0.5 * (self.upper[i] - self.lower[i]))
+                continue
+            moved = abs(vertex - c)
+            c = vertex
+            w_min = smallest * max(abs(c), self.scale[i])
             if moved < 0.25 * w:
                 if w <= w_min:
                     break

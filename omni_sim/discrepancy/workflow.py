@@ -152,7 +152,8 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         pairs_scored: list = []
         t0 = time.perf_counter()
         rnd = -1
-        while len(accepted) < max_effects:
+        # rounds: one per effect, plus one a backward step can free (floating selection)
+        while len(accepted) < max_effects and rnd + 1 < max_effects + 1:
             rnd += 1
             if gap_start <= 0:
                 log("the model's replay equals the measured data exactly: nothing to name")
@@ -240,11 +241,30 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 break
             log(f"round {rnd + 1}: accepted {best.name} (removes {best.share:.0%}; runner-up "
                 f"{entry['runner_up']}, margin {margin:.2f})")
-            if beam:
-                # the set may have grown from another pair than the one accepted: every member's
-                # runner-up is the best scored set without it (this round's sets and the pairs)
+            pool = scored + pairs_scored
+            removed = None
+            if len(best.effects) >= 3:
+                # floating selection, the backward step: a member accepted earlier may be a
+                # stand-in the new member made redundant (a spring fitted with Coulomb friction
+                # to part of a backlash's gap); each member is removed in turn, the rest refitted
+                rem = sel.score_removals(spec, best, fit_runs, rep, gap_start, log=log)
+                pool = pool + rem
+                contribution = sel.share_of(best.heldout_gap, rem[0].heldout_gap)
+                entry["backward_step"] = {"best_without_one": rem[0].name,
+                                          "share_of_its_gap_removed_by_the_set": contribution}
+                if contribution < sel.MIN_SHARE:
+                    removed = [e.name for e in best.effects if e.name not in [f.name for f in rem[0].effects]]
+                    log(f"round {rnd + 1}: {removed[0]} dropped (without it the held-out gap is "
+                        f"{rem[0].heldout_gap:.3e} rad; with it {contribution:.0%} of that is removed, "
+                        f"less than {sel.MIN_SHARE:.0%})")
+                    entry["backward_step"]["dropped"] = removed[0]
+                    best = rem[0]
+            if beam or removed:
+                # every member's runner-up is the best scored set without it (this round's sets,
+                # the pairs, the set without one member); the set may have grown from another
+                # pair than the one accepted
                 effect_entries = []
-                for eff, (ru, mg) in zip(best.effects, sel.member_runner_up(best, scored + pairs_scored)):
+                for eff, (ru, mg) in zip(best.effects, sel.member_runner_up(best, pool)):
                     pe = {"round": rnd + 1, "pair": best.name, "best": eff.name, "share": best.share,
                           "runner_up": ru, "runner_up_share": None, "margin": mg,
                           "gap_start_rad": gap_start, "gap_heldout_rad": best.heldout_gap,
