@@ -92,7 +92,7 @@ def _worker_validated(state, payload) -> None:
 
 def start_reproduce_worker() -> Workers:
     """Fork ``omni reproduce``'s figure worker now: it loads matplotlib, then waits for three
-    payloads (:class:`omni_app.reproduce._EarlyWriter` sends them): the runs and the output
+    payloads (:func:`omni_app.reproduce._early_writer` sends them): the runs and the output
     folder (it writes the dataset), the identification (it draws part of the figures, and a child of its own another
     part), and the validation's results (it draws the rest, with a second child): the
     ``_worker_*`` stages above, sharing ``state``."""

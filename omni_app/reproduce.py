@@ -104,18 +104,18 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
             "predictions": predictions, "linear_truth": lin, "bar": bar}
 
 
-def write_reproduce(folder: Path, res: dict, t0: float, writer: "_EarlyWriter | None" = None) -> None:
+def write_reproduce(folder: Path, res: dict, t0: float, workers: Workers | None = None) -> None:
     """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
     params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
-    (perf_counter), for the real-time factor.  ``writer``: the :class:`_EarlyWriter` that
-    :func:`run_reproduce` fed on the way (the dataset and the identification's figures under
-    way already); else one is started here.  The figures are drawn by forked children (POSIX)
-    while this process writes the rest."""
-    if writer is None:
-        writer = _EarlyWriter(folder, start_reproduce_worker())
-        writer("simulated", res["runs"])
-        writer("identified", res["ident"])
-    workers = writer.workers
+    (perf_counter), for the real-time factor.  ``workers``: the figure worker that
+    :func:`_early_writer` fed on the way (the dataset and the identification's figures under way
+    already); else one is started here.  The figures are drawn by forked children (POSIX) while
+    this process writes the rest."""
+    if workers is None:
+        workers = start_reproduce_worker()
+        stage = _early_writer(folder, workers)
+        stage("simulated", res["runs"])
+        stage("identified", res["ident"])
     workers.send({k: res[k] for k in ("ident", "scores", "predictions")})
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
@@ -130,24 +130,23 @@ def write_reproduce(folder: Path, res: dict, t0: float, writer: "_EarlyWriter | 
     (folder / "report.md").write_text(format_report(res))
 
 
-class _EarlyWriter:
-    """The ``on_stage`` of :func:`run_reproduce` in ``omni reproduce``: feeds the figure worker
+def _early_writer(folder: Path, workers: Workers):
+    """An ``on_stage`` for :func:`run_reproduce` in ``omni reproduce``: feeds the figure worker
     ``workers`` (:func:`omni_app.figure_worker.start_reproduce_worker`, matplotlib loaded by
     now) as soon as the stages' results exist: the runs and the folder (it writes
     ``folder/dataset/`` while this process identifies), then the identification (it draws part
     of the figures and a child of its own another part); the validation's results follow from
     :func:`write_reproduce`."""
 
-    def __init__(self, folder: Path, workers: "Workers"):
-        self.folder, self.workers = folder, workers
-
-    def __call__(self, stage, value) -> None:
+    def on_stage(stage, value):
         if stage == "simulated":
-            (self.folder / "dataset").mkdir()
-            self.workers.send({"folder": str(self.folder), "runs": value})
+            (folder / "dataset").mkdir()
+            workers.send({"folder": str(folder), "runs": value})
         elif stage == "identified":
-            (self.folder / "identify").mkdir()
-            self.workers.send({"ident": value})
+            (folder / "identify").mkdir()
+            workers.send({"ident": value})
+
+    return on_stage
 
 
 def _one_blas_thread():
@@ -201,15 +200,14 @@ def reproduce_command(args) -> int:
         # the figure worker: started by the command line before its heavy imports (matplotlib
         # is loaded there while this process loads the rest), else now
         workers = getattr(args, "figure_worker", None) or start_reproduce_worker()
-        writer = _EarlyWriter(tmp, workers)
         try:
             # the dataset is written, and the identification's figures drawn, as soon as the
             # runs and the identification exist
             res = run_reproduce(model_path, args.jobs, progress=sys.stderr.isatty(),
-                                on_stage=writer)
+                                on_stage=_early_writer(tmp, workers))
             bar = res["bar"]
             bar.set_description("writing report and figures")
-            write_reproduce(tmp, res, t0, writer)
+            write_reproduce(tmp, res, t0, workers)
         except BaseException:
             workers.kill()
             raise

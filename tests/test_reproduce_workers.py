@@ -1,4 +1,4 @@
-"""omni reproduce's forked writers (omni_app.workers.Workers, reproduce._EarlyWriter): work done in
+"""omni reproduce's forked writers (omni_app.workers.Workers, reproduce._early_writer): work done in
 children while the main process goes on, errors reported, the inline fallback, and nothing
 left behind when a reproduction fails after the children started."""
 
