@@ -166,7 +166,7 @@ def _dispatch(args: argparse.Namespace) -> int:
 
 
 def _reproduce_worker(argv: list[str]):
-    """``omni reproduce``'s figure worker (:func:`omni_app.workers.start_reproduce_worker`),
+    """``omni reproduce``'s figure worker (:func:`omni_app.figure_worker.start_reproduce_worker`),
     forked before the parser and the command import MuJoCo, scipy and the simulator: it loads
     matplotlib on the core that would otherwise wait for them.  None for other commands, for
     ``--help`` and for ``--friction all`` (which draws after its runs); a worker forked for

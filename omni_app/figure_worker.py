@@ -65,27 +65,29 @@ def _worker_simulated(state, payload) -> None:
         write_run(state["folder"] / "dataset", run)
 
 
+def _draw_split(state, payload, in_child, here) -> Workers:
+    """Draw the figures ``in_child`` in a forked child and ``here`` in this worker, with the
+    payload and the runs; returns the child's :class:`Workers` (to be waited for)."""
+    res = {**payload, "runs": state["runs"]}
+    drawer = Workers()
+    drawer.start([lambda fn=fn: fn(state["folder"], res) for fn in in_child])
+    for fn in here:
+        fn(state["folder"], res)
+    return drawer
+
+
 def _worker_identified(state, payload) -> None:
     """Stage 2: the identification; a child of this worker draws group (a) while this one
     draws group (b)."""
-    res = {**payload, "runs": state["runs"]}
     group_a, group_b, _, _ = _figure_groups()
-    drawer = Workers()
-    drawer.start([lambda fn=fn: fn(state["folder"], res) for fn in group_a])
-    state["drawer"] = drawer
-    for fn in group_b:
-        fn(state["folder"], res)
+    state["drawer"] = _draw_split(state, payload, group_a, group_b)
 
 
 def _worker_validated(state, payload) -> None:
     """Stage 3: the validation's scores and predictions; a second child draws group (c) while
     this worker draws group (d)."""
-    res = {**payload, "runs": state["runs"]}
     _, _, group_c, group_d = _figure_groups()
-    drawer = Workers()
-    drawer.start([lambda fn=fn: fn(state["folder"], res) for fn in group_c])
-    for fn in group_d:
-        fn(state["folder"], res)
+    drawer = _draw_split(state, payload, group_c, group_d)
     state.pop("drawer").wait()
     drawer.wait()
 
@@ -93,8 +95,8 @@ def _worker_validated(state, payload) -> None:
 def start_reproduce_worker() -> Workers:
     """Fork ``omni reproduce``'s figure worker now: it loads matplotlib, then waits for three
     payloads (:func:`omni_app.reproduce._early_writer` sends them): the runs and the output
-    folder (it writes the dataset), the identification (it draws part of the figures, and a child of its own another
-    part), and the validation's results (it draws the rest, with a second child): the
+    folder (it writes the dataset), the identification (it draws part of the figures, and a
+    child of its own another part), and the validation's results (it draws the rest, with a second child): the
     ``_worker_*`` stages above, sharing ``state``."""
     state: dict = {}
 
