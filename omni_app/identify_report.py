@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .figures import save_png
+
 
 def _plt():
     import matplotlib
@@ -44,9 +46,7 @@ def _inertia_figure(ident, path: Path) -> None:
     for a in ax:
         a.legend()
         a.grid(True, alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_png(fig, path, dpi=100)
 
 
 def _local_figure(ident, path: Path) -> None:
@@ -76,9 +76,7 @@ def _local_figure(ident, path: Path) -> None:
     for a in ax.ravel():
         a.grid(True, alpha=0.3)
     ax[0, 0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_png(fig, path, dpi=100)
 
 
 def format_report(ident, source: str = "") -> str:
@@ -136,9 +134,12 @@ def write_identify_report(ident, folder, source: str = "", figures: bool = True)
         write_identify_figures(ident, folder)
 
 
-def write_identify_figures(ident, folder) -> None:
-    """The PNG figures of :func:`write_identify_report`."""
+def write_identify_figures(ident, folder, which=("local", "inertia")) -> None:
+    """The PNG figures of :func:`write_identify_report`: ``local_linear.png`` (the per-pose
+    stage's: ``"local"``) and, if the inertia model was fitted, ``inertia_fit.png``
+    (``"inertia"``)."""
     folder = Path(folder)
-    _local_figure(ident, folder / "local_linear.png")
-    if ident.inertia is not None:
+    if "local" in which:
+        _local_figure(ident, folder / "local_linear.png")
+    if "inertia" in which and ident.inertia is not None:
         _inertia_figure(ident, folder / "inertia_fit.png")
