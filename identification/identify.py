@@ -78,7 +78,7 @@ def _pose_key(run: Run):
     return ("actual", round(run.gamma1_deg, 2), round(run.gamma2_deg, 2))
 
 
-def identify_runs(runs: list[Run], linear_only: bool = False) -> Identification:
+def identify_runs(runs: list[Run], linear_only: bool = False, on_poses=None) -> Identification:
     """Fit sines, local and global linear models per pose, and the inertia model.
 
     Parameters
@@ -87,6 +87,9 @@ def identify_runs(runs: list[Run], linear_only: bool = False) -> Identification:
         A dataset (any kinds; only ``kind == "sine"`` runs are used).
     linear_only : bool
         Stop after the per-pose linear models (no inertia or alpha model).
+    on_poses : callable, optional
+        Called with the per-pose stage's :class:`Identification` (no inertia or alpha model
+        yet) as soon as it exists, before the global fits (e.g. to draw its figure meanwhile).
 
     Raises
     ------
@@ -122,6 +125,8 @@ def identify_runs(runs: list[Run], linear_only: bool = False) -> Identification:
     inertia = None
     if linear_only:
         return Identification(poses, None, warnings, ignored)
+    if on_poses is not None:
+        on_poses(Identification(poses, None, list(warnings), ignored))
     if len(usable) >= MIN_POSES:
         inertia = fit_inertia_model([p.gamma1_deg for p in usable], [p.gamma2_deg for p in usable],
                                     [p.C_linear for p in usable], [p.beta_tilde_linear for p in usable])

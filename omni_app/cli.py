@@ -178,6 +178,13 @@ def _reproduce_worker(argv: list[str]):
     if any(a == "--friction=all" or (a == "--friction" and nxt == "all")
            for a, nxt in zip(argv, list(argv[1:]) + [None])):
         return None
+    import os
+
+    if "numpy" not in sys.modules:
+        # one BLAS thread in this process and its children (what _one_blas_thread sets for the
+        # identification anyway): an idle OpenBLAS thread spins after each call, e.g. after
+        # matplotlib's small matrix inversions, on the core the other process needs
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     from .figure_worker import start_reproduce_worker
     return start_reproduce_worker()
 

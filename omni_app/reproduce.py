@@ -10,6 +10,7 @@ The dataset itself is written to ``dataset/`` so every number can be re-derived 
 
 from __future__ import annotations
 
+import gc
 import json
 import sys
 import time
@@ -24,6 +25,7 @@ from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim import truth
 
+from . import figures as F
 from .identify_report import write_identify_report
 from .figure_worker import start_reproduce_worker
 from .workers import Workers
@@ -46,7 +48,8 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     ``model``: an already compiled (possibly modified) model to run instead of the file
     ``model_path`` (e.g. the friction study's scaled models); ``campaign``: the campaign to
     generate (name or file, :func:`omni_sim.experiments.campaign`); ``on_stage``: called as
-    ``on_stage("simulated", runs)`` and ``on_stage("identified", ident)`` as soon as those
+    ``on_stage("simulated", runs)``, ``on_stage("poses", ident)`` (the identification's
+    per-pose stage) and ``on_stage("identified", ident)`` as soon as those
     exist (``omni reproduce`` starts writing the dataset and drawing figures then).
 
     Raises
@@ -56,7 +59,7 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     """
     from tqdm import tqdm
 
-    from .accel import install, start_prewarm
+    from .accel import install, prewarm
     install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
     in_memory = model is not None and model_path is None
     if model is None:
@@ -65,19 +68,17 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     bar = tqdm(total=5, disable=not progress, unit="stage", leave=False)
     bar.set_description("simulating the paper campaign")
     exps = ex.campaign(campaign)
-    # the kernels are loaded by a thread while MuJoCo simulates (its threads release the GIL:
-    # the loading, which holds it, costs the simulation less than the identification), and
-    # joined before anything forks
-    warm = start_prewarm()
-    try:
-        runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
-    finally:
-        warm.join()
+    # the kernels are loaded before MuJoCo simulates (on both cores: a thread loading them
+    # meanwhile took a core from the rollout), while the figure worker loads matplotlib; the
+    # dataset writer forked after the simulation has them
+    prewarm()
+    runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
     if on_stage is not None:
         on_stage("simulated", runs)
     bar.update(1)
     bar.set_description("identifying")
-    ident = identify_runs(runs)
+    ident = identify_runs(runs, on_poses=None if on_stage is None else
+                          (lambda poses: on_stage("poses", poses)))
     if ident.inertia is None or ident.alpha_model is None:
         bar.close()
         raise UserError("identification failed on the generated campaign: " + "; ".join(ident.warnings))
@@ -115,8 +116,11 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: Workers | None 
         workers = start_reproduce_worker()
         stage = _early_writer(folder, workers)
         stage("simulated", res["runs"])
+        stage("poses", res["ident"])
         stage("identified", res["ident"])
-    workers.send({k: res[k] for k in ("ident", "scores", "predictions")})
+    workers.send({"ident": res["ident"], "scores": res["scores"],
+                  "predictions": {name: res["predictions"][name] for name in F.TIME_FIGURE_RUNS
+                                  if name in res["predictions"]}})
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
     write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
@@ -131,22 +135,34 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: Workers | None 
 
 
 def _early_writer(folder: Path, workers: Workers):
-    """An ``on_stage`` for :func:`run_reproduce` in ``omni reproduce``: feeds the figure worker
-    ``workers`` (:func:`omni_app.figure_worker.start_reproduce_worker`, matplotlib loaded by
-    now) as soon as the stages' results exist: the runs and the folder (it writes
-    ``folder/dataset/`` while this process identifies), then the identification (it draws part
-    of the figures and a child of its own another part); the validation's results follow from
-    :func:`write_reproduce`."""
+    """An ``on_stage`` for :func:`run_reproduce` in ``omni reproduce``, as soon as the stages'
+    results exist: the runs are written to ``folder/dataset/`` by a child forked now (it has the
+    compiled CSV writer, loaded while MuJoCo simulated) while this process identifies; the
+    figure worker ``workers`` (:func:`omni_app.figure_worker.start_reproduce_worker`, matplotlib
+    loaded by now) is sent the folder and the runs the figures show, then the identification
+    (it draws part of the figures and a child of its own another part); the validation's
+    results follow from :func:`write_reproduce`."""
 
     def on_stage(stage, value):
         if stage == "simulated":
             (folder / "dataset").mkdir()
-            workers.send({"folder": str(folder), "runs": value})
-        elif stage == "identified":
+            workers.start([lambda: _write_dataset(folder / "dataset", value)])
+            workers.send({"folder": str(folder),
+                          "runs": [r for r in value if r.name in F.TIME_FIGURE_RUNS]})
+        elif stage == "poses":
             (folder / "identify").mkdir()
+            workers.send({"ident": value})
+        elif stage == "identified":
             workers.send({"ident": value})
 
     return on_stage
+
+
+def _write_dataset(folder: Path, runs) -> None:
+    from identification.dataset import write_run
+
+    for run in runs:
+        write_run(folder, run)
 
 
 def _one_blas_thread():
@@ -211,6 +227,8 @@ def reproduce_command(args) -> int:
         except BaseException:
             workers.kill()
             raise
+        finally:
+            gc.unfreeze()  # what the forks froze (Workers.start) is the collector's again
     bar.update(1)
     bar.close()
     _print_summary(res)
@@ -226,8 +244,11 @@ def reproduce_all(out: Path, force: bool = False, jobs: int | None = None,
     overlay figures; :mod:`omni_app.comparison`).  ``campaign``: the paper's (the command's),
     or a smaller one (tests)."""
     _check_out(out, force)
-    with _one_blas_thread():
-        return _reproduce_all(out, force, jobs, campaign)
+    try:
+        with _one_blas_thread():
+            return _reproduce_all(out, force, jobs, campaign)
+    finally:
+        gc.unfreeze()  # what the forks froze (Workers.start) is the collector's again
 
 
 def _reproduce_all(out: Path, force: bool, jobs: int | None, campaign: str) -> int:

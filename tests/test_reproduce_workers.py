@@ -86,7 +86,7 @@ def test_failed_reproduction_leaves_nothing(tmp_path, monkeypatch):
     step = ex.campaign("step")
     monkeypatch.setattr(ex, "campaign", lambda name: step)
 
-    def fail(runs):
+    def fail(runs, **kwargs):
         raise UserError("identification failed (test)")
 
     monkeypatch.setattr(rp, "identify_runs", fail)
