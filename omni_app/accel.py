@@ -83,3 +83,20 @@ def prewarm() -> None:
                                       C_linear=[1.0], beta_tilde_linear=[1.0], groups=[0],
                                       keep=keep)
     csvformat.format_rows(np.zeros((1, 4)))
+
+
+def start_prewarm():
+    """:func:`prewarm` in a background thread (e.g. while MuJoCo's rollout threads run, which
+    release the GIL); returns the thread, to be joined (before any fork)."""
+    import threading
+
+    def run():
+        try:
+            prewarm()
+        except Exception:  # noqa: BLE001  (the first real call reports any problem)
+            pass
+
+    thread = threading.Thread(target=run, name="omni-prewarm", daemon=True)
+    thread.start()
+    return thread
+

@@ -59,7 +59,7 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     """
     from tqdm import tqdm
 
-    from .accel import install, prewarm
+    from .accel import install, start_prewarm
     install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
     in_memory = model is not None and model_path is None
     if model is None:
@@ -68,11 +68,14 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     bar = tqdm(total=5, disable=not progress, unit="stage", leave=False)
     bar.set_description("simulating the paper campaign")
     exps = ex.campaign(campaign)
-    # the kernels are loaded before MuJoCo simulates (on both cores: a thread loading them
-    # meanwhile took a core from the rollout), while the figure worker loads matplotlib; the
-    # dataset writer forked after the simulation has them
-    prewarm()
-    runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
+    # the kernels are loaded by a thread while MuJoCo simulates (its threads release the GIL;
+    # the loading's CPU costs the rollout half its time, and the main process none of it), and
+    # joined before anything forks: the dataset writer forked after the simulation has them
+    warm = start_prewarm()
+    try:
+        runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
+    finally:
+        warm.join()
     if on_stage is not None:
         on_stage("simulated", runs)
     bar.update(1)
@@ -159,6 +162,7 @@ def _early_writer(folder: Path, workers: Workers):
 
 
 def _write_dataset(folder: Path, runs) -> None:
+    """The dataset writer's task: every run into ``folder`` (:func:`write_run`'s files)."""
     from identification.dataset import write_run
 
     for run in runs:

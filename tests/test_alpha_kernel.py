@@ -139,13 +139,13 @@ def test_kernel_paper_campaign_equals_per_group_reference(kernel):
     test_validation_paper_campaign_equals_per_group_reference()
 
 
-def test_prewarm_loads_both_kernels(monkeypatch):
+def test_prewarm_thread_loads_both_kernels(monkeypatch):
     from omni_app.csv_kernel import format_rows as csv_loop
 
     previous, previous_csv = sim.set_kernel(None), csvformat.set_kernel(None)
     try:
         monkeypatch.setattr(accel, "_loaded", {})
-        accel.prewarm()
+        accel.start_prewarm().join()
         assert sim._KERNEL is loop and csvformat._KERNEL is csv_loop
     finally:
         sim.set_kernel(previous)
