@@ -13,23 +13,29 @@ from pathlib import Path
 from .workers import Workers
 
 
-def _figure_groups():
-    """The figures as drawn by the worker and its children: (p) needs only the per-pose stage
-    of the identification (the worker draws it while the main process fits the global models),
-    (a) and (b) the identification, (c) and (d) the validation's scores and predictions too;
-    (a) is drawn by a child of the worker while the worker draws (b), (c) by a second child
-    while the worker draws (d) (the main process is done by then: its core is free)."""
+def _figure_groups() -> dict:
+    """The figures drawn at each stage of ``omni reproduce``, as ``{stage: (in_child, here)}``:
+    ``here`` by the worker, ``in_child`` by a child it forks.  The identification's stages come
+    while the main process fits the rest (one core is free: the worker draws alone); from the
+    identification on, a child draws part of the figures (the worker alone would still be
+    drawing when the main process is done).  Balanced on the built-in reproduction's figure
+    times (local_linear ~0.5 s of CPU, the others 0.1-0.35 s)."""
     from . import figures as F
     from . import identify_report as IR
 
-    p = [lambda folder, res: IR.write_identify_figures(res["ident"], folder / "identify", ("local",))]
-    a = [lambda folder, res: IR.write_identify_figures(res["ident"], folder / "identify", ("inertia",)),
-         F.fig_C_beta_vs_alpha]
-    b = [F.fig_alpha_vs_frequency, F.fig_nonlinear_vs_inertia, F.fig_inertia]
-    c = [F.fig_inertia_truth, F.fig_bode]
-    d = [F.fig_time_sine, F.fig_step]
-    assert sorted(f.__name__ for f in a[1:] + b + c + d) == sorted(f.__name__ for f in F.FIGURES)
-    return p, a, b, c, d
+    def identify_figure(which):
+        return lambda folder, res: IR.write_identify_figures(res["ident"], folder / "identify", (which,))
+
+    groups = {
+        "poses": ((), (identify_figure("local"),)),
+        "inertia": ((), (identify_figure("inertia"), F.fig_inertia)),
+        "identified": ((F.fig_C_beta_vs_alpha,), (F.fig_nonlinear_vs_inertia, F.fig_alpha_vs_frequency)),
+        "validated": ((F.fig_inertia_truth, F.fig_bode), (F.fig_time_sine, F.fig_step)),
+    }
+    named = [f.__name__ for child, here in groups.values() for f in child + here
+             if f.__name__ != "<lambda>"]
+    assert sorted(named) == sorted(f.__name__ for f in F.FIGURES)
+    return groups
 
 
 def _warm_matplotlib() -> None:
@@ -60,47 +66,49 @@ def _worker_simulated(state, payload) -> None:
     state["folder"], state["runs"] = Path(payload["folder"]), payload["runs"]
 
 
-def _draw_split(state, payload, in_child, here) -> Workers:
-    """Draw the figures ``in_child`` in a forked child and ``here`` in this worker, with the
-    payload and the runs; returns the child's :class:`Workers` (to be waited for)."""
+def _draw(state, payload, stage) -> None:
+    """Draw the figures of ``stage`` (:func:`_figure_groups`) with the payload and the runs:
+    those to be drawn in a child by a forked child (waited for at the last stage), the others
+    here."""
+    in_child, here = _figure_groups()[stage]
     res = {**payload, "runs": state["runs"]}
-    drawer = Workers()
-    drawer.start([lambda fn=fn: fn(state["folder"], res) for fn in in_child])
+    if in_child:
+        drawer = Workers()
+        drawer.start([lambda fn=fn: fn(state["folder"], res) for fn in in_child])
+        state.setdefault("drawers", []).append(drawer)
     for fn in here:
         fn(state["folder"], res)
-    return drawer
 
 
 def _worker_poses(state, payload) -> None:
-    """Stage 2: the identification's per-pose stage; this worker draws group (p)."""
-    group_p = _figure_groups()[0]
-    for fn in group_p:
-        fn(state["folder"], payload)
+    """Stage 2: the identification's per-pose stage (the global models are being fitted)."""
+    _draw(state, payload, "poses")
+
+
+def _worker_inertia(state, payload) -> None:
+    """Stage 3: the identification with the inertia model (the alpha model is being fitted)."""
+    _draw(state, payload, "inertia")
 
 
 def _worker_identified(state, payload) -> None:
-    """Stage 3: the identification; a child of this worker draws group (a) while this one
-    draws group (b)."""
-    _, group_a, group_b, _, _ = _figure_groups()
-    state["drawer"] = _draw_split(state, payload, group_a, group_b)
+    """Stage 4: the identification (the main process validates meanwhile); part in a child."""
+    _draw(state, payload, "identified")
 
 
 def _worker_validated(state, payload) -> None:
-    """Stage 4: the validation's scores and predictions; a second child draws group (c) while
-    this worker draws group (d)."""
-    _, _, _, group_c, group_d = _figure_groups()
-    drawer = _draw_split(state, payload, group_c, group_d)
-    state.pop("drawer").wait()
-    drawer.wait()
+    """Stage 5: the validation's scores and predictions; half of the figures in a child."""
+    _draw(state, payload, "validated")
+    for drawer in state.pop("drawers", []):
+        drawer.wait()
 
 
 def start_reproduce_worker() -> Workers:
-    """Fork ``omni reproduce``'s figure worker now: it loads matplotlib, then waits for four
+    """Fork ``omni reproduce``'s figure worker now: it loads matplotlib, then waits for five
     payloads (:func:`omni_app.reproduce._early_writer` sends them): the output folder and the
-    runs the figures show; the identification's per-pose stage (it draws its figure while the
-    main process fits the global models); the identification (it draws part of the figures, a
-    child of its own another part); the validation's results (it draws the rest, with a second
-    child): the ``_worker_*`` stages above, sharing ``state``."""
+    runs the figures show; the identification's per-pose stage, then with the inertia model (it
+    draws their figures while the main process fits the rest); the identification; the
+    validation's results (the last figures, half of them in a child): the ``_worker_*`` stages
+    above, sharing ``state``."""
     state: dict = {}
 
     def stage(fn):
@@ -108,6 +116,6 @@ def start_reproduce_worker() -> Workers:
 
     workers = Workers()
     workers.start([stage(_worker_warm)],
-                  then=[stage(_worker_simulated), stage(_worker_poses), stage(_worker_identified),
-                        stage(_worker_validated)])
+                  then=[stage(fn) for fn in (_worker_simulated, _worker_poses, _worker_inertia,
+                                             _worker_identified, _worker_validated)])
     return workers

@@ -48,8 +48,9 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     ``model``: an already compiled (possibly modified) model to run instead of the file
     ``model_path`` (e.g. the friction study's scaled models); ``campaign``: the campaign to
     generate (name or file, :func:`omni_sim.experiments.campaign`); ``on_stage``: called as
-    ``on_stage("simulated", runs)``, ``on_stage("poses", ident)`` (the identification's
-    per-pose stage) and ``on_stage("identified", ident)`` as soon as those
+    ``on_stage("simulated", runs)``, ``on_stage("poses", ident)`` and ``on_stage("inertia",
+    ident)`` (the identification's stages, :func:`identify_runs`) and ``on_stage("identified",
+    ident)`` as soon as those
     exist (``omni reproduce`` starts writing the dataset and drawing figures then).
 
     Raises
@@ -80,8 +81,7 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
         on_stage("simulated", runs)
     bar.update(1)
     bar.set_description("identifying")
-    ident = identify_runs(runs, on_poses=None if on_stage is None else
-                          (lambda poses: on_stage("poses", poses)))
+    ident = identify_runs(runs, on_stage=on_stage)
     if ident.inertia is None or ident.alpha_model is None:
         bar.close()
         raise UserError("identification failed on the generated campaign: " + "; ".join(ident.warnings))
@@ -119,8 +119,8 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: Workers | None 
         workers = start_reproduce_worker()
         stage = _early_writer(folder, workers)
         stage("simulated", res["runs"])
-        stage("poses", res["ident"])
-        stage("identified", res["ident"])
+        for name in ("poses", "inertia", "identified"):
+            stage(name, res["ident"])
     workers.send({"ident": res["ident"], "scores": res["scores"],
                   "predictions": {name: res["predictions"][name] for name in F.TIME_FIGURE_RUNS
                                   if name in res["predictions"]}})
@@ -155,7 +155,7 @@ def _early_writer(folder: Path, workers: Workers):
         elif stage == "poses":
             (folder / "identify").mkdir()
             workers.send({"ident": value})
-        elif stage == "identified":
+        elif stage in ("inertia", "identified"):
             workers.send({"ident": value})
 
     return on_stage
