@@ -85,15 +85,19 @@ def prewarm() -> None:
     csvformat.format_rows(np.zeros((1, 4)))
 
 
-def start_prewarm():
+def start_prewarm(modules=()):
     """:func:`prewarm` in a background thread (e.g. while MuJoCo's rollout threads run, which
-    release the GIL); returns the thread, to be joined (before any fork)."""
+    release the GIL), then ``import`` each of ``modules`` (what a later stage loads at its
+    first use); returns the thread, to be joined (before any fork)."""
+    import importlib
     import threading
 
     def run():
         try:
             prewarm()
-        except Exception:  # noqa: BLE001  (the first real call reports any problem)
+            for name in modules:
+                importlib.import_module(name)
+        except Exception:  # noqa: BLE001  (the first real call or import reports any problem)
             pass
 
     thread = threading.Thread(target=run, name="omni-prewarm", daemon=True)

@@ -71,8 +71,9 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     exps = ex.campaign(campaign)
     # the kernels are loaded by a thread while MuJoCo simulates (its threads release the GIL;
     # the loading's CPU costs the rollout half its time, and the main process none of it), and
-    # joined before anything forks: the dataset writer forked after the simulation has them
-    warm = start_prewarm()
+    # joined before anything forks: the dataset writer forked after the simulation has them;
+    # so is scipy.optimize, which the identification imports at its first fit (~0.3 s)
+    warm = start_prewarm(modules=("scipy.optimize",))
     try:
         runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
     finally:
