@@ -23,7 +23,6 @@ import math
 
 import mujoco
 import numpy as np
-from scipy import linalg
 
 from . import experiments as ex
 from . import model as om
@@ -61,6 +60,8 @@ def zoh_discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray,
     computes it (the same numbers; scipy.signal itself takes ~1 s to import)."""
     em = np.vstack((np.hstack((a, b)),
                     np.hstack((np.zeros((b.shape[1], a.shape[0])), np.zeros((b.shape[1], b.shape[1]))))))
+    from scipy import linalg  # here: importing scipy.linalg costs every command ~0.15 s
+
     ms = linalg.expm(dt * em)[:a.shape[0], :]
     return ms[:, 0:a.shape[1]], ms[:, a.shape[1]:]
 
