@@ -63,6 +63,11 @@ def save_png(fig, path: Path, dpi: int = 110, wspace_in: float = 0.95, hspace_in
             aw = (cw - R["left"] - R["right"] - (ncols - 1) * wspace_in) / ncols
             ah = (ch - R["bottom"] - R["top"] - (nrows - 1) * hspace_in) / nrows
             spec = None if min(aw, ah) <= 0.5 else spec
+        for ax in fig.axes:
+            # a title at the axes' top edge (no top tick labels here): matplotlib otherwise
+            # places each title by measuring the x axis's ticks (~10 % of a figure's CPU)
+            if ax.get_title() and ax.title.get_position()[1] == 1.0:
+                ax.set_title(ax.get_title(), y=1.0)
         if spec is not None:
             fig.set_size_inches(cw, ch)
             fig.set_dpi(dpi)
