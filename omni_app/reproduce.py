@@ -10,7 +10,6 @@ The dataset itself is written to ``dataset/`` so every number can be re-derived 
 
 from __future__ import annotations
 
-import gc
 import json
 import sys
 import time
@@ -232,8 +231,6 @@ def reproduce_command(args) -> int:
         except BaseException:
             workers.kill()
             raise
-        finally:
-            gc.unfreeze()  # what the forks froze (Workers.start) is the collector's again
     bar.update(1)
     bar.close()
     _print_summary(res)
@@ -249,11 +246,8 @@ def reproduce_all(out: Path, force: bool = False, jobs: int | None = None,
     overlay figures; :mod:`omni_app.comparison`).  ``campaign``: the paper's (the command's),
     or a smaller one (tests)."""
     _check_out(out, force)
-    try:
-        with _one_blas_thread():
-            return _reproduce_all(out, force, jobs, campaign)
-    finally:
-        gc.unfreeze()  # what the forks froze (Workers.start) is the collector's again
+    with _one_blas_thread():
+        return _reproduce_all(out, force, jobs, campaign)
 
 
 def _reproduce_all(out: Path, force: bool, jobs: int | None, campaign: str) -> int:

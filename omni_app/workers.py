@@ -9,6 +9,7 @@ would otherwise wait).
 
 from __future__ import annotations
 
+import gc
 import time
 
 
@@ -69,9 +70,7 @@ class Workers:
         # the objects alive now are moved out of the collector's reach (gc.freeze, as Python's
         # documentation advises before a fork): neither side's collections then touch the pages
         # both share (each touch copies a page), and full collections skip them (~0.5 s of CPU
-        # in omni reproduce); gc.unfreeze() gives them back (reproduce's end)
-        import gc
-
+        # in omni reproduce); wait() and kill() give them back
         gc.freeze()
         proc.start()
         job.update(proc=proc, queue=queue, conn=send)
@@ -134,6 +133,7 @@ class Workers:
                 if error is not None:
                     errors.append(error)
             self._clean(job)
+        gc.unfreeze()  # what start() froze is the collector's again
         if errors:
             raise RuntimeError(f"writing the dataset or drawing the figures failed ({'; '.join(errors)})")
 
@@ -146,4 +146,5 @@ class Workers:
                 proc.join()
             self._clean(job)
         self.jobs = []
+        gc.unfreeze()
 

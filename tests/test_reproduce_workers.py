@@ -95,6 +95,9 @@ def test_failed_reproduction_leaves_nothing(tmp_path, monkeypatch):
     with pytest.raises(UserError, match="test"):
         rp.reproduce_command(args)
     assert list(tmp_path.iterdir()) == []
+    import gc
+
+    assert gc.get_freeze_count() == 0  # what the forks froze is given back by kill()
 
 
 @pytest.mark.parametrize("extra, message", [
