@@ -26,7 +26,7 @@ import numpy as np
 from identification import paper
 from identification.nonlinear import paper_alpha_model
 
-from .figures import DETAIL_POSE, _plt, _run, _save
+from .figures import DETAIL_POSE, _plt, _run, save_png
 
 #: Files written next to the family folders.
 FIGURES = ("comparison_C_alpha.png", "comparison_bode.png", "comparison_step.png")
@@ -182,7 +182,7 @@ def fig_C_alpha(folder: Path, results: dict) -> None:
            title=f"C(alpha) at ({DETAIL_POSE[0]}, {DETAIL_POSE[1]}) deg: friction families vs paper")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
-    _save(fig, folder / "comparison_C_alpha.png")
+    save_png(fig, folder / "comparison_C_alpha.png")
 
 
 def _sine_row(res):
@@ -210,7 +210,7 @@ def fig_bode(folder: Path, results: dict) -> None:
     for ax in axes:
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7, ncol=2)
-    _save(fig, folder / "comparison_bode.png")
+    save_png(fig, folder / "comparison_bode.png")
 
 
 def fig_step(folder: Path, results: dict) -> None:
@@ -232,7 +232,7 @@ def fig_step(folder: Path, results: dict) -> None:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     axes[0][0].set_ylabel("yaw [rad]")
-    _save(fig, folder / "comparison_step.png")
+    save_png(fig, folder / "comparison_step.png")
 
 
 # -- markdown -----------------------------------------------------------------------------------

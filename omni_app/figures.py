@@ -91,10 +91,6 @@ def save_png(fig, path: Path, dpi: int = 110, wspace_in: float = 0.95, hspace_in
         plt.close(fig)
 
 
-def _save(fig, path: Path, **spacing) -> None:
-    save_png(fig, path, dpi=110, **spacing)
-
-
 def _detail_pose(ident):
     for p in ident.poses:
         if (p.gamma1_set_deg, p.gamma2_set_deg) == DETAIL_POSE:
@@ -124,7 +120,7 @@ def fig_inertia(folder: Path, res: dict) -> None:
     for ax in axes:
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
-    _save(fig, folder / "fig04_05_inertia_fits.png")
+    save_png(fig, folder / "fig04_05_inertia_fits.png")
 
 
 def fig_inertia_truth(folder: Path, res: dict) -> None:
@@ -146,7 +142,7 @@ def fig_inertia_truth(folder: Path, res: dict) -> None:
            title="Inertia model vs ground truth (25 Table 2 poses)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    _save(fig, folder / "inertia_truth.png")
+    save_png(fig, folder / "inertia_truth.png")
 
 
 def fig_nonlinear_vs_inertia(folder: Path, res: dict) -> None:
@@ -176,7 +172,7 @@ def fig_nonlinear_vs_inertia(folder: Path, res: dict) -> None:
     for ax in axes:
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
-    _save(fig, folder / "fig06_07_nonlinear_vs_inertia.png")
+    save_png(fig, folder / "fig06_07_nonlinear_vs_inertia.png")
 
 
 def fig_alpha_vs_frequency(folder: Path, res: dict) -> None:
@@ -189,7 +185,7 @@ def fig_alpha_vs_frequency(folder: Path, res: dict) -> None:
     ax.set(xlabel="frequency [Hz]", ylabel="alpha [V^2/s^2]", title="Fig. 8: alpha-invariant vs frequency")
     ax.legend(fontsize=7, ncol=3, title="set pose [deg]")
     ax.grid(alpha=0.3, which="both")
-    _save(fig, folder / "fig08_alpha_vs_frequency.png")
+    save_png(fig, folder / "fig08_alpha_vs_frequency.png")
 
 
 def fig_C_beta_vs_alpha(folder: Path, res: dict) -> None:
@@ -220,7 +216,7 @@ def fig_C_beta_vs_alpha(folder: Path, res: dict) -> None:
         ax.legend(fontsize=7)
     axes[0].set_title(f"Fig. 9: C vs alpha at ({p.gamma1_set_deg:g}, {p.gamma2_set_deg:g}) deg")
     axes[1].set_title("Fig. 10: beta~ vs alpha (labels: f [Hz])")
-    _save(fig, folder / "fig09_10_C_beta_vs_alpha.png")
+    save_png(fig, folder / "fig09_10_C_beta_vs_alpha.png")
 
 
 def _sine_row(res, pose):
@@ -245,7 +241,7 @@ def fig_bode(folder: Path, res: dict) -> None:
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
-    _save(fig, folder / "fig11_12_bode.png", hspace_in=0.25)
+    save_png(fig, folder / "fig11_12_bode.png", hspace_in=0.25)
 
 
 #: The runs the time figures show (Figs. 13, 14): the only runs, and predictions, the figures
@@ -272,7 +268,7 @@ def _time_figure(folder: Path, res: dict, name: str, keep, title: str, filename:
     ax.set(xlabel="t [s]", ylabel="yaw [rad]", title=title)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    _save(fig, folder / filename)
+    save_png(fig, folder / filename)
 
 
 def fig_time_sine(folder: Path, res: dict) -> None:
