@@ -1,6 +1,8 @@
 """The compiled α-simulation loop (omni_app.alpha_kernel, numba) against the numpy loop and
-simulate_alpha_reference: the same numbers bit for bit (bisection fallback, batches of ragged
-runs and the paper campaign included), and its registration (omni_app.accel)."""
+simulate_alpha_reference: the same numbers to the stated tolerance of two code paths
+(test_simulate_fast.ULP_PER_STEP: LLVM's exp against numpy's SIMD exp) and the same decisions
+of the iteration (bisection fallback, batches of ragged runs and the paper campaign included),
+and its registration (omni_app.accel)."""
 
 import numpy as np
 import pytest
@@ -17,7 +19,7 @@ from identification.simulate import (
 from omni_app import accel
 from omni_app.alpha_kernel import interp, loop
 
-from test_simulate_fast import DT, IDENTIFIED, KP, _assert_same, _sines
+from test_simulate_fast import DT, IDENTIFIED, KP, _assert_paths_agree, _sines
 
 
 @pytest.fixture
@@ -29,6 +31,9 @@ def kernel():
 
 
 def test_interp_is_numpys():
+    """The kernel's interp computes np.interp's formula in its order; the results may differ
+    in the last bit only where LLVM fuses the multiply-add of the segment (an FMA, on a CPU that
+    has one), so within 1 ulp; outside the breakpoints, at them, NaN and ±inf: identical."""
     xp = np.array(IDENTIFIED["alpha_breaks"])
     fp = np.array([0.3, 0.1, 0.0, 0.05])
     rng = np.random.default_rng(0)
@@ -36,7 +41,10 @@ def test_interp_is_numpys():
                         rng.uniform(-5, 20, 2000), rng.normal(0, 1e-3, 200),
                         [np.nan, np.inf, -np.inf, -0.0, 1e300, -1e300]])
     got = np.array([interp(v, xp, fp) for v in x])
-    np.testing.assert_array_equal(got, np.interp(x, xp, fp))
+    want = np.interp(x, xp, fp)
+    np.testing.assert_array_max_ulp(got, want, maxulp=1)
+    exact = ~((x > xp[0]) & (x < xp[-1])) | np.isin(x, xp)
+    np.testing.assert_array_equal(got[exact], want[exact])
     one = np.array([2.0])
     got1 = np.array([interp(v, one, np.array([7.0])) for v in x])
     np.testing.assert_array_equal(got1, np.interp(x, one, [7.0]))
@@ -51,7 +59,7 @@ def test_kernel_equals_reference_sines(kernel, model):
               r_dot=rd, r_ddot=rdd)
     ref = simulate_alpha_reference(model, I, r, DT, KP, **kw)
     fast = simulate_alpha(model, I, r, DT, KP, **kw)
-    _assert_same(fast, ref)
+    _assert_paths_agree(fast, ref)
     if model.options.get("beta_clamp"):
         assert np.sum(ref.n_bracketed) > 0  # the fallback is exercised
 
@@ -65,7 +73,7 @@ def test_kernel_equals_reference_step_and_unclamped_floor(kernel):
     I = np.array([0.004, 0.005, 0.006])
     kw = dict(C_linear=1 / (36.693 * I), beta_tilde_linear=1 / I, theta0=-0.07, r_dot=0.0,
               r_ddot=0.0)
-    _assert_same(simulate_alpha(model, I, r, DT, KP, **kw),
+    _assert_paths_agree(simulate_alpha(model, I, r, DT, KP, **kw),
                  simulate_alpha_reference(model, I, r, DT, KP, **kw))
     falling = AlphaModel.from_dict({**IDENTIFIED, "alpha_bar": [0.0, 20.0],
                                     "beta_k1": [100.0, 300.0],
@@ -75,7 +83,7 @@ def test_kernel_equals_reference_step_and_unclamped_floor(kernel):
     I2 = np.array([0.0042, 0.006])
     kw2 = dict(C_linear=1 / (36.693 * I2), beta_tilde_linear=1 / I2, r_dot=rds, r_ddot=rdds)
     ref = simulate_alpha_reference(falling, I2, rs, DT, KP, **kw2)
-    _assert_same(simulate_alpha(falling, I2, rs, DT, KP, **kw2), ref)
+    _assert_paths_agree(simulate_alpha(falling, I2, rs, DT, KP, **kw2), ref)
     assert np.all(np.isfinite(ref.theta))
     floor = 0.95 * min(falling.beta_inv)
     assert np.any(np.isclose(ref.beta_tilde * I2[:, None], floor, rtol=1e-12))  # floor reached
@@ -98,7 +106,7 @@ def test_kernel_ragged_groups_equal_numpy_loop(kernel):
     slow = simulate_alpha_batch(model, I, rs, DT, kps, **kw)
     assert sum(x.n_bracketed for x in slow) > 0
     for a, b in zip(fast, slow):
-        _assert_same(a, b)
+        _assert_paths_agree(a, b)
 
 
 def test_install_registers_lazily_and_falls_back(monkeypatch):
@@ -113,7 +121,8 @@ def test_install_registers_lazily_and_falls_back(monkeypatch):
         kw = dict(C_linear=5.0, beta_tilde_linear=200.0)
         a = simulate_alpha(model, 0.005, r, DT, KP, **kw)
         assert sim._KERNEL is loop                                    # loaded, in its place
-        # numba unavailable: a warning, and the numpy loop (the same numbers)
+        # numba unavailable: a warning, and the numpy loop (the same numbers, to the tolerance
+        # of two code paths)
         sim.set_kernel(None)
         monkeypatch.setattr(accel, "_loaded", {})
         monkeypatch.setitem(__import__("sys").modules, "omni_app.alpha_kernel", None)
@@ -121,7 +130,7 @@ def test_install_registers_lazily_and_falls_back(monkeypatch):
         with pytest.warns(RuntimeWarning, match="unavailable"):
             b = simulate_alpha(model, 0.005, r, DT, KP, **kw)
         assert sim._KERNEL is None
-        _assert_same(a, b)
+        _assert_paths_agree(a, b)
         accel.install()                                               # not retried
         assert sim._KERNEL is None
     finally:
