@@ -1,20 +1,31 @@
-"""Run the hidden-effect bank through ``omni discrepancy`` and write docs/discrepancy_bank.md.
+"""Run the hidden-effect bank through ``omni discrepancy`` and write docs/discrepancy/bank.md.
 
 For every case of :data:`omni_sim.discrepancy.bank.CASES` a truth model (the virtual Omni with
 the effect written by bank.py with MuJoCo's own features, independently of the effect library)
 generates quantised, noisy "measured" runs (exact ones for ``none_exact``); the workflow sees
-only those runs and the nominal model.  The table lists the hidden and the named effects, the parameters (truth
-vs fitted ± 95 % uncertainty), the held-out gap before/after, the runner-up and the margin.
-A worked example with figures is written to docs/discrepancy_example/.
+only those runs and the nominal model.  The table lists the hidden and the named effects, the
+parameters (truth vs fitted ± 95 % uncertainty), the held-out gap before/after, the runner-up,
+the margin and the verdict of :func:`omni_sim.discrepancy.bank.assess`.  Beside the table, a
+JSON (same name, ``.json``) holds the run's settings (commit, dates, machine load) and every
+case's full workflow report; it is rewritten after each case, so a stopped run keeps what it
+did.  A worked example with figures is written to docs/discrepancy_example/ (``--no-example``:
+not).
 
-Usage: python scripts/discrepancy_bank.py [--cases NAME ...] [--no-example] [--jobs N]
+``--table`` prints the README's bank table made from the JSON (``tests/test_discrepancy_bank.py``
+checks that README.md holds exactly that).
+
+Usage: python scripts/discrepancy_bank.py [--cases NAME ...] [--no-example] [--jobs N] [--out MD]
+       python scripts/discrepancy_bank.py --table [--json JSON]
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import json
+import os
 import shutil
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -22,9 +33,140 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from omni_app.discrepancy import demo  # noqa: E402
 from omni_sim.discrepancy import bank  # noqa: E402
-from omni_sim.discrepancy.workflow import run_discrepancy  # noqa: E402
+
+#: Where the bank's table and its JSON live (README.md links them).
+DEFAULT_OUT = ROOT / "docs" / "discrepancy" / "bank.md"
+
+
+def _now() -> str:
+    return dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def _commit() -> str:
+    """The checkout's commit, with the code paths that differ from it (others' work in progress
+    is part of what ran)."""
+    try:
+        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], check=True,
+                              capture_output=True, text=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "omni_sim",
+                                "identification", "omni_app", "models", "scripts/discrepancy_bank.py"],
+                               check=True, capture_output=True, text=True).stdout.split("\n")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown (not a git checkout)"
+    dirty = [ln[3:] for ln in dirty if ln.strip()]
+    return head + (f" with uncommitted changes in {', '.join(dirty)}" if dirty else "")
+
+
+def _fmt_truth(c: dict) -> str:
+    truth = "; ".join(f"{n}: " + ", ".join(f"{v:g}" for v in vals) for n, vals in c["hidden"] + c["outside"])
+    return (truth or "-") + (" (outside the library)" if c["outside"] else "")
+
+
+def _named(rep: dict) -> list[dict]:
+    return [e for e in rep["effects"] if e["name"] != "none"]
+
+
+def _verdict(c: dict) -> str:
+    return f"{'PASS' if c['pass'] else 'FAIL'} ({c['why']})"
+
+
+def bank_row(name: str, c: dict) -> str:
+    """A row of bank.md from the JSON entry of case ``name``."""
+    if "report" not in c:
+        return f"| {name} | CRASH | {_fmt_truth(c)} | | | | | | | | {_verdict(c)} | {c['seconds']:.0f} |"
+    rep = c["report"]
+    fitted = "; ".join(
+        f"{e['name']}: " + ", ".join(f"{v:.4g} ± {e['uncertainty'][p]:.2g}" for p, v in e["parameters"].items())
+        for e in _named(rep)) or "-"
+    first = rep["effects"][0]
+    mg = first.get("margin")
+    return (f"| {name} | {', '.join(e['name'] for e in rep['effects'])} | {_fmt_truth(c)} | {fitted} | "
+            f"{rep['gap_before']:.2e} | {rep['gap_after']:.2e} | x{rep['shrink_factor']:.1f} | "
+            f"{first.get('runner_up') or '-'} | {'-' if mg is None else f'{mg:.2f}'} | "
+            f"{', '.join(e.get('confidence', '-') for e in rep['effects'])} | {_verdict(c)} | {c['seconds']:.0f} |")
+
+
+def bank_markdown(data: dict) -> str:
+    """docs/discrepancy/bank.md from the JSON."""
+    meta, cases = data["meta"], data["cases"]
+    load = [c["load_after"] for c in cases.values() if "load_after" in c]
+    n_pass = sum(c["pass"] for c in cases.values())
+    text = [
+        "# Hidden-effect bank of `omni discrepancy`", "",
+        f"Run at commit {meta['commit']}, {meta['started']} to {meta.get('finished', '(running)')}, "
+        f"with `{meta['command']}` on {meta['cpus']} CPU cores shared with other jobs; load average "
+        f"(1 min) {meta['load_start']:.2f} at the start"
+        + (f", {min(load):.2f}-{max(load):.2f} at the end of each case (mean {sum(load) / len(load):.2f})"
+           if load else "") + f" (nice {meta['nice']}). Every case's full report is in "
+        f"`{meta['json']}` beside this file (the README's bank table is made from it: "
+        "`python scripts/discrepancy_bank.py --table`).", "",
+        "Each truth model is the virtual Omni (`models/scene.xml`) with effects written by "
+        "`omni_sim/discrepancy/bank.py` with MuJoCo's own features, independently of the effect "
+        "library the workflow searches (a test checks that bank.py does not use it, directly or "
+        "through another module), at realistic magnitudes (see each case's note in bank.py for the "
+        f"values and their provenance). It generates {meta['runs']} runs of {meta['run_s']:g} s "
+        f"(sines at {meta['frequencies_hz']} Hz x {meta['amplitudes_rad']} rad and square waves of "
+        f"{meta['step_amplitudes_rad']} rad at poses {meta['poses_deg']} deg) through "
+        "`omni_sim.experiments.simulate`'s reference loop, encoder quantised to 15000 counts/rev "
+        f"plus {meta['noise_rad']:g} rad white noise that the controller sees (`none_exact`: "
+        "neither). The workflow sees only these runs and the nominal model.", "",
+        "Gaps are held-out RMS replay errors [rad]; ± is the reported 95 % uncertainty (Student-t "
+        "factor of the k-fold jackknife times the root-sum-square of the jackknife's, the "
+        "Jacobian's and the measurement process's standard errors and the optimiser's and the "
+        "replay's numerical terms, plus the bootstrap's mean shift). Pass (`bank.assess`): library "
+        "cases name exactly the hidden effects, each with high confidence, each parameter list as "
+        "long as the truth's, every parameter within a finite ± of the truth, held-out gap shrunk "
+        ">= 3x; null cases `none`; outside-library cases `none`, or only names of the case's "
+        "`expect` list (its nearest library stand-ins) with low confidence.", "",
+        "| hidden | named | truth | fitted ± 95 % | gap before | gap after | shrink | runner-up | margin | "
+        "confidence | result | s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        *(bank_row(n, c) for n, c in cases.items()), "",
+        f"{n_pass} of {len(cases)} cases pass; total {sum(c['seconds'] for c in cases.values()):.0f} s "
+        "of wall time.", "",
+    ]
+    return "\n".join(text)
+
+
+def _fitted_cell(c: dict) -> str:
+    truth = dict((n, v) for n, v in c["hidden"])
+    parts = []
+    named = _named(c["report"])
+    for e in named:
+        t = truth.get(e["name"])
+        vals = []
+        for i, (p, v) in enumerate(e["parameters"].items()):
+            tv = f" ({t[i]:g})" if t is not None and i < len(t) else ""
+            vals.append(f"{p} {v:.4g} ± {e['uncertainty'][p]:.2g}{tv}")
+        parts.append((f"{e['name']}: " if len(named) > 1 or t is None else "") + ", ".join(vals))
+    return "; ".join(parts) or "—"
+
+
+def readme_table(data: dict) -> str:
+    """The README's bank table (section "The hidden-effect bank: what it proves"), from the JSON."""
+    rows = ["| case | named (confidence) | fitted ± 95 % (truth) | held-out gap shrink | result | time |",
+            "|---|---|---|---|---|---|"]
+    for name, c in data["cases"].items():
+        if "report" not in c:
+            rows.append(f"| {name} | crashed | — | — | {_verdict(c)} | {c['seconds']:.0f} s |")
+            continue
+        rep = c["report"]
+        named = ", ".join(e["name"] + (f" ({e['confidence']})" if "confidence" in e else "")
+                          for e in rep["effects"])
+        if rep["effects"][0]["name"] == "none" and rep.get("unexplained"):
+            named += ", gap flagged unexplained"
+        label = name + (" (outside the library)" if c["outside"] else "")
+        rows.append(f"| {label} | {named} | {_fitted_cell(c)} | ×{rep['shrink_factor']:.3g} | "
+                    f"{_verdict(c)} | {c['seconds']:.0f} s |")
+    return "\n".join(rows) + "\n"
+
+
+def _write(out: Path, data: dict) -> None:
+    tmp = out.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=str) + "\n")
+    tmp.replace(out.with_suffix(".json"))
+    out.write_text(bank_markdown(data))
 
 
 def main(argv=None) -> int:
@@ -32,81 +174,60 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", nargs="*", default=None)
     ap.add_argument("--no-example", action="store_true")
     ap.add_argument("--jobs", type=int, default=None)
-    ap.add_argument("--out", default=str(ROOT / "docs" / "discrepancy_bank.md"))
+    ap.add_argument("--out", default=str(DEFAULT_OUT), help=f"table (default {DEFAULT_OUT.relative_to(ROOT)}; "
+                    "the JSON beside it)")
+    ap.add_argument("--commit", default=None, help="what the header names as the code's commit "
+                    "(default: the checkout's, with its uncommitted code paths)")
+    ap.add_argument("--table", action="store_true", help="print the README's bank table made from --json")
+    ap.add_argument("--json", default=str(DEFAULT_OUT.with_suffix(".json")))
     args = ap.parse_args(argv)
+    if args.table:
+        sys.stdout.write(readme_table(json.loads(Path(args.json).read_text())))
+        return 0
+    from omni_sim.discrepancy.workflow import run_discrepancy
+
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
     cases = [c for c in bank.CASES if args.cases is None or c.name in args.cases]
-    rows, raw = [], {}
+    meta = {"commit": args.commit or _commit(), "started": _now(), "cpus": os.cpu_count(),
+            "load_start": os.getloadavg()[0], "nice": os.nice(0), "jobs": args.jobs,
+            "command": "python scripts/discrepancy_bank.py " + " ".join(sys.argv[1:] if argv is None else argv),
+            "json": out.with_suffix(".json").name,
+            "runs": len(bank.bank_experiments()), "run_s": bank.BANK_DURATION_S,
+            "frequencies_hz": ", ".join(map(str, bank.BANK_FREQUENCIES_HZ)),
+            "amplitudes_rad": ", ".join(map(str, bank.BANK_AMPLITUDES_RAD)),
+            "step_amplitudes_rad": ", ".join(map(str, bank.BANK_STEP_AMPLITUDES_RAD)),
+            "poses_deg": ", ".join(str(p) for p in bank.BANK_POSES), "noise_rad": bank.BANK_NOISE_RAD}
+    data = {"meta": meta, "cases": {}}
     t_all = time.perf_counter()
     for c in cases:
         t0 = time.perf_counter()
+        entry = {"hidden": [list(e) for e in c.effects], "outside": [list(e) for e in c.outside],
+                 "expect": list(c.expect), "exact": c.exact, "note": c.note, "gap_lives": c.gap_lives}
         runs = bank.generate(c, jobs=args.jobs)
         try:
             rep = run_discrepancy(runs, None, jobs=args.jobs).report
         except Exception as exc:  # a crash of the workflow is a result of the bank, not its end
-            wall = time.perf_counter() - t0
-            raw[c.name] = {"pass": False, "why": f"workflow crashed: {type(exc).__name__}: {exc}",
-                           "seconds": wall}
-            rows.append(f"| {c.name} | CRASH | | | | | | | | | FAIL ({raw[c.name]['why']}) | {wall:.0f} |")
-            print(rows[-1], flush=True)
-            continue
-        wall = time.perf_counter() - t0
-        ok, why = bank.assess(c, rep)
-        raw[c.name] = {"hidden": [list(e) for e in c.effects], "outside": [list(e) for e in c.outside],
-                       "exact": c.exact, "note": c.note, "gap_lives": c.gap_lives,
-                       "report_effects": rep["effects"], "gap_before": rep["gap_before"],
-                       "gap_after": rep["gap_after"], "unexplained": rep["unexplained"],
-                       "noise_floor_rad": rep["noise_floor_rad"], "seconds": wall, "pass": ok, "why": why}
-        truth = "; ".join(f"{n}: " + ", ".join(f"{v:g}" for v in vals)
-                          for n, vals in c.effects + c.outside) or "-"
-        if c.outside:
-            truth += " (outside the library)"
-        fitted = "; ".join(
-            f"{e['name']}: " + ", ".join(f"{v:.4g} ± {e['uncertainty'][p]:.2g}" for p, v in e["parameters"].items())
-            for e in rep["effects"] if e["name"] != "none") or "-"
-        named = ", ".join(e["name"] for e in rep["effects"])
-        ru = rep["effects"][0].get("runner_up") or "-"
-        mg = rep["effects"][0].get("margin")
-        conf = ", ".join(e.get("confidence", "-") for e in rep["effects"])
-        rows.append(f"| {c.name} | {named} | {truth} | {fitted} | {rep['gap_before']:.2e} | "
-                    f"{rep['gap_after']:.2e} | x{rep['shrink_factor']:.1f} | {ru} | "
-                    f"{'-' if mg is None else f'{mg:.2f}'} | {conf} | {'PASS' if ok else 'FAIL'} ({why}) | {wall:.0f} |")
-        print(rows[-1], flush=True)
-    total = time.perf_counter() - t_all
-    text = [
-        "# Hidden-effect bank of `omni discrepancy`", "",
-        "Each truth model is the virtual Omni (`models/scene.xml`) with effects written by "
-        "`omni_sim/discrepancy/bank.py` with MuJoCo's own features, independently of the effect "
-        "library the workflow searches (a test checks that bank.py does not use it), at realistic "
-        "magnitudes (see each case's note in bank.py for the values and their provenance). It generates "
-        f"{len(bank.bank_experiments())} runs of {bank.BANK_DURATION_S:g} s (sines at "
-        f"{', '.join(map(str, bank.BANK_FREQUENCIES_HZ))} Hz x {', '.join(map(str, bank.BANK_AMPLITUDES_RAD))} rad "
-        f"and square waves of {', '.join(map(str, bank.BANK_STEP_AMPLITUDES_RAD))} rad at poses "
-        f"{', '.join(str(p) for p in bank.BANK_POSES)} deg) through `omni_sim.experiments.simulate`'s "
-        f"reference loop, encoder quantised to 15000 counts/rev plus {bank.BANK_NOISE_RAD:g} rad white "
-        "noise that the controller sees (`none_exact`: neither). The workflow sees only these runs and the "
-        "nominal model.", "",
-        "Gaps are held-out RMS replay errors [rad]; ± is the reported 95 % uncertainty: the Student-t "
-        "factor of the k-fold jackknife times the root-sum-square of three standard errors (the "
-        "jackknife over folds, the Jacobian estimate with the residual correlation time, and the "
-        "measurement process -- quantised, noisy encoder in the device's loop and a measured start -- "
-        "propagated through the closed loop by a parametric bootstrap), plus the bootstrap's mean "
-        "shift. When no single candidate removes half of a gap far above the noise, every pair is "
-        "also fitted jointly (effects that mask each other, like a delay and friction). Pass: the hidden effect is named, every parameter within ±, gap shrinks >= 3x; null case: "
-        "`none`; outside-library cases: `none` or candidates with low confidence only (never a wrong "
-        "name with high confidence).", "",
-        "| hidden | named | truth | fitted ± 95 % | gap before | gap after | shrink | runner-up | margin | "
-        "confidence | result | s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|", *rows, "",
-        f"Total {total:.0f} s on this machine ({len(cases)} cases).", "",
-    ]
-    Path(args.out).write_text("\n".join(text))
-    (Path(args.out).with_suffix(".json")).write_text(json.dumps(raw, indent=2, default=str) + "\n")
+            entry.update({"pass": False, "why": f"workflow crashed: {type(exc).__name__}: {exc}"})
+        else:
+            ok, why = bank.assess(c, rep)
+            entry.update({"pass": ok, "why": why, "report": rep})
+        entry.update({"seconds": time.perf_counter() - t0, "finished": _now(),
+                      "load_after": os.getloadavg()[0]})
+        data["cases"][c.name] = entry
+        _write(out, data)
+        print(bank_row(c.name, entry), flush=True)
+    meta["finished"] = _now()
+    meta["total_s"] = time.perf_counter() - t_all
+    _write(out, data)
     if not args.no_example:
+        from omni_app.discrepancy import demo
+
         ex_dir = ROOT / "docs" / "discrepancy_example"
         demo(ex_dir, force=True)
         shutil.rmtree(ex_dir / "measured", ignore_errors=True)  # keep the docs small
-    print(f"wrote {args.out} ({total:.0f} s)")
-    return 0 if all(v["pass"] for v in raw.values()) else 1
+    print(f"wrote {out} and {out.with_suffix('.json')} ({meta['total_s']:.0f} s)")
+    return 0 if all(v["pass"] for v in data["cases"].values()) else 1
 
 
 if __name__ == "__main__":

@@ -19,31 +19,193 @@ ROOT = Path(__file__).resolve().parent.parent
 BANK_PY = ROOT / "omni_sim" / "discrepancy" / "bank.py"
 
 
+#: The library's writers: calling any of them (as a name or an attribute) writes a truth model
+#: with the library, which bank.py must not do.
+WRITERS = ("apply", "compile_with", "write", "nominal_values")
+#: The project's top-level packages: imports into them are followed, others (numpy, mujoco,
+#: the standard library) are not.
+PROJECT_PACKAGES = ("omni_sim", "identification", "omni_app")
+EFFECTS = "omni_sim.discrepancy.effects"
+
+
+def writer_uses(source: str) -> list[str]:
+    """Where ``source`` imports the effect library or uses one of its writers (:data:`WRITERS`):
+    an import of a module named ``effects`` (``from . import effects``, ``from .effects import
+    apply``, ``import omni_sim.discrepancy.effects``), a writer's name called or read (``apply``
+    bound by an import, or an alias of it), an attribute named like a writer (``fx.apply``,
+    ``Effect.write``), a ``getattr(..., "apply")``.  Each hit is ``"line N: what"``."""
+    hits = []
+    for node in ast.walk(ast.parse(source)):
+        line = getattr(node, "lineno", "?")
+        if isinstance(node, ast.ImportFrom):
+            mod = node.module or ""
+            if "effects" in mod.split("."):
+                hits.append(f"line {line}: imports from {mod}")
+            for a in node.names:
+                if a.name == "effects":
+                    hits.append(f"line {line}: imports effects")
+                elif a.name in WRITERS:
+                    hits.append(f"line {line}: imports {a.name}")
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if "effects" in a.name.split("."):
+                    hits.append(f"line {line}: imports {a.name}")
+        elif isinstance(node, ast.Name) and node.id in WRITERS:
+            hits.append(f"line {line}: uses {node.id}")
+        elif isinstance(node, ast.Attribute) and node.attr in WRITERS:
+            hits.append(f"line {line}: .{node.attr}")
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "getattr"
+              and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant)
+              and node.args[1].value in WRITERS):
+            hits.append(f"line {line}: getattr {node.args[1].value!r}")
+    return hits
+
+
 def test_bank_does_not_use_the_effect_writers():
     """bank.py writes its truth models itself: no import of the effect library, no call of its
     writers (``apply``, ``compile_with``, ``Effect.write``) -- read from the syntax tree."""
-    tree = ast.parse(BANK_PY.read_text())
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom):
-            mod = node.module or ""
-            assert "effects" not in mod.split("."), f"line {node.lineno}: imports from {mod}"
-            assert "effects" not in [a.name for a in node.names], f"line {node.lineno}: imports effects"
+    assert writer_uses(BANK_PY.read_text()) == []
+
+
+@pytest.mark.parametrize("src, expected", [
+    # the old bank's lines: the import and the call through the alias
+    ("from . import effects as fx\nspec = fx.apply(base, changes)\n",
+     ["line 1: imports effects", "line 2: .apply"]),
+    # a writer imported by name and called directly
+    ("from .effects import apply\nspec = apply(base, changes)\n",
+     ["line 1: imports from effects", "line 1: imports apply", "line 2: uses apply"]),
+    # ... under another name (the import gives it away)
+    ("from omni_sim.discrepancy.effects import compile_with as build\nm = build(spec)\n",
+     ["line 1: imports from omni_sim.discrepancy.effects", "line 1: imports compile_with"]),
+    # the module imported by its full name, the writer reached through attributes
+    ("import omni_sim.discrepancy.effects\nomni_sim.discrepancy.effects.LIBRARY[0].write(spec, v)\n",
+     ["line 1: imports omni_sim.discrepancy.effects", "line 2: .write"]),
+    # a writer of an object that came from elsewhere (no import in this file)
+    ("def f(effect, spec, v):\n    effect.write(spec, v)\n", ["line 2: .write"]),
+    ("w = getattr(lib, 'apply')\n", ["line 1: getattr 'apply'"]),
+    # MuJoCo's own features are not writers of the library
+    ("spec.joint('yaw').damping[0] = 0.01\nspec.compile()\n", []),
+])
+def test_the_syntax_check_would_catch_a_writer_call(src, expected):
+    """The check bank.py passes flags each way of reaching a writer (so it can fail)."""
+    assert sorted(writer_uses(src)) == sorted(expected)
+
+
+def _module_file(name: str, root: Path, packages) -> Path | None:
+    """The source file of module ``name`` under ``root`` (a package's ``__init__.py``), None if
+    it is not a module of ``packages``."""
+    if name.split(".")[0] not in packages:
+        return None
+    p = root.joinpath(*name.split("."))
+    if (p / "__init__.py").is_file():
+        return p / "__init__.py"
+    if p.with_suffix(".py").is_file():
+        return p.with_suffix(".py")
+    return None
+
+
+def bound_imports(source: str, module: str, is_package: bool, root: Path, packages) -> set[str]:
+    """The project modules whose names ``source`` (module ``module``) binds by its imports, at
+    any depth of the file (imports inside functions too).
+
+    ``import a.b.c`` binds ``a`` and reaches ``a``, ``a.b``, ``a.b.c``; ``from P import n`` binds
+    the submodule ``P.n`` if it is one, else a name of ``P``'s ``__init__`` (then ``P``);
+    ``importlib.import_module("a.b")`` reaches ``a.b``.  Not followed: the parent packages whose
+    ``__init__`` Python runs before a module without binding any of their names in it."""
+    pkg = module if is_package else module.rpartition(".")[0]
+    out = set()
+
+    def add(name):
+        if _module_file(name, root, packages) is not None:
+            out.add(name)
+
+    for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.Import):
-            assert not any("effects" in a.name.split(".") for a in node.names), f"line {node.lineno}"
-        if isinstance(node, ast.Name):
-            assert node.id != "fx", f"line {node.lineno}: uses fx"
-        if isinstance(node, ast.Attribute):
-            assert node.attr not in ("apply", "compile_with", "write", "nominal_values"), \
-                f"line {node.lineno}: .{node.attr}"
+            for a in node.names:
+                parts = a.name.split(".")
+                for i in range(1, len(parts) + 1):
+                    add(".".join(parts[:i]))
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = pkg.split(".")[:len(pkg.split(".")) - (node.level - 1)]
+                base = ".".join(base + ([node.module] if node.module else []))
+            else:
+                base = node.module
+            for a in node.names:
+                if _module_file(f"{base}.{a.name}", root, packages) is not None:
+                    out.add(f"{base}.{a.name}")
+                else:
+                    add(base)
+        elif (isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant)
+              and isinstance(node.args[0].value, str)
+              and ((isinstance(node.func, ast.Attribute) and node.func.attr == "import_module")
+                   or (isinstance(node.func, ast.Name) and node.func.id in ("import_module", "__import__")))):
+            add(node.args[0].value)
+    return out
 
 
-def test_the_syntax_check_would_catch_a_writer_call(tmp_path):
-    """The check above fails on the old bank's line (so it can fail)."""
-    src = "from . import effects as fx\nspec = fx.apply(base, changes)\n"
-    tree = ast.parse(src)
-    hits = [n for n in ast.walk(tree) if isinstance(n, ast.Attribute) and n.attr == "apply"]
-    hits += [n for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and "effects" in [a.name for a in n.names]]
-    assert len(hits) == 2
+def reachable(source: str, module: str, root: Path = ROOT, packages=PROJECT_PACKAGES) -> dict[str, list[str]]:
+    """Every project module reached from ``source`` (the text of module ``module``) by following
+    :func:`bound_imports` transitively, with the chain of imports that reaches it."""
+    seen = {module: [module]}
+    todo = [(module, source, False)]
+    while todo:
+        name, src, is_pkg = todo.pop()
+        for nxt in sorted(bound_imports(src, name, is_pkg, root, packages)):
+            if nxt in seen:
+                continue
+            f = _module_file(nxt, root, packages)
+            seen[nxt] = seen[name] + [nxt]
+            todo.append((nxt, f.read_text(), f.name == "__init__.py"))
+    del seen[module]
+    return seen
+
+
+def test_bank_reaches_no_effect_library_through_other_modules():
+    """bank.py's imports, followed through the project's packages (omni_sim, identification,
+    omni_app), never reach ``omni_sim/discrepancy/effects.py``.
+
+    What it reaches today: ``identification.dataset`` (the ``Run`` it returns), ``omni_sim.model``
+    and ``omni_sim.experiments`` (the nominal scene's path, the device's closed loop that makes
+    the data) and what those import (``omni_sim.device``, ``identification.errors``,
+    ``identification.paper``, ``identification.csvformat``, ``omni_sim._resources``): none of them
+    writes a model with the library.  Not followed: ``omni_sim/__init__`` and
+    ``omni_sim/discrepancy/__init__`` (the latter re-exports the library), which Python runs
+    before bank.py without binding a name in it; a ``from . import X`` of bank.py that binds a
+    name of that ``__init__`` (e.g. ``LIBRARY``) is followed and reaches the library."""
+    reached = reachable(BANK_PY.read_text(), "omni_sim.discrepancy.bank")
+    assert EFFECTS not in reached, " -> ".join(reached[EFFECTS])
+    assert not [m for m in reached if m.startswith("omni_sim.discrepancy")], sorted(reached)
+    # the walk does follow bank.py's imports (a walk that found nothing would pass trivially)
+    assert {"identification.dataset", "omni_sim.experiments", "omni_sim.device"} <= set(reached)
+
+
+@pytest.mark.parametrize("src", [
+    "from . import select\n",  # select.py imports the library: one module in between
+    "from .workflow import run_discrepancy\n",  # two (workflow -> select/effects)
+    "from . import LIBRARY\n",  # a name of the package's __init__, which re-exports the library
+    "def f():\n    from omni_app.discrepancy import demo\n    return demo\n",  # the app, inside a function
+    "import importlib\nm = importlib.import_module('omni_sim.discrepancy.workflow')\n",
+])
+def test_the_import_check_follows_other_modules(src):
+    """A bank.py that imports (at any depth) a module that imports the library fails the walk."""
+    assert EFFECTS in reachable(src, "omni_sim.discrepancy.bank")
+
+
+def test_the_import_check_follows_a_chain(tmp_path):
+    """On a package of its own: bank -> mid -> util -> effects is found, with its chain."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "effects.py").write_text("def apply(spec, v):\n    return spec\n")
+    (pkg / "util.py").write_text("from .effects import apply as put\n")
+    (pkg / "mid.py").write_text("import pkg.util\n")
+    (pkg / "clean.py").write_text("import math\n")
+    src = "from . import mid, clean\n"
+    assert writer_uses(src) == []  # the syntax check alone does not see it
+    reached = reachable(src, "pkg.bank", tmp_path, ("pkg",))
+    assert reached["pkg.effects"] == ["pkg.bank", "pkg.mid", "pkg.util", "pkg.effects"]
+    assert "pkg.effects" not in reachable("from . import clean\n", "pkg.bank", tmp_path, ("pkg",))
 
 
 # --- the compiled truth models hold the values the cases state ------------------------------
@@ -200,25 +362,192 @@ def test_bank_covers_the_library():
             assert c.gap_lives, c.name
 
 
+def effect_state(name: str, m: mujoco.MjModel) -> tuple:
+    """The MjModel fields library effect ``name``'s truth writer writes, read in any model (no
+    assertion: the nominal model too), as a flat tuple of numbers.  An element the model does
+    not have reads as its compiled default (dynamics type none, delay 0, no force limit, no bias
+    type) or as absent (no cogging or Stribeck actuator, no two-mass cable: ``()``)."""
+    j = m.joint("yaw").id
+    dof = m.jnt_dofadr[j]
+    a = m.actuator("yaw_motor").id
+    if name == "coulomb_friction":
+        return (m.dof_frictionloss[dof],)
+    if name == "viscous_damping":
+        return (m.dof_damping[dof],)
+    if name == "joint_stiffness":
+        return (m.jnt_stiffness[j], m.qpos_spring[m.jnt_qposadr[j]])
+    if name == "gravity_tilt":
+        return (*m.body_quat[m.body("base").id], *m.opt.gravity)
+    if name == "armature":
+        return (m.dof_armature[dof], m.actuator_armature[a])
+    if name == "actuator_lag":
+        return (m.actuator_dyntype[a], *m.actuator_dynprm[a], m.actuator_actnum[a])
+    if name == "time_delay":
+        return (m.actuator_delay[a], *m.actuator_history[a])
+    if name == "torque_saturation":
+        return (m.actuator_forcelimited[a], *m.actuator_forcerange[a])
+    if name == "torque_gain":
+        return tuple(m.actuator_gear[a])
+    if name == "position_offset":
+        return (m.actuator_biastype[a], *m.actuator_biasprm[a])
+    if name == "presliding_friction":
+        f = m.actuator("yaw_friction").id
+        return (*m.actuator_dynprm[f], *m.actuator_biasprm[f])
+    if name == "cogging":  # every actuator with a cogging term of the bank's period count
+        return tuple(v for i in range(m.nactuator) if m.actuator_biasprm[i, 1] == bank.COGGING_PERIODS_PER_TURN
+                     for v in (i, *m.actuator_biasprm[i, :3]))
+    if name == "stribeck_friction":  # every actuator with the bank's stiff Stribeck bristle
+        return tuple(v for i in range(m.nactuator) if tuple(m.actuator_dynprm[i, 5:7]) == bank.STRIBECK_SIGMA
+                     for v in (i, *m.actuator_dynprm[i, 5:7], *m.actuator_biasprm[i, 3:6]))
+    if name in ("drive_compliance", "backlash"):
+        if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "yaw_output") < 0:
+            return ()  # a rigid drive: no rotor, no cable
+        t = _cable(m)
+        if name == "backlash":
+            return (m.tendon_limited[t], *m.tendon_range[t], *m.tendon_solref_lim[t], *m.tendon_solimp_lim[t])
+        return (m.tendon_stiffness[t], m.tendon_damping[t], *m.body_inertia[m.body("truth_rotor").id])
+    if name == "arm_mass":
+        return tuple(v for b in bank.ARM_LINKS for v in (m.body_mass[m.body(b).id], *m.body_inertia[m.body(b).id]))
+    raise KeyError(name)
+
+
+def _same(a: tuple, b: tuple) -> bool:
+    return len(a) == len(b) and bool(np.allclose(a, b, rtol=1e-12, atol=0.0))
+
+
+#: What the nominal model holds in the fields of the 8 effects it lacks (stated, not read):
+#: the motor has no activation dynamics (dyntype none, no activation state), no delay buffer,
+#: no force limit, no bias; no cogging or Stribeck element and no two-mass cable exist.
+NOMINAL_LACKS = {
+    "actuator_lag": lambda s: s[0] == mujoco.mjtDyn.mjDYN_NONE and s[-1] == 0,
+    "time_delay": lambda s: s == (0.0, 0, 0),
+    "torque_saturation": lambda s: s[0] == 0,
+    "position_offset": lambda s: s[0] == mujoco.mjtBias.mjBIAS_NONE and not any(s[1:]),
+    "cogging": lambda s: s == (),
+    "stribeck_friction": lambda s: s == (),
+    "drive_compliance": lambda s: s == (),
+    "backlash": lambda s: s == (),
+}
+#: Effects whose fields another hidden effect moves as part of its own writing: the joint's
+#: armature (moved into the rotor body of a two-mass drive) and the two-mass drive's
+#: (compliance and backlash build the same rotor and cable).
+SHARED = {
+    "armature": {"drive_compliance", "backlash"},
+    "drive_compliance": {"backlash"},
+    "backlash": {"drive_compliance"},
+}
+
+
 def test_truth_changes_the_physics(nominal):
-    """Each truth model differs from the nominal model in its effect only: the values the other
-    effects read stay nominal (a writer that touched a second field would show)."""
-    nominal_vals = {}
-    for n in bank.TRUTH:
-        try:
-            nominal_vals[n] = compiled_values(n, nominal, nominal)
-        except (AssertionError, KeyError):  # the nominal model has no such element
-            nominal_vals[n] = None
+    """Each truth model differs from the nominal model in every field its effects write (for the
+    8 effects the nominal model lacks: the element is absent or at its default in the nominal
+    model and present in the truth), and in no field another effect writes (a writer that
+    touched a second field would show)."""
+    base = {n: effect_state(n, nominal) for n in bank.TRUTH}
+    for n, lacks in NOMINAL_LACKS.items():
+        assert lacks(base[n]), (n, base[n])
+    assert set(base) == set(fx.NAMES)
     for c in LIBRARY_CASES:
         m = bank.truth_spec(c).compile()
         hidden = {n for n, _ in c.effects}
-        for n, v0 in nominal_vals.items():
-            if n in hidden or v0 is None:
-                continue
-            if n == "armature" and hidden & {"torque_gain", "drive_compliance", "backlash", "arm_mass"}:
-                continue  # reflected by the gear, moved into the rotor body, or the arm changed
-            np.testing.assert_allclose(compiled_values(n, m, nominal), v0, rtol=1e-12,
-                                       err_msg=f"{c.name} changed {n}")
+        for n, v0 in base.items():
+            v = effect_state(n, m)
+            if n in hidden:
+                assert not _same(v, v0), f"{c.name}: {n} left as in the nominal model"
+                if n in NOMINAL_LACKS:
+                    assert not NOMINAL_LACKS[n](v), f"{c.name}: {n} absent from the truth"
+            elif not hidden & SHARED.get(n, set()):
+                assert _same(v, v0), f"{c.name} changed {n}: {v0} -> {v}"
+
+
+# --- bank.assess on hand-made reports (fast) ----------------------------------------------
+def _effect(name, params, half, confidence="high"):
+    return {"name": name, "parameters": dict(params), "confidence": confidence,
+            "uncertainty": {p: h for p, h in zip(dict(params), half)}}
+
+
+def _report(*effects, shrink=100.0, unexplained=False):
+    return {"effects": list(effects), "shrink_factor": shrink, "unexplained": unexplained}
+
+
+TILT = bank.case("gravity_tilt")  # truth (0.035, -0.02)
+GOOD_TILT = _effect("gravity_tilt", {"tilt_x_rad": 0.0351, "tilt_y_rad": -0.0199}, (2e-4, 2e-4))
+
+
+def test_assess_passes_a_good_report():
+    assert bank.assess(TILT, _report(GOOD_TILT)) == (True, "ok")
+    assert bank.assess(TILT, _report(GOOD_TILT, shrink=math.inf))[0]  # gap left exactly 0
+
+
+def test_assess_wants_high_confidence():
+    ok, why = bank.assess(TILT, _report({**GOOD_TILT, "confidence": "low"}))
+    assert not ok and "gravity_tilt (low)" in why
+    ok, why = bank.assess(TILT, _report({k: v for k, v in GOOD_TILT.items() if k != "confidence"}))
+    assert not ok and "high confidence" in why
+
+
+@pytest.mark.parametrize("bad", [math.inf, math.nan, None])
+def test_assess_fails_a_half_width_that_is_not_finite(bad):
+    ok, why = bank.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": 0.9, "tilt_y_rad": -0.0199},
+                                                (bad, 2e-4))))
+    assert not ok and why.startswith("tilt_x_rad: half-width") and "not finite" in why
+    # even with the fitted value on the truth: an infinite interval shows nothing
+    ok, _ = bank.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": 0.035, "tilt_y_rad": -0.02},
+                                              (2e-4, bad))))
+    assert not ok
+
+
+def test_assess_fails_a_fitted_value_that_is_not_finite():
+    ok, why = bank.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": math.nan, "tilt_y_rad": -0.02},
+                                                (2e-4, 2e-4))))
+    assert not ok and why == "tilt_x_rad: fitted nan"
+
+
+def test_assess_fails_parameter_lists_of_another_length():
+    short = _effect("gravity_tilt", {"tilt_x_rad": 0.035}, (2e-4,))  # zip would check one and pass
+    ok, why = bank.assess(TILT, _report(short))
+    assert not ok and why == "gravity_tilt: 1 parameters reported (tilt_x_rad), the truth holds 2"
+    long = _effect("gravity_tilt", {"a": 0.035, "b": -0.02, "c": 7.0}, (2e-4, 2e-4, 1e-9))
+    ok, why = bank.assess(TILT, _report(long))
+    assert not ok and "3 parameters reported" in why
+
+
+def test_assess_outside_the_interval_and_small_shrink():
+    ok, why = bank.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": 0.036, "tilt_y_rad": -0.02},
+                                                (2e-4, 2e-4))))
+    assert not ok and why.startswith("tilt_x_rad: 0.036 vs truth 0.035")
+    assert bank.assess(TILT, _report(GOOD_TILT, shrink=2.9)) == (False, "gap shrank only x2.9")
+    assert not bank.assess(TILT, _report(GOOD_TILT, shrink=math.nan))[0]
+    ok, why = bank.assess(TILT, _report(GOOD_TILT, _effect("armature", {"a": 1e-4}, (1e-6,))))
+    assert not ok and why.startswith("named ['gravity_tilt', 'armature']")
+
+
+def test_assess_null_cases():
+    none = {"name": "none", "parameters": {}, "uncertainty": {}}
+    assert bank.assess(bank.case("none"), _report(none, shrink=1.0)) == (True, "none")
+    assert not bank.assess(bank.case("none"), _report(GOOD_TILT))[0]
+
+
+END_STOP = bank.case("end_stop")  # expect: none, torque_saturation, joint_stiffness
+
+
+def test_assess_outside_effects_are_checked_against_expect():
+    none = {"name": "none", "parameters": {}, "uncertainty": {}}
+    assert bank.assess(END_STOP, _report(none, shrink=1.0, unexplained=True)) == (True, "unexplained (none)")
+    stand_in = _effect("joint_stiffness", {"k": 0.1}, (0.5,), confidence="low")
+    assert bank.assess(END_STOP, _report(stand_in, unexplained=True)) == (True, "nearest candidate, low confidence")
+    # a name outside the case's expect list fails even with low confidence
+    stray = _effect("presliding_friction", {"s0": 0.66}, (0.62,), confidence="low")
+    ok, why = bank.assess(END_STOP, _report(stray, unexplained=True))
+    assert not ok and why.startswith("named ['presliding_friction'], not among the acceptable")
+    # an acceptable stand-in with high confidence fails, whatever the unexplained flag says
+    sure = _effect("joint_stiffness", {"k": 0.1}, (0.5,), confidence="high")
+    ok, why = bank.assess(END_STOP, _report(sure, unexplained=True))
+    assert not ok and why.startswith("confidently misnamed")
+    ok, _ = bank.assess(END_STOP, _report(stand_in, {**sure, "name": "torque_saturation"}))
+    assert not ok
+    # gain_slope's list is its own: joint_stiffness is not acceptable there
+    assert not bank.assess(bank.case("gain_slope"), _report(stand_in, unexplained=True))[0]
 
 
 # --- the whole bank (slow) -----------------------------------------------------------------

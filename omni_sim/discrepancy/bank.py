@@ -8,9 +8,10 @@ Independence
 A truth model is written here, with MuJoCo's own features, by the writers in :data:`TRUTH`
 (and :data:`OUTSIDE` for effects the library does not hold).  This module does NOT use the
 workflow's effect library (``effects.py``: no ``apply``, ``compile_with`` or ``Effect.write``,
-not even an import; ``tests/test_discrepancy_bank.py`` checks it by reading this file's syntax
-tree), so a fit that recovers a truth checks the library's writers too: a writer that put a
-value into the wrong field, the wrong unit or the wrong side of the gear would be caught.
+not even an import, direct or through another module; ``tests/test_discrepancy_bank.py``
+checks it by reading this file's syntax tree and following its imports through the project),
+so a fit that recovers a truth checks the library's writers too: a writer that put a value
+into the wrong field, the wrong unit or the wrong side of the gear would be caught.
 Where MuJoCo offers a second feature with the same physics the truth uses it (a tilted base
 instead of a tilted gravity vector, the motor's rotor inertia ``actuator armature`` reflected
 by the gear instead of the joint's armature).  What the truth shares with the library is only
@@ -378,7 +379,8 @@ class HiddenCase:
         Effects outside the library (:data:`OUTSIDE`) and their values.
     expect : tuple of str
         Names the workflow should report (``("none",)`` for the null cases); for an outside
-        effect, the names that are acceptable only with low confidence (informative).
+        effect, the names acceptable for it: ``"none"`` and the library's nearest stand-ins,
+        these only with low confidence (:func:`assess`).
     exact : bool
         Data without noise and without quantisation (``none_exact``).
     note : str
@@ -601,30 +603,63 @@ def error(param: str, fitted: float, truth: float) -> float:
     return d
 
 
-def assess(hidden: HiddenCase, report: dict) -> tuple[bool, str]:
-    """Did the workflow pass this case?  (criteria of the bank)
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
-    * library effects: every hidden effect named (and nothing else), every parameter within the
-      reported 95 % uncertainty of the truth, held-out gap shrunk at least 3x;
-    * null cases: ``none``;
-    * effects outside the library: ``none``, or candidates only with low confidence (or the
-      report flagging the gap as partly unexplained) -- never a wrong name with high confidence.
+
+def assess(hidden: HiddenCase, report: dict) -> tuple[bool, str]:
+    """Did the workflow pass this case?  (the bank's criteria; README, "The hidden-effect bank")
+
+    * library effects: exactly the hidden effects named (``hidden.expect``, nothing else), each
+      with ``confidence == "high"``; each named effect reports as many parameters as the truth
+      holds (a list of another length fails, it is not truncated), every fitted value finite
+      and within its reported 95 % half-width of the truth, and every half-width finite (an
+      infinite or NaN half-width -- ``fit.jacobian_se``'s and ``uncertainty.numerical_floor``'s
+      fallback when the normal matrix cannot be inverted -- would cover any value: it fails the
+      case); the held-out gap shrunk at least 3x;
+    * null cases (``expect == ("none",)``): ``none`` only;
+    * effects outside the library: ``expect`` lists the names acceptable for the case:
+      ``"none"`` (the library does not explain the gap) and the library's nearest stand-ins
+      (the effects that can imitate part of it, stated with the case before it was run), the
+      stand-ins only with low confidence.  Pass: ``none`` alone, or every named effect in
+      ``expect`` with ``confidence == "low"``.  A name outside ``expect`` fails even with low
+      confidence, and any name with high confidence fails (whatever the ``unexplained`` flag
+      says): a confident wrong name is the error the bank guards against.
     """
-    named = [e["name"] for e in report["effects"]]
+    effects = report["effects"]
+    named = [e["name"] for e in effects]
     if hidden.outside:
         if named == ["none"]:
             return True, "unexplained (none)"
-        ok = report["unexplained"] or all(e.get("confidence") == "low" for e in report["effects"])
-        return ok, "nearest candidate, low confidence" if ok else "confidently misnamed"
+        stray = [n for n in named if n not in hidden.expect]
+        if stray:
+            return False, f"named {stray}, not among the acceptable {list(hidden.expect)}"
+        sure = [e["name"] for e in effects if e.get("confidence") != "low"]
+        if sure:
+            return False, f"confidently misnamed: {sure} not with low confidence"
+        return True, "nearest candidate, low confidence"
     if sorted(named) != sorted(hidden.expect):
         return False, f"named {named}, hidden {list(hidden.expect)}"
     if named == ["none"]:
         return True, "none"
+    weak = [f"{e['name']} ({e.get('confidence')})" for e in effects if e.get("confidence") != "high"]
+    if weak:
+        return False, f"named without high confidence: {', '.join(weak)}"
     truth = dict(hidden.effects)
-    for e in report["effects"]:
-        for (p, v), t in zip(e["parameters"].items(), truth[e["name"]]):
-            if abs(error(p, v, t)) > e["uncertainty"][p]:
-                return False, f"{p}: {v:.4g} vs truth {t:.4g} (± {e['uncertainty'][p]:.2g})"
-    if report["shrink_factor"] < 3:
-        return False, f"gap shrank only x{report['shrink_factor']:.1f}"
+    for e in effects:
+        params, values = list(e["parameters"].items()), truth[e["name"]]
+        if len(params) != len(values):
+            return False, (f"{e['name']}: {len(params)} parameters reported "
+                           f"({', '.join(p for p, _ in params)}), the truth holds {len(values)}")
+        for (p, v), t in zip(params, values, strict=True):
+            u = e["uncertainty"].get(p)
+            if not _finite(u):
+                return False, f"{p}: half-width {u} (not finite: it covers nothing)"
+            if not _finite(v):
+                return False, f"{p}: fitted {v}"
+            if abs(error(p, v, t)) > u:
+                return False, f"{p}: {v:.4g} vs truth {t:.4g} (± {u:.2g})"
+    shrink = report["shrink_factor"]
+    if not shrink >= 3:  # NaN fails too; inf (gap left exactly 0) passes
+        return False, f"gap shrank only x{shrink:.1f}"
     return True, "ok"
