@@ -80,6 +80,7 @@ def _fast_exps():
                                  duration_s=1.2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case_name", ["coulomb_friction", "none"])
 def test_fast_hidden_cases(case_name):
     """Representatives of the bank on a smaller experiment set (the whole bank: -m slow)."""
@@ -96,6 +97,7 @@ def _one_pose_exps():
                                  duration_s=1.2)
 
 
+@pytest.mark.slow
 def test_fast_masking_pair():
     """Delay + friction mask each other (neither alone explains the gap): the joint pair search
     names both (candidates restricted to keep the test fast)."""

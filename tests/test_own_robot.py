@@ -247,6 +247,7 @@ def _check(report, truth_fc):
     assert report["shrink_factor"] >= 3.0
 
 
+@pytest.mark.slow
 def test_pendulum_quick_names_the_hidden_friction(quick_data):
     """Four short runs from truth.xml (hidden bearing friction 0.015 N*m); the workflow sees
     model.xml only.  Candidates restricted to three that all act like extra damping."""

@@ -233,6 +233,7 @@ def _wait_workers(address: str, n: int, timeout: float = 60) -> None:
         c.wait_for_workers(n, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_external_scheduler_and_two_workers(tmp_path):
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
