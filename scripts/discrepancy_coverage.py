@@ -218,6 +218,14 @@ def main(argv=None) -> int:
         except (OSError, ValueError) as exc:
             print(f"error: --merge {f}: {exc}", file=sys.stderr)
             return 2
+        theirs = other.get("settings", {})
+        if (theirs.get("seed"), theirs.get("experiments")) != (settings["seed"], settings["experiments"]):
+            # draws made with another experiment set are not the same study: not merged under
+            # this run's settings (a merge that did so once labelled small-set draws "bank")
+            print(f"error: --merge {f} holds draws made with --seed {theirs.get('seed')} --experiments "
+                  f"{theirs.get('experiments')}; this run has --seed {settings['seed']} --experiments "
+                  f"{settings['experiments']}", file=sys.stderr)
+            return 2
         have = {(d["effect"], d["condition"], d["seed"]) for d in draws}
         draws += [d for d in other.get("draws", []) if (d["effect"], d["condition"], d["seed"]) not in have]
     done = {(d["effect"], d["condition"], d["seed"]) for d in draws}
