@@ -59,6 +59,9 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     """
     from tqdm import tqdm
 
+    # no monitor thread (it only nudges stalled bars): the dataset writer is forked while the
+    # bar is up, and a fork is safe only with no other thread running (workers.fork_is_safe)
+    tqdm.monitor_interval = 0
     from .accel import install, start_prewarm
     install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
     in_memory = model is not None and model_path is None

@@ -11,24 +11,58 @@ from omni_app import reproduce as rp
 from omni_app.workers import Workers
 
 
-@pytest.mark.parametrize("inline", [False, True])
-def test_workers_run_tasks_and_report_errors(tmp_path, monkeypatch, inline):
-    if inline:
-        monkeypatch.setenv("OMNI_FIGURES_INLINE", "1")
+def _in_one_thread(check, tmp_path):
+    """Run ``check(tmp_path)`` in a process with one thread, as forking needs
+    (:func:`omni_app.workers.fork_is_safe`): here if this process has one, else in a fresh
+    interpreter (a pytest worker that ran other tests may keep their threads running: tqdm's
+    monitor, dask's)."""
+    import subprocess
+    import sys
+    import threading
+    from pathlib import Path
+
+    if threading.active_count() == 1:
+        check(tmp_path)
+        return
+    code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+            f"from pathlib import Path; import test_reproduce_workers as t; "
+            f"t.{check.__name__}(Path({str(tmp_path)!r}))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+
+
+def _check_tasks_and_errors(tmp_path):
     w = Workers()
-    assert not (inline and w.fork)
     w.start([lambda: (tmp_path / "a").write_text("a"), lambda: (tmp_path / "b").write_text("b")])
     w.start([lambda: (tmp_path / "c").write_text("c")])
+    forked = all(job["proc"] is not None for job in w.jobs)
     w.wait()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b", "c"]
     w.start([lambda: 1 / 0])
     # a child's error is reported by wait(); inline, the error itself propagates
-    with pytest.raises(ZeroDivisionError if inline else RuntimeError, match="ZeroDivisionError|division"):
+    with pytest.raises(RuntimeError if forked else ZeroDivisionError, match="ZeroDivisionError|division"):
         w.wait()
+    return forked
 
 
 @pytest.mark.parametrize("inline", [False, True])
-def test_work_waiting_for_a_payload(tmp_path, monkeypatch, inline):
+def test_workers_run_tasks_and_report_errors(tmp_path, monkeypatch, inline):
+    import sys
+
+    if inline:
+        monkeypatch.setenv("OMNI_FIGURES_INLINE", "1")
+        assert not _check_tasks_and_errors(tmp_path)
+    elif sys.platform.startswith("linux"):
+        _in_one_thread(_check_tasks_and_errors_forked, tmp_path)
+    else:  # no fork: the work is done in this process
+        assert not _check_tasks_and_errors(tmp_path)
+
+
+def _check_tasks_and_errors_forked(tmp_path):
+    assert _check_tasks_and_errors(tmp_path), "not forked"
+
+
+def _check_payloads(tmp_path):
     """A child started with ``then`` runs its tasks, then ``then(payload)`` once it is sent
     (through a temporary file, removed after)."""
     import glob
@@ -36,8 +70,6 @@ def test_work_waiting_for_a_payload(tmp_path, monkeypatch, inline):
 
     import numpy as np
 
-    if inline:
-        monkeypatch.setenv("OMNI_FIGURES_INLINE", "1")
     before = set(glob.glob(f"{tempfile.gettempdir()}/omni-figures-*"))
     w = Workers()
     w.start([lambda: (tmp_path / "first").write_text("1")],
@@ -53,13 +85,23 @@ def test_work_waiting_for_a_payload(tmp_path, monkeypatch, inline):
     assert set(glob.glob(f"{tempfile.gettempdir()}/omni-figures-*")) == before
 
 
-def test_hung_child_is_killed_and_its_work_done_here(tmp_path, monkeypatch):
+@pytest.mark.parametrize("inline", [False, True])
+def test_work_waiting_for_a_payload(tmp_path, monkeypatch, inline):
+    if inline:
+        monkeypatch.setenv("OMNI_FIGURES_INLINE", "1")
+        _check_payloads(tmp_path)
+    else:
+        _in_one_thread(_check_payloads, tmp_path)
+
+
+def _check_hung_child(tmp_path):
     import os
     import time
 
     from omni_app import workers as wk
 
-    monkeypatch.setattr(wk, "FIGURES_TIMEOUT_S", 1.0)
+    wk.STALL_S = 1.0
+    assert wk.FIGURES_TIMEOUT_S >= 60
     parent = os.getpid()
 
     def task():
@@ -68,14 +110,76 @@ def test_hung_child_is_killed_and_its_work_done_here(tmp_path, monkeypatch):
         (tmp_path / "done").write_text("here")
 
     w = Workers()
-    if not w.fork:
-        pytest.skip("no fork")
     w.start([task])
     w.start([], then=[lambda p: task() or (tmp_path / "late").write_text(p)])
+    assert all(job["proc"] is not None for job in w.jobs), "not forked"
     w.send("payload")
+    t0 = time.monotonic()
     w.wait()
+    assert time.monotonic() - t0 < 10        # two stalls of ~1 s, not two minutes
     assert (tmp_path / "done").read_text() == "here"
     assert (tmp_path / "late").read_text() == "payload"
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="forks on Linux only")
+def test_hung_child_is_killed_and_its_work_done_here(tmp_path):
+    """A child that uses no CPU while waited for (hung on a lock) is found within ~STALL_S,
+    not at FIGURES_TIMEOUT_S: killed, and its work done in the main process."""
+    _in_one_thread(_check_hung_child, tmp_path)
+
+
+def _check_busy_child(tmp_path):
+    import os
+    import time
+
+    from omni_app import workers as wk
+
+    wk.STALL_S = 0.5
+
+    def spin(seconds):
+        t0 = time.process_time()
+        while time.process_time() - t0 < seconds:
+            pass
+
+    def task():
+        inner = Workers()                        # the figure worker forks drawers of its own
+        inner.start([lambda: spin(1.5)])
+        inner.wait()
+        (tmp_path / "who").write_text(str(os.getpid()))
+
+    w = Workers()
+    w.start([task])
+    assert w.jobs[0]["proc"] is not None, "not forked"
+    w.wait()
+    assert int((tmp_path / "who").read_text()) != os.getpid()   # done by the child
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="forks on Linux only")
+def test_busy_child_is_not_mistaken_for_a_hung_one(tmp_path):
+    """A child (and a child of its own) computing for longer than STALL_S finishes its work."""
+    _in_one_thread(_check_busy_child, tmp_path)
+
+
+def test_no_fork_while_another_thread_runs(tmp_path):
+    """With a second thread running, the work is done in this process (at wait)."""
+    import os
+    import threading
+
+    from omni_app import workers as wk
+
+    stop = threading.Event()
+    t = threading.Thread(target=stop.wait)
+    t.start()
+    try:
+        assert not wk.fork_is_safe()
+        w = Workers()
+        w.start([lambda: (tmp_path / "who").write_text(str(os.getpid()))])
+        assert all(job["proc"] is None for job in w.jobs)
+        w.wait()
+    finally:
+        stop.set()
+        t.join()
+    assert int((tmp_path / "who").read_text()) == os.getpid()
 
 
 def test_failed_reproduction_leaves_nothing(tmp_path, monkeypatch):
