@@ -246,7 +246,9 @@ def simulate_alpha_reference(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_
     """α-invariant model (37) by the quasilinear iteration (43)–(46) with exact ZOH steps.
 
     The straightforward implementation (one convergence test per iteration), kept as the
-    reference of :func:`simulate_alpha`, which gives the same numbers bit for bit.
+    reference of :func:`simulate_alpha`, which gives the same numbers (to a few ulps per step:
+    numpy's exp may run other SIMD code on arrays than on the reference's rows, depending on
+    the CPU) and the same iterations.
 
     Parameters
     ----------
@@ -358,7 +360,7 @@ _KERNEL = None
 def set_kernel(kernel):
     """Register ``kernel``, a compiled implementation of the time loop of
     :func:`simulate_alpha_batch` (and so of :func:`simulate_alpha`) with the arguments of
-    :func:`_batch_loop_numpy`, giving the same numbers bit for bit (e.g.
+    :func:`_batch_loop_numpy`, giving the same numbers to a few ulps per step (e.g.
     ``omni_app.alpha_kernel``); ``None`` restores the numpy loop.  Returns the previous one."""
     global _KERNEL
     previous, _KERNEL = _KERNEL, kernel
@@ -392,7 +394,7 @@ def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_line
                    phi0=0.0, r_dot=None, r_ddot=None, max_iter=DEFAULT_MAX_ITER) -> SimResult:
     """α-invariant model (37) by the quasilinear iteration (43)–(46) with exact ZOH steps.
 
-    Same arguments and numbers (bit for bit) as :func:`simulate_alpha_reference`, whose
+    Same arguments and numbers (to a few ulps per step) as :func:`simulate_alpha_reference`, whose
     docstring lists the parameters and units; faster: the iterations (44) of a step are computed
     in blocks for all runs at once and the stopping rule (46) is applied to a block afterwards
     (module docstring).

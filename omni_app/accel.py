@@ -1,7 +1,9 @@
 """Compiled kernels for the method layer, registered by the application.
 
 ``identification`` is numpy/scipy only.  Where a compiled version of one of its loops exists,
-the application registers it here and the method uses it, with the same results bit for bit:
+the application registers it here and the method uses it, with the same results (the CSV
+formatter: the same bytes; the α loop: the same numbers to a few ulps per step, see
+:mod:`omni_app.alpha_kernel`):
 
 * the α-model simulation's time loop (:mod:`omni_app.alpha_kernel`, registered with
   :func:`identification.simulate.set_kernel`);

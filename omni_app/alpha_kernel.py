@@ -4,16 +4,21 @@
 quasilinear iteration (44)–(46) and its bisection fallback, then an exact ZOH step) that numpy
 can only vectorise over runs: ~200 k sequential steps of a few small-array calls each.  This
 module is the same loop, operation for operation, in compiled code: the arguments and the
-numbers (bit for bit) of ``identification.simulate._batch_loop_numpy``, which is its
-reference.  The method layer stays numpy/scipy only: the application registers the kernel
+numbers (to a few ulps per step, see below) of ``identification.simulate._batch_loop_numpy``,
+which is its reference.  The method layer stays numpy/scipy only: the application registers the kernel
 (:func:`omni_app.accel.install`), and the numpy loop is used wherever it is not registered or
 numba cannot compile.
 
-Bit-for-bit equality holds because every floating-point operation is the numpy loop's, in the
-same order, without fast-math (no reassociation, no FMA contraction): ``np.interp``'s formula
-(slope·(x − x_j) + f_j, with its NaN and end rules), ``np.maximum``/``np.clip``'s NaN rules,
-libm's ``exp`` and ``expm1`` (which numpy's float64 loops call too), and the bisection of each
-batch (``groups``) run to the batch's common stopping step.
+Every floating-point operation is the numpy loop's, in the same order, without fast-math (no
+reassociation): ``np.interp``'s formula (slope·(x − x_j) + f_j, with its NaN and end rules),
+``np.maximum``/``np.clip``'s NaN rules, ``exp`` and ``expm1``, and the bisection of each batch
+(``groups``) run to the batch's common stopping step.  The numbers are not the same bits on
+every CPU: numpy evaluates ``exp`` with SIMD code chosen for the CPU (AVX-512, AVX2, or its
+baseline), this loop with the C library's, as LLVM compiled it for the host (which may also
+fuse a multiply-add); these differ by a few ulps.  On a CPU where numpy runs its baseline code
+the two loops have given the same bits; on an AVX-512 CPU they differ by <= 4e-14 of a run's
+scale, and the iteration's decisions are the same (``tests/test_alpha_kernel.py``: within
+4 ulp per step of each run's scale).
 
 This module imports numba; :mod:`omni_app.accel` registers it lazily (numba is imported and
 the loop compiled or loaded at the first α simulation; the numpy loop is kept if that fails).
