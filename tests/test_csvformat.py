@@ -1,6 +1,9 @@
 """The compiled "%.17g" CSV formatter (omni_app.csv_kernel) against Python's % formatting
 (identification.csvformat.format_rows_reference): the same bytes for every double, and the
-dataset and prediction writers giving the same files with and without it."""
+dataset and prediction writers giving the same files with and without it.  Bytes, on any CPU:
+"%.17g" of a double is exactly specified (the correctly rounded 17 significant digits), and the
+kernel computes it in exact integer and double-double arithmetic, deferring to Python's % where
+it cannot decide; a formatter that differs in one digit is wrong, not rounded differently."""
 
 import numpy as np
 import pytest

@@ -4,6 +4,14 @@ The generator's reference path, the gymnasium environment and the discrepancy re
 through :class:`omni_sim.device.Engine`; these tests hold them to identical trajectories (not
 close ones), and the engine's two ways of advancing the physics (``mj_step`` on one row,
 ``mujoco.rollout`` on a batch) to each other, bit for bit.
+
+Why bitwise equality holds on any CPU here: every path runs the same arithmetic by
+construction. The physics is MuJoCo's compiled ``mj_step`` in each case (``mujoco.rollout``
+calls it row by row on the same state), and what numpy adds around it (the encoder's
+quantisation and noise, the P law, the clip) is elementwise +, -, *, /, floor and clip, which
+IEEE 754 rounds exactly whatever SIMD code numpy picks; no transcendental function or
+reduction lies between the two sides.  (Comparisons across paths whose arithmetic differs, such
+as the compiled α loop and the numpy loop, use a stated tolerance: tests/test_simulate_fast.py.)
 """
 
 from __future__ import annotations

@@ -155,7 +155,8 @@ def _hand_loop(model, theta0, r, kp, limit):
 @pytest.mark.parametrize("limit, applied", [(2.0, 2.0), (8.0, 5.0)])
 def test_command_limit_saturates_the_p_law(limit, applied):
     """A metadata ``command_limit`` below the actuator's ctrlrange (5 A) saturates the P law
-    there; above it the drive's clip wins.  Replay == an independent mj_step loop."""
+    there; above it the drive's clip wins.  Replay == an independent mj_step loop, bit for bit:
+    both make the same calls (mj_step, the P law's elementwise multiply and clip)."""
     model = om.load_model(MODEL, target=TARGET)
     dev = Device(model, target=TARGET)
     r = np.full(400, 1.0)  # kp * 1 rad = 10 A: far beyond both limits at the start

@@ -90,7 +90,9 @@ def test_reference_without_the_frequency_is_an_error():
        gain=st.floats(0.3, 1.5), dist=st.floats(0.0, 0.3), seed=st.integers(0, 10_000))
 def test_fundamentals_equal_fit_run_bit_for_bit(f, lag, gain, dist, seed):
     """Validation's fundamental-only fits (the reference fitted once for several θ) give
-    fit_run's A1, A2 exactly, on distorted, noisy, lagging responses."""
+    fit_run's A1, A2 exactly, on distorted, noisy, lagging responses.  Exactly, on any CPU: the
+    two compute the same columns the same way and make the same LAPACK call on equal inputs
+    (the same arithmetic by construction, not two methods that agree)."""
     from identification.sine_fit import fundamentals
 
     rng = np.random.default_rng(seed)
