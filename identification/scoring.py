@@ -184,7 +184,8 @@ def step_summary(per_run: Sequence[Mapping]) -> dict:
         per-run values) and ``ratio_of_medians`` (linear/α of those medians); the same four with
         ``mean_`` prefixed (means over runs, which is what the paper's "Medians" row holds, see
         the module docstring) and ``ratio_of_means``; ``alpha_better_poses`` (runs whose α
-        median error is below the linear one) and ``n_poses``.
+        median error is below the linear one), ``alpha_better_poses_p90`` (the same for the
+        90th percentile) and ``n_poses``.
     """
     out = {}
     for w in STEP_WINDOWS:
@@ -201,6 +202,8 @@ def step_summary(per_run: Sequence[Mapping]) -> dict:
                                      if a > 0 else float("inf"))
         s["alpha_better_poses"] = int(sum(
             x["alpha"]["median_abs_error_rad"] < x["linear"]["median_abs_error_rad"] for x in rows))
+        s["alpha_better_poses_p90"] = int(sum(
+            x["alpha"]["p90_abs_error_rad"] < x["linear"]["p90_abs_error_rad"] for x in rows))
         s["n_poses"] = len(rows)
         out[w] = s
     return out

@@ -126,15 +126,29 @@ def test_write_model_round_trip(tmp_path, family):
     assert cal.family_of(om.load_model(tmp_path / f"scene_{family}.xml")) == family
 
 
+@pytest.mark.parametrize("family", sorted(cal.RECORDS))
+def test_record_carries_the_code_residual_scales(family):
+    """Each family's record was fitted with the residual scales and targets the code uses now
+    (the module constants of omni_sim/calibration.py that :func:`cal.residuals` divides by),
+    not merely the same as the other record: a changed constant without a re-run calibration
+    fails here."""
+    record = json.loads(cal.RECORDS[family].read_text())
+    assert record["residual_scales"] == {
+        "coef_rel": cal.SCALE_COEF_REL, "angle_deg": cal.SCALE_ANGLE_DEG,
+        "C_alpha_rel": cal.SCALE_CALPHA_REL, "margin": cal.SCALE_MARGIN,
+        "C_alpha_fall_log": cal.SCALE_FALL_LOG}
+    # the targets the scales apply to: the section 2.3 margin, the Table 10 alphas and fall
+    assert f"smallest physical margin <= {cal.MARGIN_TARGET}" in record["targets"]
+    assert f"({cal.TABLE10_FALL:.2f}x; log scale {cal.SCALE_FALL_LOG:g})" in record["targets"]
+    assert "alpha = " + ", ".join(f"{a:g}" for a in cal.TABLE10_ALPHA) in record["targets"]
+
+
 def test_coulomb_record_matches_its_scene():
-    """models/calibration_coulomb.json records what scene_coulomb.xml gives (re-measured here),
-    with the same targets and residual scales as the lugre family's record."""
+    """models/calibration_coulomb.json records what scene_coulomb.xml gives (re-measured here);
+    its residual scales are checked against the code's by the test above."""
     model = om.load_model(friction="coulomb")
     record = json.loads(cal.RECORDS["coulomb"].read_text())
-    lugre = json.loads(cal.RECORDS["lugre"].read_text())
     assert record["family"] == "coulomb" and record["free"] == "friction"
-    assert record["residual_scales"] == lugre["residual_scales"]
-    assert record["targets"] == lugre["targets"]
     values = cal.current_values(model)
     for name, p in record["parameters"].items():
         assert values[name] == pytest.approx(p["value"], rel=1e-5), name
