@@ -217,6 +217,7 @@ def parse_study(text: bytes | str, source: str, base_dir: Path | None = None) ->
     the model is opened to check every model parameter names an existing numeric attribute)."""
     from omni_sim import experiments as ex
     from omni_sim import model as om
+    from omni_sim.device import Device
     from omni_sim import variants as va
     from omni_sim.discrepancy import bank
 
@@ -249,7 +250,7 @@ def parse_study(text: bytes | str, source: str, base_dir: Path | None = None) ->
         model = str(model)
     try:
         spec = va.base_spec(model, friction)
-        om.index(spec.compile(), model or "built-in scene")
+        Device(spec.compile(), source=model or "built-in scene")
     except (UserError, ValueError) as exc:
         raise _err(source, "base", str(exc)) from None
     base = {"friction": friction, "model": model}
@@ -380,11 +381,13 @@ def _reproduce(spec, model, values: dict, settings, pipe: dict) -> tuple[dict, d
     from identification.validation import Params, validate_runs
     from omni_sim import experiments as ex
     from omni_sim import truth
+    from omni_sim.device import Device
 
     from .accel import install
     install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
     exps = _campaign(pipe).experiments(values.get("amplitude_rad"))
-    runs = ex.simulate(exps, settings=settings, jobs=1, model=model)
+    device = Device(model, settings.control_period_s)
+    runs = ex.simulate(exps, settings=settings, jobs=1, device=device)
     ident = identify_runs(runs)
     if ident.inertia is None or ident.alpha_model is None:
         raise UserError("identification failed: " + "; ".join(w for w in ident.warnings if "not fitted" in w))
@@ -392,7 +395,7 @@ def _reproduce(spec, model, values: dict, settings, pipe: dict) -> tuple[dict, d
     params = Params(ident.inertia.params, ident.alpha_model, params_dict["poses"])
     scores, _ = validate_runs(runs, params)
     s = scores["summary"]
-    s["inertia"] = truth.inertia_truth(model, ident.inertia.params)
+    s["inertia"] = truth.inertia_truth(device, ident.inertia.params)
     win = s["step"]["windows"]
     fig = {"inertia_max_rel_error": s["inertia"]["max_rel_error"],
            "step_ratio_of_medians_whole_record": win["whole_record"]["ratio_of_medians"],

@@ -56,6 +56,7 @@ from identification.nonlinear import select_frequencies
 
 from . import experiments as ex
 from . import model as om
+from .device import Device
 
 #: The calibration record of each friction family (the lugre record also holds the robot's
 #: joint calibration with that family, which set the shared numbers of omni.xml).
@@ -125,9 +126,14 @@ FAMILY_PARAMETERS = {
 FREE_CHOICES = ("friction", "all")
 
 
-def family_of(model: mujoco.MjModel) -> str:
-    """The friction family of a compiled model: ``lugre`` if the yaw has a LuGre actuator."""
-    return "lugre" if om.lugre_actuators(model) else "coulomb"
+def family_of(device: Device) -> str:
+    """The friction family a calibration fits on ``device`` (:meth:`Device.friction_family`:
+    ``lugre`` or ``coulomb``; UserError for a model carrying neither or both)."""
+    family = device.friction_family()
+    if family not in FAMILY_PARAMETERS:
+        raise UserError(f"calibration: the model's yaw friction is {family!r}; a calibration "
+                        f"fits one of {', '.join(FAMILY_PARAMETERS)}")
+    return family
 
 
 def free_names(family: str, free: str = "friction") -> tuple[str, ...]:
@@ -167,7 +173,8 @@ def current_values(model: mujoco.MjModel, amplitude_rad: float | None = None) ->
     robot), and the paper campaign's A_r."""
     amplitude_rad = ex.load_campaign("sine").sine[0]["amplitude_rad"] if amplitude_rad is None else amplitude_rad
     bid = lambda n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n)  # noqa: E731
-    ix = om.index(model)
+    device = Device(model)
+    ix = device.ix
     out = {
         "m_upper_arm": float(model.body_mass[bid("upper_arm")]),
         "m_forearm": float(model.body_mass[bid("forearm")]),
@@ -175,7 +182,7 @@ def current_values(model: mujoco.MjModel, amplitude_rad: float | None = None) ->
         "I_turret": float(model.body_inertia[bid("turret")][2]),
         "yaw_damping": float(model.dof_damping[ix.yaw_dof]),
     }
-    if family_of(model) == "lugre":
+    if family_of(device) == "lugre":
         f = _friction_actuator(model)
         out.update({
             "lugre_stiffness": float(model.actuator_dynprm[f, 5]),
@@ -206,7 +213,7 @@ def apply(model: mujoco.MjModel, values: dict) -> mujoco.MjModel:
 
     m = copy.deepcopy(model)
     bid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)  # noqa: E731
-    ix = om.index(m)
+    ix = Device(m).ix
     for body, key in (("upper_arm", "m_upper_arm"), ("forearm", "m_forearm")):
         if key in values:
             b = bid(body)
@@ -352,8 +359,9 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
     """
     from scipy.optimize import least_squares
 
-    base = om.load_model(model_path, friction=family)
-    family = family_of(base)
+    device = Device.load(model_path, friction=family)
+    base = device.model
+    family = family_of(device)
     names = free_names(family, free)
     params = [_BY_NAME[n] for n in names]
     now = current_values(base)
@@ -400,9 +408,9 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
         "parameters": {p.name: {"value": vals[p.name], "unit": p.unit, "start": x0[p.name],
                                 "model_before": now[p.name],
                                 "bounds": [p.lower, p.upper], "why": p.why} for p in params},
-        "fixed": {"beta_bar_N_m_per_V": om.torque_constant(base),
-                  "armature_kg_m2": float(base.dof_armature[om.index(base).yaw_dof]),
-                  **({"yaw_frictionloss_N_m": float(base.dof_frictionloss[om.index(base).yaw_dof]),
+        "fixed": {"beta_bar_N_m_per_V": device.torque_constant,
+                  "armature_kg_m2": float(base.dof_armature[device.ix.yaw_dof]),
+                  **({"yaw_frictionloss_N_m": float(base.dof_frictionloss[device.ix.yaw_dof]),
                       "lugre_sigma1_N_m_s_per_rad": float(base.actuator_dynprm[_friction_actuator(base), 6])}
                      if family == "lugre" else {}),
                   "L1_m": L_LINK, "L2_m": L_LINK,

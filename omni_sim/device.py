@@ -1,11 +1,20 @@
 """The virtual Omni as a device: built once from a model, stepped by one closed-loop engine.
 
 In the spirit of dm_control's ``Physics``: a :class:`Device` is built once per compiled model and
-owns everything that makes the model a *device* rather than a physics model:
+owns everything that makes the model a *device* rather than a physics model, and is the one
+place each fact about it is computed, for its :class:`~omni_sim.model.Target` (the Omni's yaw
+or a user's hinge):
 
-* the name index of the contract's joints and actuators (:class:`omni_sim.model.OmniIndex`);
-* the drive's voltage limit and the physics substeps of one control period;
-* the equilibrium (sagged) arm pose of each pair of servo set points (cached);
+* the name index of the contract's joints and actuators (:class:`omni_sim.model.OmniIndex`;
+  :func:`omni_sim.model.index` is called here and by the loader, nowhere else);
+* the drive's torque constant (gear), voltage limit and the physics substeps of one control
+  period;
+* the drive's friction (:meth:`Device.friction`, :meth:`Device.friction_family`,
+  :meth:`Device.scale_friction`) and the encoder joint's inertia at a pose
+  (:meth:`Device.inertia`, from MuJoCo's mass matrix);
+* the arm: its control (:meth:`Device.set_arm_control`), its joint ranges
+  (:meth:`Device.check_pose`) and the equilibrium (sagged) pose of each pair of servo set
+  points (:meth:`Device.equilibrium`, cached);
 * the start state of a run: arm at that pose, yaw at rest at ``theta0``;
 * the encoder (:class:`Encoder`: quantisation, white noise, seeded per-run streams);
 * the clipped P law ``v = clip(kp (r - y), -V, V)`` of the paper's experiments.
@@ -169,6 +178,8 @@ class Device:
         None: the Omni's contract, ``yaw``/``yaw_motor`` and the arm).  Without the Omni's arm
         (``ix.has_arm`` False) a run has no pose: its start leaves every other joint at
         ``qpos0`` (see :meth:`start_data`).
+    source : str
+        What the model is, for error messages (a file name, ``"<variant>"``).
 
     Attributes
     ----------
@@ -182,7 +193,9 @@ class Device:
         ``ctrlrange`` of ``yaw_motor`` / the target's actuator (inf if unlimited): the drive's
         clip of every command.
     torque_constant : float [N*m/V]
-        ``yaw_motor`` gear (the paper's beta_bar).
+        Gear of ``yaw_motor`` / the target's actuator (the paper's beta_bar).
+    joint_id : int
+        The encoder joint (``yaw`` or the target's hinge).
     target : Target or None
     coupled : list of (int, float)
         Hinges tied to the encoder joint by a two-joint fixed tendon (:func:`coupled_hinges`),
@@ -190,25 +203,124 @@ class Device:
     """
 
     def __init__(self, model: mujoco.MjModel, control_period_s: float = CONTROL_PERIOD_S,
-                 target: om.Target | None = None):
+                 target: om.Target | None = None, source: str = "<model>"):
         self.model = model
         self.target = target
-        self.ix = om.index(model, target=target)
+        self.ix = om.index(model, source, target)
         self.control_period_s = float(control_period_s)
         self.substeps = substeps_of(model, control_period_s)
-        self.voltage_limit = om.voltage_limit(model, target)
-        self.torque_constant = float(model.actuator_gear[self.ix.yaw_act, 0])
-        jid = int(model.dof_jntid[self.ix.yaw_dof])
+        act = self.ix.yaw_act
+        self.voltage_limit = (float(min(-model.actuator_ctrlrange[act, 0], model.actuator_ctrlrange[act, 1]))
+                              if model.actuator_ctrllimited[act] else math.inf)
+        self.torque_constant = float(model.actuator_gear[act, 0])
+        self.joint_id = int(model.dof_jntid[self.ix.yaw_dof])
         arm = {self.ix.shoulder_qpos, self.ix.elbow_qpos}
-        self.coupled = [(a, f) for a, f in coupled_hinges(model, jid) if a not in arm]
+        self.coupled = [(a, f) for a, f in coupled_hinges(model, self.joint_id) if a not in arm]
         self.nstate = mujoco.mj_stateSize(model, STATE_SPEC)
         self._eq: dict[tuple[float, float], tuple[float, float]] = {}
         self._scratch: mujoco.MjData | None = None  # start_state's MjData (made on first use)
 
     @classmethod
-    def load(cls, path=None, control_period_s: float = CONTROL_PERIOD_S) -> "Device":
-        """Compile an MJCF file (default: the built-in scene) into a device."""
-        return cls(om.load_model(path), control_period_s)
+    def load(cls, path=None, control_period_s: float = CONTROL_PERIOD_S, friction: str | None = None,
+             target: om.Target | None = None) -> "Device":
+        """Compile an MJCF file (default: the built-in scene of the friction family
+        ``friction``, or ``scene.xml``) into a device."""
+        return cls(om.load_model(path, friction, target), control_period_s, target)
+
+    # -- the drive's friction ------------------------------------------------------------------
+    def lugre_actuators(self) -> list[int]:
+        """Ids of the passive LuGre friction actuators (``dcmotor`` bias) on the encoder joint."""
+        m = self.model
+        return [a for a in range(m.nactuator)
+                if m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_DCMOTOR
+                and m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                and m.actuator_trnid[a, 0] == self.joint_id]
+
+    def friction(self) -> dict:
+        """The drive's dry friction: ``frictionloss`` [N*m] (hard stick) and the LuGre
+        actuators' ``lugre_sigma0`` [N*m/rad], ``lugre_Fc``, ``lugre_Fs`` [N*m] (summed levels;
+        stiffness of the first)."""
+        m, acts = self.model, self.lugre_actuators()
+        return {
+            "frictionloss": float(m.dof_frictionloss[self.ix.yaw_dof]),
+            "lugre_sigma0": float(m.actuator_dynprm[acts[0], 5]) if acts else 0.0,
+            "lugre_Fc": float(sum(m.actuator_biasprm[a, 3] for a in acts)),
+            "lugre_Fs": float(sum(m.actuator_biasprm[a, 4] for a in acts)),
+        }
+
+    def friction_family(self, path: str | os.PathLike | None = None) -> str:
+        """The friction family a run's metadata names.
+
+        ``path`` a built-in scene: its family (``scene.xml`` is the default family).  Otherwise
+        (a user's file, or ``path`` None for a compiled model) what the drive carries:
+        ``"lugre"`` (a LuGre actuator with a non-zero level), ``"coulomb"`` (``frictionloss``),
+        ``"lugre+coulomb"`` or ``"none"``."""
+        family = om.builtin_family(path) if path is not None else None
+        if family is not None:
+            return family
+        f = self.friction()
+        kinds = [k for k, on in (("lugre", f["lugre_Fc"] > 0 or f["lugre_Fs"] > 0),
+                                 ("coulomb", f["frictionloss"] > 0)) if on]
+        return "+".join(kinds) or "none"
+
+    def scale_friction(self, factor: float, base: "Device | None" = None) -> None:
+        """Set the drive's dry-friction levels (``frictionloss`` and LuGre Fc, Fs) to ``factor``
+        times those of ``base`` (default: this device itself), in place."""
+        base = self if base is None else base
+        m, b, dof = self.model, base.model, self.ix.yaw_dof
+        m.dof_frictionloss[dof] = factor * b.dof_frictionloss[base.ix.yaw_dof]
+        for a in self.lugre_actuators():
+            m.actuator_biasprm[a, 3:5] = factor * b.actuator_biasprm[a, 3:5]
+
+    def without_friction(self) -> "Device":
+        """A device on a copy of the model with no dry friction on the drive (viscous damping
+        kept)."""
+        import copy
+
+        dev = Device(copy.deepcopy(self.model), self.control_period_s, self.target)
+        dev.scale_friction(0.0)
+        return dev
+
+    # -- the arm and the inertia -----------------------------------------------------------------
+    def _arm_joint(self, name: str) -> int:
+        return mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, name)
+
+    def check_pose(self, gamma1_deg: float, gamma2_deg: float) -> None:
+        """Raise UserError if a pose is not finite or outside the shoulder/elbow joint ranges."""
+        for name, val in (("shoulder", gamma1_deg), ("elbow", gamma2_deg)):
+            if not math.isfinite(val):
+                raise UserError(f"{name} angle must be finite, got {val}")
+            if not self.ix.has_arm:
+                continue
+            j = self._arm_joint(name)
+            if self.model.jnt_limited[j]:
+                lo, hi = np.degrees(self.model.jnt_range[j])
+                if not lo - 1e-9 <= val <= hi + 1e-9:
+                    raise UserError(f"{name} angle {val:g} deg is outside the joint range "
+                                    f"[{lo:.1f}, {hi:.1f}] deg")
+
+    def set_arm_control(self, data: mujoco.MjData, gamma1_set_deg: float, gamma2_set_deg: float) -> None:
+        """Write the shoulder/elbow servo set points [deg] into ``data.ctrl`` (servos present)."""
+        if self.ix.shoulder_act is not None:
+            data.ctrl[self.ix.shoulder_act] = math.radians(gamma1_set_deg)
+        if self.ix.elbow_act is not None:
+            data.ctrl[self.ix.elbow_act] = math.radians(gamma2_set_deg)
+
+    def inertia(self, gamma1_deg: float | None = None, gamma2_deg: float | None = None) -> float:
+        """MuJoCo's inertia [kg*m^2] about the encoder joint with the arm at these ACTUAL angles
+        [deg] (the others at ``qpos0``; without the Omni's arm no angles are needed): the
+        joint's diagonal element of the joint-space mass matrix (``mj_fullM``), armature
+        included."""
+        m, ix = self.model, self.ix
+        data = mujoco.MjData(m)
+        data.qpos[:] = m.qpos0
+        if ix.has_arm:
+            data.qpos[ix.shoulder_qpos] = math.radians(gamma1_deg)
+            data.qpos[ix.elbow_qpos] = math.radians(gamma2_deg)
+        mujoco.mj_forward(m, data)
+        mass = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, data, mass)
+        return float(mass[ix.yaw_dof, ix.yaw_dof])
 
     @property
     def dt(self) -> float:
@@ -219,8 +331,39 @@ class Device:
         """Actual (sagged) arm angles [deg] for these servo set points (cached per device)."""
         key = (float(gamma1_set_deg), float(gamma2_set_deg))
         if key not in self._eq:
-            self._eq[key] = om.equilibrium_pose(self.model, *key)
+            self._eq[key] = self._solve_equilibrium(*key)
         return self._eq[key]
+
+    def _solve_equilibrium(self, gamma1_set_deg: float, gamma2_set_deg: float,
+                           tol_rad: float = 1e-10) -> tuple[float, float]:
+        """Solve ``qfrc_bias + qfrc_passive = qfrc_actuator`` for the shoulder and elbow, the
+        encoder joint at 0, by Newton's method on MuJoCo's own forces (finite-difference
+        Jacobian)."""
+        m, ix = self.model, self.ix
+        self.check_pose(gamma1_set_deg, gamma2_set_deg)
+        data = mujoco.MjData(m)
+        self.set_arm_control(data, gamma1_set_deg, gamma2_set_deg)
+        dofs = [int(m.jnt_dofadr[self._arm_joint(j)]) for j in ("shoulder", "elbow")]
+        qadr = [ix.shoulder_qpos, ix.elbow_qpos]
+        q = np.radians([gamma1_set_deg, gamma2_set_deg])
+
+        def residual(qa: np.ndarray) -> np.ndarray:
+            data.qpos[:] = m.qpos0
+            data.qpos[qadr] = qa
+            data.qvel[:] = 0
+            mujoco.mj_forward(m, data)
+            f = data.qfrc_actuator + data.qfrc_passive - data.qfrc_bias
+            return f[dofs].copy()
+
+        for _ in range(50):
+            f = residual(q)
+            h = 1e-7
+            jac = np.column_stack([(residual(q + h * e) - f) / h for e in np.eye(2)])
+            step = np.linalg.solve(jac, -f)
+            q = q + step
+            if np.max(np.abs(step)) < tol_rad:
+                break
+        return float(np.degrees(q[0])), float(np.degrees(q[1]))
 
     def start_data(self, theta0_rad: float, gamma_set_deg: tuple[float, float] | None,
                    data: mujoco.MjData | None = None) -> mujoco.MjData:
@@ -242,10 +385,7 @@ class Device:
             g1, g2 = self.equilibrium(*gamma_set_deg)
             d.qpos[ix.shoulder_qpos] = math.radians(g1)
             d.qpos[ix.elbow_qpos] = math.radians(g2)
-            if ix.shoulder_act is not None:  # the arm servos hold their set points
-                d.ctrl[ix.shoulder_act] = math.radians(gamma_set_deg[0])
-            if ix.elbow_act is not None:
-                d.ctrl[ix.elbow_act] = math.radians(gamma_set_deg[1])
+            self.set_arm_control(d, *gamma_set_deg)  # the arm servos hold their set points
         for adr, factor in self.coupled:
             d.qpos[adr] = factor * theta0_rad
         mujoco.mj_forward(m, d)

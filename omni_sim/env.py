@@ -187,7 +187,7 @@ class OmniYawEnv(gym.Env):
         The built-in scene of this friction family (``models/scene_<friction>.xml``; default
         ``scene.xml``, the ``lugre`` family).  Make-time only; not together with
         ``model_path``.  The attribute ``friction`` names the family in use (for a user's
-        file: what its yaw carries, :func:`omni_sim.model.friction_family`).
+        file: what its yaw carries, :meth:`omni_sim.device.Device.friction_family`).
     control_period_s : float [s]
         Control period (make-time only).
     render_mode : {None, "rgb_array", "human"}
@@ -264,7 +264,7 @@ class OmniYawEnv(gym.Env):
             raise InvalidOptionError(str(exc)) from None
         self.model = model
         self.model_path = model_path
-        self.friction = om.friction_family(model, om.model_path(model_path, friction))
+        self.friction = self.device.friction_family(om.model_path(model_path, friction))
         self.data = mujoco.MjData(self.model)
         self._ix = self.device.ix
         self.substeps = self.device.substeps
@@ -278,7 +278,7 @@ class OmniYawEnv(gym.Env):
         yaw_j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, "yaw")
         self._yaw_range = (tuple(float(x) for x in self.model.jnt_range[yaw_j])
                            if self.model.jnt_limited[yaw_j] else (-math.pi, math.pi))
-        self._model0 = copy.deepcopy(self.model)  # friction levels of the model file
+        self._device0 = Device(copy.deepcopy(self.model), self.device.control_period_s)  # friction levels of the model file
         self._yaw_damping0 = float(self.model.dof_damping[self._ix.yaw_dof])
 
         vlim = np.float32(self.voltage_limit)
@@ -337,8 +337,8 @@ class OmniYawEnv(gym.Env):
 
     def _validate(self, o: _Options) -> None:
         try:
-            om.check_pose(self.model, _finite("gamma1_set_deg", o.gamma1_set_deg),
-                          _finite("gamma2_set_deg", o.gamma2_set_deg))
+            self.device.check_pose(_finite("gamma1_set_deg", o.gamma1_set_deg),
+                                   _finite("gamma2_set_deg", o.gamma2_set_deg))
         except UserError as exc:
             if isinstance(exc, InvalidOptionError):
                 raise
@@ -448,7 +448,7 @@ class OmniYawEnv(gym.Env):
     # --- gymnasium API -----------------------------------------------------------------------
     def _apply_friction_scale(self, o: _Options) -> None:
         """Scale the model's yaw dry friction and viscous damping to the episode's option."""
-        om.scale_yaw_friction(self.model, o.friction_scale, base=self._model0)
+        self.device.scale_friction(o.friction_scale, base=self._device0)
         self.model.dof_damping[self._ix.yaw_dof] = self._yaw_damping0 * o.friction_scale
 
     def _episode(self, o: _Options) -> tuple[np.ndarray, float, np.ndarray]:

@@ -332,19 +332,19 @@ def fast_path_ok(device: Device, settings: Settings) -> bool:
             and _plain_motor(device.model, device.ix.yaw_act))
 
 
-def _servo_model(model: mujoco.MjModel, kp: float) -> mujoco.MjModel:
-    """A copy of ``model`` whose ``yaw_motor`` is the P controller: ctrl = r, force = v."""
-    ix = om.index(model)
+def _servo_model(device: Device, kp: float) -> mujoco.MjModel:
+    """A copy of the device's model whose ``yaw_motor`` is the P controller: ctrl = r, force = v."""
+    model = device.model
     m = _copy_model(model)
-    a = ix.yaw_act
-    vmax = om.voltage_limit(model)
+    a = device.ix.yaw_act
+    vmax = device.voltage_limit
     lo, hi = (-vmax, vmax)
     if model.actuator_forcelimited[a]:
         lo, hi = max(lo, model.actuator_forcerange[a, 0]), min(hi, model.actuator_forcerange[a, 1])
     m.actuator_gainprm[a, 0] = kp
     m.actuator_biastype[a] = mujoco.mjtBias.mjBIAS_AFFINE
     # the affine bias acts on the actuator length, which is gear * theta
-    m.actuator_biasprm[a, :3] = (0.0, -kp / model.actuator_gear[a, 0], 0.0)
+    m.actuator_biasprm[a, :3] = (0.0, -kp / device.torque_constant, 0.0)
     m.actuator_ctrllimited[a] = 0
     m.actuator_forcelimited[a] = int(math.isfinite(lo) or math.isfinite(hi))
     m.actuator_forcerange[a] = (lo if math.isfinite(lo) else -1e10, hi if math.isfinite(hi) else 1e10)
@@ -383,7 +383,7 @@ def run_fast(device: Device, exps: list[Experiment], settings: Settings,
              nthread: int) -> list[dict]:
     """The fast path: all runs through ``mujoco.rollout`` with the P loop inside the model."""
     model, ix = device.model, device.ix
-    servo = _servo_model(model, settings.kp)
+    servo = _servo_model(device, settings.kp)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     nstate = mujoco.mj_stateSize(servo, spec)
     nstep = max(len(e.r) for e in exps)
@@ -481,7 +481,7 @@ def simulate(exps: list[Experiment], model_path: str | os.PathLike | None = None
     if not (settings.kp > 0 and math.isfinite(settings.kp)):
         raise UserError(f"kp must be positive, got {settings.kp}")
     for e in exps:
-        om.check_pose(model, e.gamma1_set_deg, e.gamma2_set_deg)
+        device.check_pose(e.gamma1_set_deg, e.gamma2_set_deg)
     digest = "in-memory model" if in_memory else model_digest(model_path)
     bar = tqdm(total=len(exps), desc="simulating", unit="run", disable=not progress, leave=False)
     results: list[dict] = []
@@ -494,5 +494,5 @@ def simulate(exps: list[Experiment], model_path: str | os.PathLike | None = None
         bar.update(len(part))
     bar.close()
     # a compiled model: what its yaw carries; a file: its family if it is a built-in scene
-    friction = om.friction_family(model, None if in_memory else (model_path or om.DEFAULT_SCENE))
+    friction = device.friction_family(None if in_memory else (model_path or om.DEFAULT_SCENE))
     return [_to_run(e, r, settings, model_path, digest, friction) for e, r in zip(exps, results)]

@@ -1,4 +1,5 @@
-"""Load the virtual Omni, check the contract's names, set poses, and compute the yaw inertia.
+"""Load the virtual Omni and check the contract's names (the facts of a loaded model -- gear,
+friction, inertia at a pose, the arm's equilibrium -- are :class:`omni_sim.device.Device`'s).
 
 Pose convention (the paper's Fig. 1 and eq. (5)), used everywhere in this package:
 
@@ -12,7 +13,6 @@ gravity (:func:`equilibrium_pose`), as in the paper's Table 3.
 
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,24 +53,16 @@ def model_path(path: str | os.PathLike | None = None, friction: str | None = Non
                         "picks one of the built-in scenes)")
     return Path(path) if path is not None else scene_path(friction)
 
-def friction_family(model: mujoco.MjModel, path: str | os.PathLike | None = None) -> str:
-    """The friction family a run's metadata names.
-
-    ``path`` a built-in scene: its family (``scene.xml`` is the default family).  Otherwise
-    (a user's file, or ``path`` None for a compiled model) what the ``model``'s yaw carries:
-    ``"lugre"`` (a LuGre actuator with a non-zero level), ``"coulomb"`` (``frictionloss``),
-    ``"lugre+coulomb"`` or ``"none"``."""
-    if path is not None:
-        resolved = Path(path).resolve()
-        if resolved == DEFAULT_SCENE.resolve():
-            return DEFAULT_FRICTION
-        for fam in FRICTION_FAMILIES:
-            if resolved == scene_path(fam).resolve():
-                return fam
-    f = yaw_friction(model)
-    kinds = [k for k, on in (("lugre", f["lugre_Fc"] > 0 or f["lugre_Fs"] > 0),
-                             ("coulomb", f["frictionloss"] > 0)) if on]
-    return "+".join(kinds) or "none"
+def builtin_family(path: str | os.PathLike) -> str | None:
+    """The friction family of a built-in scene file (``scene.xml``: the default family), or
+    None for any other file (what a model carries: :meth:`omni_sim.device.Device.friction_family`)."""
+    resolved = Path(path).resolve()
+    if resolved == DEFAULT_SCENE.resolve():
+        return DEFAULT_FRICTION
+    for fam in FRICTION_FAMILIES:
+        if resolved == scene_path(fam).resolve():
+            return fam
+    return None
 
 
 JOINTS = ("yaw", "shoulder", "elbow")
@@ -218,142 +210,6 @@ def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>",
         shoulder_act=int(arm[0]) if arm[0] >= 0 else None,
         elbow_act=int(arm[1]) if arm[1] >= 0 else None,
     )
-
-
-def lugre_actuators(model: mujoco.MjModel) -> list[int]:
-    """Ids of the passive LuGre friction actuators (``dcmotor`` bias) on the yaw joint."""
-    yaw = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "yaw")
-    return [a for a in range(model.nactuator)
-            if model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_DCMOTOR
-            and model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
-            and model.actuator_trnid[a, 0] == yaw]
-
-
-def yaw_friction(model: mujoco.MjModel) -> dict:
-    """The yaw drive's dry friction: ``frictionloss`` [N*m] (hard stick) and the LuGre
-    actuators' ``lugre_sigma0`` [N*m/rad], ``lugre_Fc``, ``lugre_Fs`` [N*m] (summed levels;
-    stiffness of the first)."""
-    ix = index(model)
-    acts = lugre_actuators(model)
-    return {
-        "frictionloss": float(model.dof_frictionloss[ix.yaw_dof]),
-        "lugre_sigma0": float(model.actuator_dynprm[acts[0], 5]) if acts else 0.0,
-        "lugre_Fc": float(sum(model.actuator_biasprm[a, 3] for a in acts)),
-        "lugre_Fs": float(sum(model.actuator_biasprm[a, 4] for a in acts)),
-    }
-
-
-def scale_yaw_friction(model: mujoco.MjModel, factor: float, base: mujoco.MjModel | None = None) -> None:
-    """Set the yaw drive's dry-friction levels (``frictionloss`` and LuGre Fc, Fs) to
-    ``factor`` times those of ``base`` (default: ``model`` itself), in place."""
-    base = model if base is None else base
-    ix = index(model)
-    model.dof_frictionloss[ix.yaw_dof] = factor * base.dof_frictionloss[ix.yaw_dof]
-    for a in lugre_actuators(model):
-        model.actuator_biasprm[a, 3:5] = factor * base.actuator_biasprm[a, 3:5]
-
-
-def without_friction(model: mujoco.MjModel) -> mujoco.MjModel:
-    """A copy of ``model`` with no dry friction on the yaw axis (viscous damping kept)."""
-    import copy
-
-    m = copy.deepcopy(model)
-    scale_yaw_friction(m, 0.0)
-    return m
-
-
-def torque_constant(model: mujoco.MjModel, target: Target | None = None) -> float:
-    """The yaw motor's gear, i.e. the torque constant beta_bar [N*m/V] (with a ``target``:
-    its actuator's gear)."""
-    return float(model.actuator_gear[index(model, target=target).yaw_act, 0])
-
-
-def voltage_limit(model: mujoco.MjModel, target: Target | None = None) -> float:
-    """The drive's voltage limit [V] (``ctrlrange`` of ``yaw_motor``, or of the ``target``'s
-    actuator; inf if unlimited)."""
-    i = index(model, target=target).yaw_act
-    if not model.actuator_ctrllimited[i]:
-        return math.inf
-    lo, hi = model.actuator_ctrlrange[i]
-    return float(min(-lo, hi))
-
-
-def set_arm_setpoints(model: mujoco.MjModel, data: mujoco.MjData, gamma1_set_deg: float,
-                      gamma2_set_deg: float) -> None:
-    """Write the shoulder/elbow servo set points [deg] into ``data.ctrl``."""
-    ix = index(model)
-    if ix.shoulder_act is not None:
-        data.ctrl[ix.shoulder_act] = math.radians(gamma1_set_deg)
-    if ix.elbow_act is not None:
-        data.ctrl[ix.elbow_act] = math.radians(gamma2_set_deg)
-
-
-def check_pose(model: mujoco.MjModel, gamma1_deg: float, gamma2_deg: float) -> None:
-    """Raise UserError if a pose is outside the shoulder/elbow joint ranges."""
-    for name, val in (("shoulder", gamma1_deg), ("elbow", gamma2_deg)):
-        if not math.isfinite(val):
-            raise UserError(f"{name} angle must be finite, got {val}")
-        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-        if model.jnt_limited[j]:
-            lo, hi = np.degrees(model.jnt_range[j])
-            if not lo - 1e-9 <= val <= hi + 1e-9:
-                raise UserError(f"{name} angle {val:g} deg is outside the joint range "
-                                f"[{lo:.1f}, {hi:.1f}] deg")
-
-
-def equilibrium_pose(model: mujoco.MjModel, gamma1_set_deg: float, gamma2_set_deg: float,
-                     tol_rad: float = 1e-10) -> tuple[float, float]:
-    """Actual (sagged) arm angles [deg] where the servos balance gravity, yaw at rest.
-
-    Solves ``qfrc_bias + qfrc_passive = qfrc_actuator`` for the shoulder and elbow with the
-    yaw at 0 by Newton's method on MuJoCo's own forces (finite-difference Jacobian).
-    """
-    check_pose(model, gamma1_set_deg, gamma2_set_deg)
-    ix = index(model)
-    data = mujoco.MjData(model)
-    set_arm_setpoints(model, data, gamma1_set_deg, gamma2_set_deg)
-    dofs = [model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]
-            for j in ("shoulder", "elbow")]
-    qadr = [ix.shoulder_qpos, ix.elbow_qpos]
-    q = np.radians([gamma1_set_deg, gamma2_set_deg])
-
-    def residual(qa: np.ndarray) -> np.ndarray:
-        data.qpos[:] = model.qpos0
-        data.qpos[qadr] = qa
-        data.qvel[:] = 0
-        mujoco.mj_forward(model, data)
-        f = data.qfrc_actuator + data.qfrc_passive - data.qfrc_bias
-        return f[dofs].copy()
-
-    for _ in range(50):
-        f = residual(q)
-        h = 1e-7
-        jac = np.column_stack([(residual(q + h * e) - f) / h for e in np.eye(2)])
-        step = np.linalg.solve(jac, -f)
-        q = q + step
-        if np.max(np.abs(step)) < tol_rad:
-            break
-    return float(np.degrees(q[0])), float(np.degrees(q[1]))
-
-
-def yaw_inertia(gamma1_deg: float, gamma2_deg: float,
-                model_path: str | os.PathLike | None = None,
-                model: mujoco.MjModel | None = None) -> float:
-    """MuJoCo's yaw inertia [kg*m^2] with the arm at these ACTUAL angles [deg].
-
-    The yaw diagonal element of the joint-space mass matrix (``mj_fullM``), armature included.
-    """
-    if model is None:
-        model = load_model(model_path)
-    ix = index(model)
-    data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
-    data.qpos[ix.shoulder_qpos] = math.radians(gamma1_deg)
-    data.qpos[ix.elbow_qpos] = math.radians(gamma2_deg)
-    mujoco.mj_forward(model, data)
-    mass = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, mass)
-    return float(mass[ix.yaw_dof, ix.yaw_dof])
 
 
 def analytic_yaw_inertia(gamma1_deg, gamma2_deg, I_base: float, m1: float, L1: float,

@@ -21,32 +21,30 @@ from __future__ import annotations
 
 import math
 
-import mujoco
 import numpy as np
 
 from . import experiments as ex
-from . import model as om
+from .device import Device
 
 
-def yaw_dynamics(model: mujoco.MjModel, gamma1_deg: float, gamma2_deg: float) -> dict:
-    """True yaw-axis constants at an actual pose.
+def yaw_dynamics(device: Device, gamma1_deg: float, gamma2_deg: float) -> dict:
+    """True yaw-axis constants of ``device`` at an actual pose.
 
     Returns
     -------
     dict
         ``inertia`` [kg*m^2] (mass matrix, armature included), ``damping`` c [N*m*s/rad],
         ``frictionloss`` [N*m], ``lugre_sigma0`` [N*m/rad], ``lugre_Fc``, ``lugre_Fs`` [N*m]
-        (:func:`omni_sim.model.yaw_friction`), ``beta_bar`` [N*m/V], ``C`` = c/I [1/s],
+        (:meth:`omni_sim.device.Device.friction`), ``beta_bar`` [N*m/V], ``C`` = c/I [1/s],
         ``beta_tilde`` = beta_bar/I [rad/(V*s^2)], ``I_paper`` = I/beta_bar (the paper's units).
     """
-    ix = om.index(model)
-    inertia = om.yaw_inertia(gamma1_deg, gamma2_deg, model=model)
-    damping = float(model.dof_damping[ix.yaw_dof])
-    beta_bar = om.torque_constant(model)
+    inertia = device.inertia(gamma1_deg, gamma2_deg)
+    damping = float(device.model.dof_damping[device.ix.yaw_dof])
+    beta_bar = device.torque_constant
     return {
         "inertia": inertia,
         "damping": damping,
-        **om.yaw_friction(model),
+        **device.friction(),
         "beta_bar": beta_bar,
         "C": damping / inertia,
         "beta_tilde": beta_bar / inertia,
@@ -126,19 +124,20 @@ def sampled_linear_truth(C: float, beta_tilde: float, kp: float, frequencies_hz,
     return global_coefficients(A1, A2, np.full_like(w, amplitude_rad), w)
 
 
-def inertia_truth(model, inertia_params, poses=None, fitted_poses=None) -> dict:
-    """Identified inertia (6) x beta_bar vs MuJoCo's yaw inertia at the actual (sagged) poses.
+def inertia_truth(device: Device, inertia_params, poses=None, fitted_poses=None) -> dict:
+    """Identified inertia (6) x beta_bar vs MuJoCo's yaw inertia at the actual (sagged) poses of
+    ``device``.
 
     ``poses``: set points [deg] to check (default: Table 2's); ``fitted_poses``: those the
     identification saw (default: Table 1's).
     """
     poses = ex.TABLE2_POSES if poses is None else poses
     fitted_poses = ex.TABLE1_POSES if fitted_poses is None else fitted_poses
-    beta_bar = om.torque_constant(model)
+    beta_bar = device.torque_constant
     rows = []
     for g1s, g2s in poses:
-        g1, g2 = om.equilibrium_pose(model, g1s, g2s)
-        true = om.yaw_inertia(g1, g2, model=model)
+        g1, g2 = device.equilibrium(g1s, g2s)
+        true = device.inertia(g1, g2)
         pred = float(inertia_params.inertia(g1, g2)) * beta_bar
         rows.append({"gamma1_set_deg": g1s, "gamma2_set_deg": g2s, "gamma1_deg": g1,
                      "gamma2_deg": g2, "true_kg_m2": true, "identified_kg_m2": pred,
@@ -151,11 +150,11 @@ def inertia_truth(model, inertia_params, poses=None, fitted_poses=None) -> dict:
             "beta_bar_N_m_per_V": beta_bar, "poses": rows}
 
 
-def linear_truth(model, ident) -> list[dict]:
-    """Identified C_linear, beta_linear per pose vs the model's true (continuous) values."""
+def linear_truth(device: Device, ident) -> list[dict]:
+    """Identified C_linear, beta_linear per pose vs the device's true (continuous) values."""
     rows = []
     for p in ident.poses:
-        d = yaw_dynamics(model, p.gamma1_deg, p.gamma2_deg)
+        d = yaw_dynamics(device, p.gamma1_deg, p.gamma2_deg)
         rows.append({"gamma1_deg": p.gamma1_deg, "gamma2_deg": p.gamma2_deg,
                      "C_linear": p.C_linear, "C_true": d["C"],
                      "beta_linear": p.beta_linear, "beta_true": p.kp * d["beta_tilde"]})

@@ -21,6 +21,7 @@ import numpy as np
 from identification.errors import UserError
 
 from . import model as om
+from .device import Device
 
 #: MjSpec element kinds a parameter may name (``spec.<kind>(name)``).
 ELEMENT_KINDS = ("joint", "actuator", "body", "geom", "site", "tendon")
@@ -132,17 +133,17 @@ def build(spec: mujoco.MjSpec, values: dict) -> tuple[mujoco.MjSpec, mujoco.MjMo
         if name not in SETTINGS:
             set_param(spec, name, float(v))
     model = spec.compile()
-    om.index(model, "<variant>")
+    device = Device(model, source="<variant>")
     scale = values.get("friction_scale")
     if scale is not None:
         scale = float(scale)
         if not (math.isfinite(scale) and scale >= 0):
             raise ValueError(f"friction_scale must be >= 0, got {scale}")
         # in the spec (so a written XML carries it), on what the compiled model says is the yaw
-        # drive's dry friction (omni_sim.model.scale_yaw_friction's elements)
+        # drive's dry friction (omni_sim.device.Device.scale_friction's elements)
         yaw = spec.joint("yaw")
         yaw.frictionloss = scale * yaw.frictionloss
-        for a in om.lugre_actuators(model):
+        for a in device.lugre_actuators():
             el = spec.actuators[a]  # compiled in spec order
             prm = np.array(el.biasprm, dtype=float)
             prm[3:5] *= scale

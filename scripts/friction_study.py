@@ -91,13 +91,14 @@ def _short_reason(message: str) -> str:
 
 
 def run_level(base, factor: float, campaign: str, jobs: int | None) -> dict:
-    """One level: the family's model with its dry friction scaled by ``factor``."""
+    """One level: the family's device ``base`` with its dry friction scaled by ``factor``."""
     from omni_app.reproduce import run_reproduce
-    from omni_sim import model as om
+    from omni_sim.device import Device
 
-    m = copy.deepcopy(base)
-    om.scale_yaw_friction(m, factor, base)
-    row = {"scale": factor, "dry_friction": om.yaw_friction(m)}
+    dev = Device(copy.deepcopy(base.model))
+    dev.scale_friction(factor, base)
+    m = dev.model
+    row = {"scale": factor, "dry_friction": dev.friction()}
     t0 = time.perf_counter()
     try:
         res = run_reproduce(model=m, jobs=jobs, campaign=campaign)
@@ -114,9 +115,9 @@ def study(families, levels, campaign: str = "paper", jobs: int | None = None,
     """Every family x level (see the module docstring); returns the JSON dict."""
     from tqdm import tqdm
 
-    from omni_sim import model as om
+    from omni_sim.device import Device
 
-    bases = {fam: om.load_model(friction=fam) for fam in families}
+    bases = {fam: Device.load(friction=fam) for fam in families}
     out = {"description": __doc__.split("\n\n")[0],
            "campaign": str(campaign), "levels": list(levels),
            "scaled": "yaw dry friction: frictionloss and LuGre Fc, Fs (viscous damping unchanged)",
@@ -129,7 +130,7 @@ def study(families, levels, campaign: str = "paper", jobs: int | None = None,
                 bar.set_description(f"{fam} x{f:g}")
                 rows.append(run_level(bases[fam], f, campaign, jobs))
                 bar.update(1)
-            out["families"][fam] = {"calibrated_dry_friction": om.yaw_friction(bases[fam]),
+            out["families"][fam] = {"calibrated_dry_friction": bases[fam].friction(),
                                     "levels": rows}
     return out
 

@@ -10,6 +10,7 @@ import pytest
 
 from omni_sim import calibration as cal
 from omni_sim import model as om
+from omni_sim.device import Device
 
 
 @pytest.fixture(scope="module")
@@ -123,7 +124,7 @@ def test_write_model_round_trip(tmp_path, family):
     got = cal.current_values(om.load_model(tmp_path / f"scene_{family}.xml"))
     for k in ("yaw_damping", "m_forearm", key):
         assert got[k] == pytest.approx(new[k], rel=1e-9), k
-    assert cal.family_of(om.load_model(tmp_path / f"scene_{family}.xml")) == family
+    assert cal.family_of(Device.load(tmp_path / f"scene_{family}.xml")) == family
 
 
 @pytest.mark.parametrize("family", sorted(cal.RECORDS))

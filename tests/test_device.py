@@ -131,7 +131,7 @@ def test_generator_env_and_replay_share_one_engine(device, quantize):
     np.testing.assert_array_equal(np.array(v_env), gen.v)
     assert np.ptp(gen.theta) > 0.1
 
-    rr = prepare_runs([gen], device.model)
+    rr = prepare_runs([gen], device)
     q = ENCODER_STEP_RAD if quantize else 0.0
     with Replayer(2) as rep:
         th_rep = rep.simulate([device.model], rr, measurement=([np.zeros(len(exp.r))], [q]))[0]

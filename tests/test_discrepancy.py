@@ -12,6 +12,7 @@ import pytest
 from identification.dataset import read_dataset, write_run
 from omni_sim import experiments as ex
 from omni_sim import model as om
+from omni_sim.device import Device
 from omni_app.cli import main
 from omni_sim.discrepancy import bank
 from omni_sim.discrepancy import effects as fx
@@ -46,7 +47,7 @@ def test_replay_equals_reference_loop(spec, name, value):
     m = spec.compile() if name is None else fx.compile_with(spec, [(fx.get(name), np.array(value))])
     exps = _short([ex.sine_experiment(65, 90, 3.0, record_s=1.0), ex.square_experiment(25, 115)], 800)
     runs = ex.simulate(exps, model=m, force_reference=True, jobs=1)
-    rr = prepare_runs(runs, m)
+    rr = prepare_runs(runs, Device(m))
     with Replayer(2) as rep:
         th = rep.simulate([m], rr)
     for a, r in zip(th, rr):
@@ -217,7 +218,7 @@ def test_simulate_grouped_mixes_structures(spec):
     from omni_sim.discrepancy.select import simulate_grouped
     exps = _short([ex.sine_experiment(65, 90, 3.0, record_s=1.0), ex.square_experiment(25, 115)], 300)
     m0 = spec.compile()
-    rr = prepare_runs(ex.simulate(exps, model=m0, jobs=1), m0)
+    rr = prepare_runs(ex.simulate(exps, model=m0, jobs=1), Device(m0))
     names = ["drive_compliance", "backlash", "time_delay", "actuator_lag", "cogging", "stribeck_friction"]
     models = [m0]
     for a, b in itertools.combinations(names, 2):
@@ -243,7 +244,7 @@ def test_polish_moves_a_stalled_backlash_fit_into_its_basin(spec):
     hidden = bank.case("backlash")
     truth = hidden.effects[0][1][0]
     m0 = spec.compile()
-    rr = prepare_runs(bank.generate(hidden, _one_pose_exps(), jobs=JOBS), m0)
+    rr = prepare_runs(bank.generate(hidden, _one_pose_exps(), jobs=JOBS), Device(m0))
     from omni_sim.discrepancy.fit import FitResult
     with Replayer(JOBS) as rep:
         prob = Problem(spec, [], [fx.get("backlash")], rr, rep)

@@ -23,6 +23,7 @@ import omni_sim  # noqa: F401  (registers the environment)
 from identification.errors import UserError
 from omni_sim import experiments as ex
 from omni_sim import model as om
+from omni_sim.device import Device
 from omni_sim.env import (VELOCITY_FILTER_HZ, AlphaInvariantObservation, InvalidOptionError,
                           OmniYawEnv)
 
@@ -119,13 +120,13 @@ def test_reset_restores_full_state():
     s0 = state()
     _random_rollout(env, seed=3, n=200)
     _random_rollout(env, seed=4, n=100, options={"friction_scale": 0.0, "gamma1_set_deg": 25.0})
-    assert om.yaw_friction(env.model) == {**om.yaw_friction(om.load_model()), "frictionloss": 0.0,
-                                          "lugre_Fc": 0.0, "lugre_Fs": 0.0}
+    assert env.device.friction() == {**Device.load().friction(), "frictionloss": 0.0,
+                                     "lugre_Fc": 0.0, "lugre_Fs": 0.0}
     obs1, _ = env.reset(seed=3)
     np.testing.assert_array_equal(state(), s0)
     np.testing.assert_array_equal(obs0, obs1)
     # per-episode options do not leak into the next episode
-    assert om.yaw_friction(env.model) == om.yaw_friction(om.load_model())
+    assert env.device.friction() == Device.load().friction()
 
 
 @pytest.mark.parametrize("bang_bang", [False, True], ids=["random", "bang-bang"])
@@ -238,15 +239,15 @@ def test_reference_shapes():
 
 def test_friction_scale_and_pose_options():
     env = OmniYawEnv(friction_scale=2.0, gamma1_set_deg=25.0, gamma2_set_deg=115.0)
-    base = om.load_model()
-    ix = om.index(base)
+    base_dev = Device.load()
+    base, ix = base_dev.model, base_dev.ix
     obs, _ = env.reset(seed=0)
-    f, f0 = om.yaw_friction(env.model), om.yaw_friction(base)
+    f, f0 = env.device.friction(), base_dev.friction()
     for k in ("frictionloss", "lugre_Fc", "lugre_Fs"):
         assert f[k] == 2.0 * f0[k], k
     assert f["lugre_sigma0"] == f0["lugre_sigma0"]
     assert env.model.dof_damping[ix.yaw_dof] == 2.0 * base.dof_damping[ix.yaw_dof]
-    g1, g2 = om.equilibrium_pose(base, 25.0, 115.0)
+    g1, g2 = base_dev.equilibrium(25.0, 115.0)
     assert obs[3] == pytest.approx(math.radians(g1), abs=1e-12)
     assert obs[4] == pytest.approx(math.radians(g2), abs=1e-12)
     assert g1 < 25.0  # sagged below the set point

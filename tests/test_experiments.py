@@ -61,7 +61,7 @@ def test_coulomb_friction_amplitude_loss(model):
     """Low-frequency sines lose amplitude to Coulomb friction (vs the same model without it),
     and the loss shrinks as the amplitude grows -- the signature of Coulomb friction (its
     equivalent damping 4 Fc / (pi w X) falls with X), which viscous damping does not have."""
-    frictionless = om.without_friction(om.load_model())
+    frictionless = Device.load().without_friction().model
     loss = {}
     for amp in (0.05, 0.1, 0.2):
         exps = [ex.sine_experiment(45, 90, f, amp) for f in (0.5, 1.0)]
@@ -79,8 +79,9 @@ def test_step_settles_inside_the_friction_band(model):
     (the drive can hold that much torque at rest), and its residual pre-sliding oscillation
     decays (the LuGre drive has no hard stick; models/README.md, "Friction")."""
     run = ex.simulate([ex.square_experiment(45, 90)], model=model)[0]
-    f = om.yaw_friction(model)
-    band = (f["lugre_Fs"] + f["frictionloss"]) / om.torque_constant(model) / ex.KP_DEFAULT
+    dev = Device(model)
+    f = dev.friction()
+    band = (f["lugre_Fs"] + f["frictionloss"]) / dev.torque_constant / ex.KP_DEFAULT
     assert abs(0.07 - run.theta[1999]) <= band
     assert abs(-0.07 - run.theta[3999]) <= band
     ptp = [np.ptp(run.theta[a:a + 500]) for a in (500, 1000, 1500)]

@@ -15,6 +15,7 @@ from identification.dataset import read_dataset
 from omni_app import reproduce as rp
 from omni_app.cli import main
 from omni_sim import model as om
+from omni_sim.device import Device
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "identification" / "data"
@@ -100,12 +101,12 @@ def test_generate_friction_metadata_and_physics(campaigns, tmp_path):
 
 def test_friction_family_of_user_and_in_memory_models():
     lugre, coulomb = om.load_model(friction="lugre"), om.load_model(friction="coulomb")
-    assert om.friction_family(coulomb) == "coulomb"      # compiled model: what its yaw carries
-    assert om.friction_family(lugre) == "lugre"
-    om.scale_yaw_friction(coulomb, 0.0)
-    assert om.friction_family(coulomb) == "none"
-    assert om.friction_family(lugre, om.DEFAULT_SCENE) == "lugre"
-    assert om.friction_family(coulomb, om.scene_path("coulomb")) == "coulomb"  # the file's family
+    assert Device(coulomb).friction_family() == "coulomb"      # compiled model: what its yaw carries
+    assert Device(lugre).friction_family() == "lugre"
+    Device(coulomb).scale_friction(0.0)
+    assert Device(coulomb).friction_family() == "none"
+    assert Device(lugre).friction_family(om.DEFAULT_SCENE) == "lugre"
+    assert Device(coulomb).friction_family(om.scene_path("coulomb")) == "coulomb"  # the file's family
 
 
 @pytest.mark.parametrize("command", [
@@ -190,7 +191,7 @@ def test_bench_friction(campaigns, monkeypatch):
 
     def load(path=None, friction=None):
         m = real_load(path, friction)
-        loaded.append(om.yaw_friction(m))
+        loaded.append(Device(m).friction())
         return m
 
     monkeypatch.setattr(bench.om, "load_model", load)
@@ -226,11 +227,11 @@ def test_env_friction_option():
     env = gym.make("omni_sim/OmniYaw-v0", friction="coulomb", duration_s=0.2)
     m = env.unwrapped.model
     assert env.unwrapped.friction == "coulomb"
-    assert om.yaw_friction(m)["frictionloss"] > 0 and not om.lugre_actuators(m)
+    assert Device(m).friction()["frictionloss"] > 0 and not Device(m).lugre_actuators()
     env.reset(seed=0)
     env.close()
     env = gym.make("omni_sim/OmniYaw-v0")
-    assert env.unwrapped.friction == "lugre" and om.lugre_actuators(env.unwrapped.model)
+    assert env.unwrapped.friction == "lugre" and Device(env.unwrapped.model).lugre_actuators()
     with pytest.raises(InvalidOptionError, match="can only be given when"):
         env.reset(options={"friction": "coulomb"})
     env.close()
@@ -398,7 +399,7 @@ def test_friction_study_records_failures(tmp_path, monkeypatch):
                         "usable frequency")
 
     monkeypatch.setattr(rp, "run_reproduce", fail)
-    row = study.run_level(om.load_model(friction="coulomb"), 0.0, "paper", 1)
+    row = study.run_level(Device.load(friction="coulomb"), 0.0, "paper", 1)
     assert row["ok"] is False
     assert row["reason"].startswith("alpha-invariant model not fitted: no pose has a usable frequency")
     assert "(2 sine run(s) with non-physical" in row["reason"]
@@ -407,7 +408,7 @@ def test_friction_study_records_failures(tmp_path, monkeypatch):
         raise RuntimeError("sine_a: simulation diverged")
 
     monkeypatch.setattr(rp, "run_reproduce", diverge)
-    row = study.run_level(om.load_model(friction="coulomb"), 3.0, "paper", 1)
+    row = study.run_level(Device.load(friction="coulomb"), 3.0, "paper", 1)
     assert row == {**row, "ok": False, "reason": "RuntimeError: sine_a: simulation diverged"}
 
 

@@ -11,6 +11,7 @@ import pytest
 import omni_sim
 from identification.errors import UserError
 from omni_sim import model as om
+from omni_sim.device import Device
 from omni_sim.experiments import TABLE1_POSES, TABLE2_POSES
 
 
@@ -56,11 +57,11 @@ def test_friction_families():
     coul = om.load_model(friction="coulomb")
     lug = om.load_model(friction="lugre")
     dflt = om.load_model()
-    fc, fl = om.yaw_friction(coul), om.yaw_friction(lug)
-    assert fc["frictionloss"] > 0 and not om.lugre_actuators(coul)
+    fc, fl = Device(coul).friction(), Device(lug).friction()
+    assert fc["frictionloss"] > 0 and not Device(coul).lugre_actuators()
     assert coul.nactuator == coul.nu  # no passive element at all
-    assert fl["frictionloss"] == 0 and fl["lugre_Fc"] > 0 and len(om.lugre_actuators(lug)) == 1
-    assert om.yaw_friction(dflt) == fl
+    assert fl["frictionloss"] == 0 and fl["lugre_Fc"] > 0 and len(Device(lug).lugre_actuators()) == 1
+    assert Device(dflt).friction() == fl
     for name in ("body_mass", "body_inertia", "dof_armature", "actuator_gear", "jnt_range"):
         a, b = getattr(coul, name), getattr(lug, name)
         n = min(len(a), len(b))  # lugre has one more actuator
@@ -75,11 +76,13 @@ def test_friction_families():
 
 
 def test_contract_names(model):
-    ix = om.index(model)
-    assert model.actuator_gear[ix.yaw_act, 0] == pytest.approx(om.torque_constant(model))
+    dev = Device(model)
+    ix = dev.ix
+    # the torque constant is the yaw motor's gear, fixed at 0.5 N*m/V (models/README.md)
+    assert dev.torque_constant == model.actuator_gear[ix.yaw_act, 0] == 0.5
     yaw = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "yaw")
     assert np.allclose(model.jnt_axis[yaw], [0, 0, 1]), "yaw axis must be vertical"
-    f = om.yaw_friction(model)
+    f = Device(model).friction()
     assert f["frictionloss"] + f["lugre_Fc"] > 0
     assert model.dof_damping[ix.yaw_dof] > 0
     assert model.dof_armature[ix.yaw_dof] > 0
@@ -140,7 +143,7 @@ def test_yaw_inertia_public_signature():
 def test_arm_sags_below_set_points(model):
     """Table 3: the P-held arm sags under gravity; gamma1 always below its set point."""
     for g1, g2 in TABLE1_POSES + TABLE2_POSES:
-        a1, a2 = om.equilibrium_pose(model, g1, g2)
+        a1, a2 = Device(model).equilibrium(g1, g2)
         assert 0.5 < g1 - a1 < 8, (g1, g2, a1)
         # the elbow sags when the forearm is above vertical-down (cos psi > 0)
         if math.cos(math.radians(a1 + g2 - 180)) > 0.1:
@@ -149,10 +152,10 @@ def test_arm_sags_below_set_points(model):
 
 def test_equilibrium_is_static(model):
     """Started at the computed equilibrium, the arm does not move."""
-    a1, a2 = om.equilibrium_pose(model, 45, 90)
+    a1, a2 = Device(model).equilibrium(45, 90)
     d = mujoco.MjData(model)
     d.qpos[1:3] = np.radians([a1, a2])
-    om.set_arm_setpoints(model, d, 45, 90)
+    Device(model).set_arm_control(d, 45, 90)
     for _ in range(500):
         mujoco.mj_step(model, d)
     assert np.degrees(abs(d.qpos[1] - math.radians(a1))) < 1e-6
@@ -161,7 +164,7 @@ def test_equilibrium_is_static(model):
 
 def test_pose_out_of_range(model):
     with pytest.raises(UserError, match="outside the joint range"):
-        om.equilibrium_pose(model, 120, 90)
+        Device(model).equilibrium(120, 90)
 
 
 def test_bad_models(tmp_path):
@@ -197,7 +200,7 @@ def test_yaw_friction_pre_sliding_is_elastic_and_sliding_starts_above_Fs():
     and rests where sigma0 z = tau: theta = -(Fs/sigma0) ln(1 - tau/Fs), about tau/sigma0 for
     small tau (analytic).  Above Fs the drive slides away."""
     m = om.load_model(om.MODELS_DIR / "scene.xml")
-    f = om.yaw_friction(m)
+    f = Device(m).friction()
     assert f["frictionloss"] == 0 and 0 < f["lugre_Fc"] <= f["lugre_Fs"]
     s0, fs = f["lugre_sigma0"], f["lugre_Fs"]
     for frac in (0.2, 0.5):

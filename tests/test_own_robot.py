@@ -72,7 +72,7 @@ def test_omni_index_unchanged_and_pendulum_has_no_arm():
     assert ix.yaw_qpos == pend.jnt_qposadr[mujoco.mj_name2id(pend, mujoco.mjtObj.mjOBJ_JOINT, "pivot")]
     with pytest.raises(UserError, match="contract's joint"):  # without a target: the Omni's contract
         om.index(pend)
-    assert om.voltage_limit(pend, TARGET) == 5.0 and om.torque_constant(pend, TARGET) == 0.07
+    assert Device(pend, target=TARGET).voltage_limit == 5.0 and Device(pend, target=TARGET).torque_constant == 0.07
 
 
 # --- the two-mass start state -------------------------------------------------------------------
@@ -168,7 +168,7 @@ def test_command_limit_saturates_the_p_law(limit, applied):
     run = Run("step", np.arange(400) * 1e-3, r, th, np.clip(10 * (r - th), -applied, applied),
               {"kind": "step", "kp": 10.0, "command_limit": limit, "frequency_hz": 0.0,
                "amplitude_rad": 1.0})
-    rr = prepare_runs([run, run], model, target=TARGET)
+    rr = prepare_runs([run, run], Device(model, target=TARGET))
     assert rr[0].gamma_set_deg == () and rr[0].command_limit == limit
     with Replayer(1, TARGET) as rep:
         sim = rep.simulate([model], rr[:1])[0]
@@ -180,14 +180,14 @@ def test_prepare_runs_pose_and_command_limit_checks():
     n = 300
     meta = {"kind": "sine", "kp": 10.0, "frequency_hz": 1.0, "amplitude_rad": 0.1}
     run = Run("a", np.arange(n) * 1e-3, np.zeros(n), np.zeros(n), np.zeros(n), dict(meta))
-    assert prepare_runs([run], pend, target=TARGET)[0].command_limit == math.inf
+    assert prepare_runs([run], Device(pend, target=TARGET))[0].command_limit == math.inf
     for bad in (-1.0, 0.0, "4", True, float("nan")):
         r2 = Run("a", run.t, run.r, run.theta, run.v, {**meta, "command_limit": bad})
         with pytest.raises(UserError, match="command_limit"):
-            prepare_runs([r2], pend, target=TARGET)
+            prepare_runs([r2], Device(pend, target=TARGET))
     # the Omni still needs its pose
     with pytest.raises(UserError, match="gamma1"):
-        prepare_runs([run], om.load_model())
+        prepare_runs([run], Device.load())
 
 
 def test_read_dataset_without_pose(tmp_path):

@@ -125,6 +125,7 @@ def test_grid_list_random_expansion(tmp_path):
 def test_variant_attributes_reach_the_model():
     from omni_sim import model as om
     from omni_sim import variants as va
+    from omni_sim.device import Device
 
     spec = va.base_spec(friction="lugre")
     base = spec.compile()
@@ -133,9 +134,9 @@ def test_variant_attributes_reach_the_model():
                            "friction_scale": 2.0, "kp": 9.0})
     ix = om.index(m)
     assert m.dof_damping[ix.yaw_dof] == 0.02
-    assert om.torque_constant(m) == 0.4
+    assert Device(m).torque_constant == 0.4
     assert m.body_mass[m.body("upper_arm").id] == 0.1
-    f0, f = om.yaw_friction(base), om.yaw_friction(m)
+    f0, f = Device(base).friction(), Device(m).friction()
     assert f["lugre_sigma0"] == 5.0 and f["lugre_Fc"] == pytest.approx(2 * f0["lugre_Fc"])
     assert f["lugre_Fs"] == pytest.approx(2 * f0["lugre_Fs"])
     assert spec.compile().dof_damping[ix.yaw_dof] == base.dof_damping[ix.yaw_dof]  # base untouched

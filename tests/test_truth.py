@@ -12,6 +12,7 @@ from identification.identify import identify_runs
 from identification.simulate import simulate_linear
 from omni_sim import experiments as ex
 from omni_sim import model as om
+from omni_sim.device import Device
 from omni_sim import truth
 from omni_sim.truth import inertia_truth
 
@@ -44,19 +45,19 @@ def test_mujoco_discrete_truth_near_continuous():
 
 @pytest.fixture(scope="module")
 def frictionless():
-    m = om.without_friction(om.load_model())
+    dev = Device.load().without_friction()
     # small amplitude: the servo-held arm does not lift under centrifugal load (see README)
-    runs = ex.simulate(ex.campaign("sine", sine_amplitude_rad=0.02), model=m)
-    return m, identify_runs(runs)
+    runs = ex.simulate(ex.campaign("sine", sine_amplitude_rad=0.02), device=dev)
+    return dev, identify_runs(runs)
 
 
 def test_frictionless_linear_coefficients_match_truth(frictionless):
     """Issue 3: without friction C_linear and beta_linear match their analytic values within 1 %."""
-    m, ident = frictionless
+    dev, ident = frictionless
     for p in ident.poses:
-        d = truth.yaw_dynamics(m, p.gamma1_deg, p.gamma2_deg)
+        d = truth.yaw_dynamics(dev, p.gamma1_deg, p.gamma2_deg)
         c, b = truth.sampled_linear_truth(d["C"], d["beta_tilde"], p.kp, ex.TABLE1_FREQUENCIES_HZ,
-                                          ex.CONTROL_PERIOD_S, m.opt.timestep)
+                                          ex.CONTROL_PERIOD_S, dev.model.opt.timestep)
         assert p.C_linear == pytest.approx(c, rel=0.01), (p.label, p.C_linear, c)
         assert p.beta_linear == pytest.approx(b, rel=0.01), (p.label, p.beta_linear, b)
 
@@ -64,15 +65,16 @@ def test_frictionless_linear_coefficients_match_truth(frictionless):
 def test_frictionless_inertia_model_predicts_all_25_poses(frictionless):
     """Issue 3: the inertia model fitted on 9 poses predicts MuJoCo's inertia at all 25 Table 2
     poses (16 never fitted) within 2 % (measured: 0.4 %)."""
-    m, ident = frictionless
-    res = inertia_truth(m, ident.inertia.params)
+    dev, ident = frictionless
+    res = inertia_truth(dev, ident.inertia.params)
     assert res["n_unseen_poses"] == 16
     assert res["max_rel_error"] < 0.02, res["max_rel_error"]
 
 
 def _inertia_errors(m):
-    runs = ex.simulate(ex.campaign("sine"), model=m)
-    res = inertia_truth(m, identify_runs(runs).inertia.params)["poses"]
+    dev = Device(m)
+    runs = ex.simulate(ex.campaign("sine"), device=dev)
+    res = inertia_truth(dev, identify_runs(runs).inertia.params)["poses"]
     return [r["rel_error"] for r in res], [r["true_kg_m2"] for r in res]
 
 
@@ -83,7 +85,7 @@ def test_dry_friction_biases_the_inertia_by_its_kind():
     inertia over-estimated at every pose.  The calibrated LuGre drive's pre-sliding stiffness
     makes low-energy motion stiffer, raising beta_data: inertia under-estimated, clearly so at the
     heavy poses (measured: -4 to -7 % for the top third, up to +2 % at the lightest pose)."""
-    hard = om.without_friction(om.load_model())
+    hard = Device(om.load_model()).without_friction().model
     hard.dof_frictionloss[om.index(hard).yaw_dof] = 0.0209  # first session's calibrated Fc
     errs, _ = _inertia_errors(hard)
     assert min(errs) > 0, errs

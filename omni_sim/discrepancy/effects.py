@@ -110,6 +110,7 @@ import mujoco
 import numpy as np
 
 from .. import model as om
+from ..device import ENCODER_STEP_RAD  # the Omni's encoder count [rad]
 
 #: Ring-buffer length [samples] given to ``yaw_motor`` by ``time_delay``: the largest delay
 #: the candidate can represent is ``DELAY_NSAMPLE * timestep`` (40 ms at 1 kHz, ~7 % of the
@@ -324,8 +325,6 @@ def _write_bias(spec, x, target=OMNI):
 
 
 # --- drive friction: LuGre elements (pre-sliding, Stribeck) and cogging ---------------------
-#: Encoder quantum of the Omni [rad]: 15000 counts per joint revolution (models/README.md).
-ENCODER_COUNT_RAD = 2 * math.pi / 15000
 #: ``stribeck_friction``'s bristle stiffness sigma0 [N*m/rad], fixed: the pre-sliding range is
 #: below Fs/sigma0 <= 0.3/1000 = 3e-4 rad for every Fs within the bounds, under one encoder
 #: count (4.19e-4 rad), so the element is a Stribeck curve with a true stick and no visible
@@ -400,7 +399,7 @@ def _add_dcmotor(spec: mujoco.MjSpec, name: str, joint: str, lugre: bool):
     """Append a passive ``dcmotor`` (``input="none"``, no electrical part) on ``joint``: the
     MJCF ``<dcmotor joint=.. input="none" resistance="1" lugre=../cogging=../>`` (same compiled
     arrays, checked in tests/test_effects_library.py).  Appended after every actuator, so the
-    controlled actuators keep control index = actuator index (``om.index``)."""
+    controlled actuators keep control index = actuator index (as :func:`omni_sim.model.index` requires)."""
     a = spec.add_actuator(name=_unique(spec, mujoco.mjtObj.mjOBJ_ACTUATOR, name), target=joint,
                           trntype=mujoco.mjtTrn.mjTRN_JOINT)
     a.gaintype = mujoco.mjtGain.mjGAIN_DCMOTOR
@@ -688,7 +687,7 @@ def _write_backlash(spec, x, target=OMNI):
 
 
 def _backlash_grid(x0):
-    return np.array([[c * ENCODER_COUNT_RAD] for c in (0.5, 1.0, 2.0, 4.0, 8.0)])
+    return np.array([[c * ENCODER_STEP_RAD] for c in (0.5, 1.0, 2.0, 4.0, 8.0)])
 
 
 # --- arm link masses (the Omni) ------------------------------------------------------------

@@ -105,11 +105,10 @@ class ReplayRun:
                          self.amplitude_rad, self.meta)
 
 
-def prepare_runs(runs: list[Run], model: mujoco.MjModel, source: str = "measured data",
-                 target: om.Target | None = None) -> list[ReplayRun]:
-    """Check that every run can be replayed on ``model`` and convert it.
+def prepare_runs(runs: list[Run], device: Device, source: str = "measured data") -> list[ReplayRun]:
+    """Check that every run can be replayed on ``device`` and convert it.
 
-    ``target`` (None: the Omni) names the controlled joint and actuator.  A model with the
+    The device's target (None: the Omni) names the controlled joint and actuator.  A model with the
     Omni's arm needs each run's pose (``gamma1_set_deg``/``gamma2_set_deg`` or
     ``gamma1_deg``/``gamma2_deg``); without the arm a pose is not needed (any given is ignored).
     An optional ``command_limit`` (positive; the P law's saturation) is checked and kept in
@@ -124,7 +123,7 @@ def prepare_runs(runs: list[Run], model: mujoco.MjModel, source: str = "measured
     """
     if not runs:
         raise UserError(f"{source}: no runs")
-    has_arm = om.index(model, target=target).has_arm
+    model, has_arm = device.model, device.ix.has_arm
     out = []
     for run in runs:
         where = f"{source}: run {run.name!r}"
@@ -154,7 +153,7 @@ def prepare_runs(runs: list[Run], model: mujoco.MjModel, source: str = "measured
                 if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
                     raise UserError(f"{where}: metadata needs a finite {name}_set_deg or {name}_deg, got {val!r}")
             try:
-                om.check_pose(model, float(g1), float(g2))
+                device.check_pose(float(g1), float(g2))
             except UserError as exc:
                 raise UserError(f"{where}: unknown pose for this model ({exc})") from None
             pose = (float(g1), float(g2))

@@ -14,6 +14,7 @@ from identification.dataset import Run
 from identification.errors import UserError
 
 from .. import model as om
+from ..device import Device
 from . import effects as fx
 from . import select as sel
 from . import uncertainty as un
@@ -118,7 +119,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     """
     t_start = time.perf_counter()
     spec, model, path = _load_spec(model_path, target)
-    rr = prepare_runs(runs, model, target=target)
+    rr = prepare_runs(runs, Device(model, target=target))
     tgt = om.OMNI if target is None else target  # where the effects are written
     ok_names = fx.applicable(spec, tgt)  # only candidates that can be written into this model
     unknown = [c for c in (candidates or ()) if c not in fx.NAMES]
