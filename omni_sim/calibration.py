@@ -42,7 +42,6 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -427,21 +426,48 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
 
 
 # --- writing the result back into the MJCF ------------------------------------------------
-def _sub_once(pattern: str, repl, text: str) -> str:
-    new, n = re.subn(pattern, repl, text, count=1, flags=re.S)
-    if n != 1:
-        raise RuntimeError(f"calibration: pattern not found (model or campaign file): {pattern}")
-    return new
-
-
 def _fmt(x: float) -> str:
     return f"{x:.6g}"
 
 
+def _set_attributes(path: Path, edits: list[tuple[str, dict]]) -> Path:
+    """Set attributes of elements of the MJCF file ``path``, each element found by an
+    ElementTree path expression that must match exactly one element; the file is read and
+    written as an XML tree (comments and the rest of the file stay: the writer edits
+    structure, never text).  ``edits``: ``[(path expression, {attribute: value}), ...]``."""
+    import xml.etree.ElementTree as ET
+
+    parser = ET.XMLParser(target=ET.TreeBuilder(insert_comments=True))
+    tree = ET.parse(path, parser)
+    for where, attrs in edits:
+        found = tree.getroot().findall(where)
+        if len(found) != 1:
+            raise RuntimeError(f"calibration: {path.name}: {len(found)} elements match {where!r}, "
+                               "expected exactly one")
+        for key, value in attrs.items():
+            found[0].set(key, value)
+    path.write_text(ET.tostring(tree.getroot(), encoding="unicode") + "\n")
+    return path
+
+
+def _get_attribute(path: Path, where: str, key: str) -> str:
+    import xml.etree.ElementTree as ET
+
+    found = ET.parse(path).getroot().findall(where)
+    if len(found) != 1 or key not in found[0].attrib:
+        raise RuntimeError(f"calibration: {path.name}: no single {where!r} with {key!r}")
+    return found[0].attrib[key]
+
+
+def _inertial(body: str) -> str:
+    return f".//body[@name='{body}']/inertial"
+
+
 def write_model(values: dict, family: str, folder: Path = om.MODELS_DIR) -> list[Path]:
-    """Write calibrated numbers into the model files (attributes only; comments stay): the
-    robot's (masses, turret, servo gains; if ``values`` has them) into ``omni.xml``, the
-    family's friction into ``scene_<family>.xml``.  Returns the files written."""
+    """Write calibrated numbers into the model files (attributes of named elements, through an
+    XML tree; comments stay): the robot's (masses, turret, servo gains; if ``values`` has
+    them) into ``omni.xml``, the family's friction into ``scene_<family>.xml``.  Returns the
+    files written."""
     written = []
     if any(k in values for k in ("m_upper_arm", "m_forearm", "m_stylus", "I_turret",
                                  "shoulder_kp", "elbow_kp")):
@@ -451,51 +477,41 @@ def write_model(values: dict, family: str, folder: Path = om.MODELS_DIR) -> list
 
 
 def _write_robot(values: dict, path: Path) -> Path:
-    text = path.read_text()
+    def inertial(mass: float, diag) -> dict:
+        return {"mass": _fmt(mass), "diaginertia": " ".join(_fmt(d) for d in diag)}
 
-    def inertial(body: str, mass: float, diag) -> None:
-        nonlocal text
-        text = _sub_once(rf'(<body name="{body}".*?<inertial [^>]*?mass=")[^"]*(" diaginertia=")[^"]*(")',
-                         lambda m: m.group(1) + _fmt(mass) + m.group(2) + " ".join(_fmt(d) for d in diag)
-                         + m.group(3), text)
-
-    inertial("upper_arm", values["m_upper_arm"], _rod_inertia(values["m_upper_arm"]))
-    inertial("forearm", values["m_forearm"], _rod_inertia(values["m_forearm"]))
-    m = re.search(r'<body name="stylus".*?mass="([^"]*)" diaginertia="([^"]*)"', text, re.S)
-    scale = values["m_stylus"] / float(m.group(1))
-    inertial("stylus", values["m_stylus"], [float(v) * scale for v in m.group(2).split()])
-    m = re.search(r'<body name="turret".*?diaginertia="([^"]*)"', text, re.S)
-    ixx, iyy, _ = (float(v) for v in m.group(1).split())
-    text = _sub_once(r'(<body name="turret".*?diaginertia=")[^"]*(")',
-                     lambda mm: mm.group(1) + f"{_fmt(ixx)} {_fmt(iyy)} {_fmt(values['I_turret'])}"
-                     + mm.group(2), text)
-    for name, key in (("shoulder_servo", "shoulder_kp"), ("elbow_servo", "elbow_kp")):
-        text = _sub_once(rf'(<position name="{name}"[^>]*?kp=")[^"]*(")',
-                         lambda mm, k=key: mm.group(1) + _fmt(values[k]) + mm.group(2), text)
-    path.write_text(text)
-    return path
+    stylus_mass = float(_get_attribute(path, _inertial("stylus"), "mass"))
+    stylus_diag = [float(v) for v in _get_attribute(path, _inertial("stylus"), "diaginertia").split()]
+    scale = values["m_stylus"] / stylus_mass
+    ixx, iyy, _ = (float(v) for v in _get_attribute(path, _inertial("turret"), "diaginertia").split())
+    return _set_attributes(path, [
+        (_inertial("upper_arm"), inertial(values["m_upper_arm"], _rod_inertia(values["m_upper_arm"]))),
+        (_inertial("forearm"), inertial(values["m_forearm"], _rod_inertia(values["m_forearm"]))),
+        (_inertial("stylus"), inertial(values["m_stylus"], [d * scale for d in stylus_diag])),
+        (_inertial("turret"), {"diaginertia": f"{_fmt(ixx)} {_fmt(iyy)} {_fmt(values['I_turret'])}"}),
+        (".//actuator/position[@name='shoulder_servo']", {"kp": _fmt(values["shoulder_kp"])}),
+        (".//actuator/position[@name='elbow_servo']", {"kp": _fmt(values["elbow_kp"])}),
+    ])
 
 
 #: The main-class joint defaults of a family's scene: the yaw's damping and frictionloss.
-_SCENE_JOINT = r'(<default>\s*(?:<!--.*?-->\s*)?<joint damping=")([^"]*)(" frictionloss=")([^"]*)(")'
+_SCENE_JOINT = "./default/joint"
+_LUGRE = f".//actuator/dcmotor[@name='{FRICTION_ACTUATOR}']"
 
 
 def _write_friction(values: dict, family: str, path: Path) -> Path:
-    text = path.read_text()
-    loss = values.get("yaw_frictionloss") if family == "coulomb" else None
-    text = _sub_once(_SCENE_JOINT, lambda mm: mm.group(1) + _fmt(values["yaw_damping"]) + mm.group(3)
-                     + (mm.group(4) if loss is None else _fmt(loss)) + mm.group(5), text)
+    joint = {"damping": _fmt(values["yaw_damping"])}
+    if family == "coulomb":
+        joint["frictionloss"] = _fmt(values["yaw_frictionloss"])
+    edits = [(_SCENE_JOINT, joint)]
     if family == "lugre":
-        m = re.search(rf'<dcmotor name="{FRICTION_ACTUATOR}"[^>]*?lugre="([^"]*)"', text, re.S)
-        lugre = m.group(1).split()
+        lugre = _get_attribute(path, _LUGRE, "lugre").split()  # sigma0 sigma1 Fc Fs vs
         lugre[0] = _fmt(values["lugre_stiffness"])
         lugre[2] = _fmt(values["lugre_friction"])
         lugre[3] = _fmt(values["lugre_friction"] * values["stribeck_ratio"])
         lugre[4] = _fmt(values["stribeck_speed"])
-        text = _sub_once(rf'(<dcmotor name="{FRICTION_ACTUATOR}"[^>]*?lugre=")[^"]*(")',
-                         lambda mm: mm.group(1) + " ".join(lugre) + mm.group(2), text)
-    path.write_text(text)
-    return path
+        edits.append((_LUGRE, {"lugre": " ".join(lugre)}))
+    return _set_attributes(path, edits)
 
 
 #: The paper campaign's file, whose ``[sine]`` amplitude the calibration sets.
@@ -504,14 +520,20 @@ CAMPAIGN_FILE = Path(ex.__file__).resolve().parent / "campaigns" / "paper.toml"
 
 def write_amplitude(amplitude_rad: float, path: Path = CAMPAIGN_FILE) -> float:
     """Set the ``amplitude_rad`` of the campaign file's ``[sine]`` table to the calibrated A_r
-    (that one line; comments and everything else stay); returns the value as written."""
-    text = path.read_text()
-    start = text.index("\n[sine]")
-    end = text.find("\n[", start + 1)
-    end = len(text) if end < 0 else end
-    section = _sub_once(r"(?m)^amplitude_rad = [^\n#]*", f"amplitude_rad = {_fmt(amplitude_rad)}",
-                        text[start:end])
-    new = text[:start] + section + text[end:]
+    (that one line's value; its comment and everything else stay); returns the value as
+    written (checked by parsing the new file: tomllib reads TOML but does not write it)."""
+    lines = path.read_text().split("\n")
+    table, hits = None, []
+    for i, line in enumerate(lines):
+        if line.startswith("["):
+            table = line.strip()
+        elif table == "[sine]" and line.split("=")[0].strip() == "amplitude_rad":
+            hits.append(i)
+    if len(hits) != 1:
+        raise RuntimeError(f"calibration: {path}: {len(hits)} 'amplitude_rad' lines in [sine], expected one")
+    comment = lines[hits[0]].partition("#")[2]
+    lines[hits[0]] = f"amplitude_rad = {_fmt(amplitude_rad)}" + (f"  #{comment}" if comment else "")
+    new = "\n".join(lines)
     written = ex.parse_campaign(new, str(path)).sine[0]["amplitude_rad"]
     if abs(written - amplitude_rad) > 1e-5 * abs(amplitude_rad):
         raise RuntimeError(f"calibration: {path} would read A_r = {written}, not {amplitude_rad}")

@@ -119,6 +119,10 @@ def test_write_model_round_trip(tmp_path, family):
     new[key] = 0.0171
     written = cal.write_model(new, family, tmp_path)
     assert sorted(p.name for p in written) == ["omni.xml", f"scene_{family}.xml"]
+    for p in written:  # a structured writer: the file's comments (the provenance) all stay
+        assert p.read_text().count("<!--") == before[p.name].count("<!--") > 0
+        changed = [b for a, b in zip(before[p.name].splitlines(), p.read_text().splitlines()) if a != b]
+        assert 0 < len(changed) <= 4, changed  # the calibrated elements' lines only
     other = "coulomb" if family == "lugre" else "lugre"
     assert (tmp_path / f"scene_{other}.xml").read_text() == before[f"scene_{other}.xml"]
     got = cal.current_values(om.load_model(tmp_path / f"scene_{family}.xml"))

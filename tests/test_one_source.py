@@ -66,3 +66,11 @@ def test_the_search_would_see_a_second_copy(tmp_path):
     quiet = tmp_path / "quiet.py"
     quiet.write_text('"""reads model.actuator_gear[a, 0]"""\n')
     assert _where(r"actuator_gear\[", SOURCES + [extra, quiet]) == {"omni_sim/device.py", "copy.py"}
+
+
+def test_calibration_writes_structure_not_text():
+    """The calibrated values reach the MJCF through an XML tree (calibration._set_attributes),
+    never through regular expressions on the file's text."""
+    code = _code(ROOT / "omni_sim" / "calibration.py")
+    assert not re.search(r"^\s*(import re\b|from re import)", code, re.M)
+    assert "xml.etree.ElementTree" in code
