@@ -27,8 +27,18 @@ def _run_counts(runs) -> str:
 
 
 def format_report(res: dict) -> str:
-    s = res["scores"]["summary"]
+    """report.md: the targets, then the paper's tables beside this run's, section by section."""
     ident = res["ident"]
+    lines = _header(res) + _targets(res) + _inertia_truth(res) + _linear_model(res)
+    lines += _alpha_model(res) + _sine_table(res) + _step_table(res)
+    if ident.warnings:
+        lines += ["## Warnings", ""] + [f"- {w}" for w in ident.warnings] + [""]
+    return "\n".join(lines)
+
+
+def _header(res: dict) -> list[str]:
+    """The title and what the run was."""
+    s = res["scores"]["summary"]
     lines = ["# omni reproduce: the alpha-invariant paper on the virtual Omni", ""]
     run = s["run"]
     lines += [f"Model: `{run['model']}` (sha256 {run['model_sha256']}). Simulated "
@@ -36,13 +46,19 @@ def format_report(res: dict) -> str:
               f"Every number below comes from this run; `dataset/` holds the data, `params.json` "
               f"the identified parameters, `predictions/` both models' simulations.", ""]
 
+    return lines
+
+
+def _targets(res: dict) -> list[str]:
+    """The issue's targets, each with the measured figure."""
+    s = res["scores"]["summary"]
+    lines = []
     inr = s["inertia"]
     st = s["step"]
     sn = s["sine"]
     whole = st["windows"]["whole_record"]
     after = st["windows"]["after_edges"]
     t8_avg = paper.table8_average()
-    t11 = paper.table11()
     p11s = paper.table11_summary()  # Table 11 reduced with our statistics (like for like)
     lines += ["## Targets", "",
               "| target | measured | |", "|---|---|---|",
@@ -76,6 +92,13 @@ def format_report(res: dict) -> str:
               "identification/simulate.py) | "
               f"{_met(s['alpha_simulation']['steps_not_converged'] == 0)} |", ""]
 
+    return lines
+
+
+def _inertia_truth(res: dict) -> list[str]:
+    """Ground truth: the identified inertia model against MuJoCo's mass matrix."""
+    inr = res["scores"]["summary"]["inertia"]
+    lines = []
     n_fitted = sum(bool(r["fitted_pose"]) for r in inr["poses"])
     lines += ["## Ground truth: inertia", "",
               "The identified minimal inertia model (6), scaled by the model's torque constant "
@@ -91,6 +114,13 @@ def format_report(res: dict) -> str:
                      f"{100 * r['rel_error']:+.1f} % | {'yes' if r['fitted_pose'] else ''} |")
     lines += ["", "![inertia truth](inertia_truth.png)", ""]
 
+    return lines
+
+
+def _linear_model(res: dict) -> list[str]:
+    """Table 3: the global linear model per pose, its truth and the inertia model (6)."""
+    ident = res["ident"]
+    lines = []
     lines += ["## Global linear model per pose (Table 3) and its truth", "",
               "C_true = c/I and beta_true = kp beta_bar / I are the model's continuous values without "
               "dry friction; the identified values absorb the dry friction (its describing-function "
@@ -112,7 +142,13 @@ def format_report(res: dict) -> str:
               f"{', '.join(ident.inertia.poorly_determined) or 'none'}.", "",
               "![Figs. 4-5](fig04_05_inertia_fits.png)", ""]
 
-    am = ident.alpha_model
+    return lines
+
+
+def _alpha_model(res: dict) -> list[str]:
+    """Tables 6, 7, 10: the α-invariant model beside the paper's."""
+    lines = []
+    am = res["ident"].alpha_model
     t6, t7 = paper.table6(), paper.table7()
     # Tables 6-7 in the order Table 10 implies (reversed; identification/data/README.md)
     paper_breaks = ", ".join(f"{r['alpha']:g}" for r in t7)
@@ -129,6 +165,14 @@ def format_report(res: dict) -> str:
               "![Fig. 8](fig08_alpha_vs_frequency.png)",
               "![Figs. 9-10](fig09_10_C_beta_vs_alpha.png)", ""]
 
+    return lines
+
+
+def _sine_table(res: dict) -> list[str]:
+    """Table 8: the sine sweep's p90 errors per pose."""
+    sn = res["scores"]["summary"]["sine"]
+    t8_avg = paper.table8_average()
+    lines = []
     p8 = paper.by_set_pose(paper.table8())
     lines += ["## Sine sweep (Table 8)", "",
               f"90th percentile over the {len(res['scores']['sine'][0]['frequencies_hz'])} frequencies of the absolute fundamental magnitude error "
@@ -148,6 +192,16 @@ def format_report(res: dict) -> str:
               f"{t8_avg['magnitude_p90_alpha']:.3f} / {t8_avg['phase_p90_alpha_deg']:.1f} |",
               "", "![Figs. 11-12](fig11_12_bode.png)", "![Fig. 13](fig13_time_2p5hz.png)", ""]
 
+    return lines
+
+
+def _step_table(res: dict) -> list[str]:
+    """Table 11: the step responses' errors per pose, and like for like with the paper."""
+    st = res["scores"]["summary"]["step"]
+    whole, after = st["windows"]["whole_record"], st["windows"]["after_edges"]
+    t11 = paper.table11()
+    p11s = paper.table11_summary()
+    lines = []
     p11 = paper.by_set_pose(t11)
     lines += ["## Step responses (Table 11)", "",
               "Absolute angle error [mrad] over the whole 8 s record and over the first second after "
@@ -183,6 +237,4 @@ def format_report(res: dict) -> str:
               f"(after edges {after['alpha_better_poses']} / {after['alpha_better_poses_p90']}) | "
               f"{p11s['alpha_better_poses']} / {p11s['alpha_better_poses_p90']} of {p11s['n_poses']} |",
               "", "![Fig. 14](fig14_step.png)", ""]
-    if ident.warnings:
-        lines += ["## Warnings", ""] + [f"- {w}" for w in ident.warnings] + [""]
-    return "\n".join(lines)
+    return lines
