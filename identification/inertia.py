@@ -401,19 +401,41 @@ def fit_inertia_model(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear, *,
         inert = s * (_basis(g1, g2, x[4]) @ x[:4])
         return np.concatenate([1.0 / (inert * b) - 1.0, 1.0 / (x[5] * c0_reg * inert * c) - 1.0])
 
-    lo = np.array([0, 0, 0, 0, -np.inf, 1e-6])
-    hi = np.full(6, np.inf)
-
     grid = np.arange(-180.0, 180.0, grid_step_deg)
-    # The profile, all grid points at once (:func:`_profile_costs`, equal to
-    # :func:`_solve_fixed_gamma` at each point to ~1e-12 relative, many times faster); the
-    # minima chosen are then solved again by it so that the polish starts where it always has.
+    costs, starts = _profile_minima(g1, g2, b, c, s, c0_reg, grid, n_polish)
+    best = None
+    for x0 in starts:  # each profile minimum polished with γoffs free
+        r = optimize.least_squares(resid, x0, bounds=(np.array([0, 0, 0, 0, -np.inf, 1e-6]), np.full(6, np.inf)),
+                                   method="trf", x_scale=np.r_[np.maximum(x0[:4], 0.1), 1.0, 1.0],
+                                   xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        if best is None or r.cost < best.cost:
+            best = r
+    x = best.x.copy()
+    x[4] = (x[4] + 180.0) % 360.0 - 180.0
+    params = InertiaParameters(*(x[:4] * s), float(x[4]), float(x[5] * c0_reg))
+    r = resid(x)
+    jac = optimize.approx_fprime(x, resid, epsilon=1e-7 * np.maximum(np.abs(x), 1.0))
+    rb, rc = r[:n], r[n:]
+    return InertiaFit(
+        params=params, **_uncertainty(params, x, r, jac, s, c0_reg, special),
+        rel_residual_beta=rb, rel_residual_C=rc,
+        rms_rel_beta=float(np.sqrt(np.mean(rb**2))), rms_rel_C=float(np.sqrt(np.mean(rc**2))),
+        cost=float(0.5 * r @ r), C0_bar_regression=c0_reg, n_poses=n,
+        profile_gamma_deg=grid, profile_cost=costs)
+
+
+def _profile_minima(g1, g2, b, c, s, c0_reg, grid, n_polish: int):
+    """The γoffs profile's costs and the starting points of the polish: its ``n_polish`` best
+    local minima, as :func:`_solve_fixed_gamma` solves them.
+
+    The profile is computed at all grid points at once (:func:`_profile_costs`, equal to
+    :func:`_solve_fixed_gamma` at each point to ~1e-12 relative, many times faster).  Points
+    that may be local minima of the (circular) profile (within PROFILE_TIE of both neighbours,
+    far above the two solvers' ~1e-13 difference), and their neighbours, are then solved by the
+    reference: the minima, their order and the polish's starting points are the reference's
+    exactly (on a flat stretch of the profile which points count as minima is decided by the
+    last bits of the costs)."""
     costs = _profile_costs(g1, g2, b, c, s, c0_reg, grid)
-    # Points that may be local minima of the (circular) profile (within PROFILE_TIE of both
-    # neighbours, far above the two solvers' ~1e-13 difference), then they and their
-    # neighbours solved by the reference: the minima, their order and the polish's starting
-    # points are the reference's exactly (on a flat stretch of the profile which points count
-    # as minima is decided by the last bits of the costs)
     left, right = np.roll(costs, 1), np.roll(costs, -1)
     maybe = np.flatnonzero(costs <= np.minimum(left, right) * (1.0 + PROFILE_TIE))
     solved = {}
@@ -423,20 +445,13 @@ def fit_inertia_model(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear, *,
     left, right = np.roll(costs, 1), np.roll(costs, -1)
     minima = maybe[(costs[maybe] <= left[maybe]) & (costs[maybe] <= right[maybe])]
     order = minima[np.argsort(costs[minima])][:n_polish]
-    best = None
-    for i in order:
-        x0 = solved[int(i)][1]
-        r = optimize.least_squares(resid, x0, bounds=(lo, hi), method="trf",
-                                   x_scale=np.r_[np.maximum(x0[:4], 0.1), 1.0, 1.0],
-                                   xtol=1e-12, ftol=1e-12, gtol=1e-12)
-        if best is None or r.cost < best.cost:
-            best = r
-    x = best.x.copy()
-    x[4] = (x[4] + 180.0) % 360.0 - 180.0
-    params = InertiaParameters(*(x[:4] * s), float(x[4]), float(x[5] * c0_reg))
+    return costs, [solved[int(i)][1] for i in order]
 
-    r = resid(x)
-    jac = optimize.approx_fprime(x, resid, epsilon=1e-7 * np.maximum(np.abs(x), 1.0))
+
+def _uncertainty(params, x, r, jac, s: float, c0_reg: float, special) -> dict:
+    """95 % intervals (Student t on the Jacobian's covariance), the poorly determined and
+    at-bound parameters, and the conditioning of the fit at its solution ``x`` (fit units:
+    [Ib, I1, I2, I3]/s, γoffs [deg], C̄0/c0_reg)."""
     m, p = jac.shape
     dof = m - p
     s2 = float(r @ r) / dof if dof > 0 else math.nan
@@ -468,11 +483,6 @@ def fit_inertia_model(gamma1_deg, gamma2_deg, C_linear, beta_tilde_linear, *,
     sv_scaled = np.linalg.svd(jac * scale, compute_uv=False)
     _, _, vt_s = np.linalg.svd(jac * scale)
     weakest = dict(zip(PARAM_NAMES, vt_s[-1] * np.sign(vt_s[-1][np.argmax(np.abs(vt_s[-1]))])))
-    rb, rc = r[:n], r[n:]
-    return InertiaFit(
-        params=params, ci95=ci, poorly_determined=poor, at_bound=at_bound,
-        singular_values=list(sv_scaled), condition_number=float(sv_scaled[0] / sv_scaled[-1]),
-        weakest_direction=weakest, rel_residual_beta=rb, rel_residual_C=rc,
-        rms_rel_beta=float(np.sqrt(np.mean(rb**2))), rms_rel_C=float(np.sqrt(np.mean(rc**2))),
-        cost=float(0.5 * r @ r), C0_bar_regression=c0_reg, n_poses=n, dof=dof,
-        profile_gamma_deg=grid, profile_cost=costs)
+    return dict(ci95=ci, poorly_determined=poor, at_bound=at_bound, singular_values=list(sv_scaled),
+                condition_number=float(sv_scaled[0] / sv_scaled[-1]), weakest_direction=weakest,
+                dof=dof)
