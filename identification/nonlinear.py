@@ -517,46 +517,9 @@ def fit_alpha_model(poses: Sequence, *, use="up_to_resonance", monotone=True, me
     if method not in ("two_stage", "pooled"):
         raise ValueError(f"method must be 'two_stage' or 'pooled', got {method!r}")
     alpha_bar = _as_vec(alpha_bar, 2, "alpha_bar")
-    masks, data = [], []
-    for pose in poses:
-        m = select_frequencies(pose, use)
-        masks.append(m)
-        I = float(_get(pose, "I"))
-        if not (math.isfinite(I) and I > 0):
-            raise UserError(f"pose inertia I must be finite and positive, got {I}")
-        if m.any():
-            data.append({
-                "I": I,
-                "alpha": np.asarray(_get(pose, "alpha"), dtype=float).reshape(-1)[m],
-                "C": np.asarray(_get(pose, "C_data"), dtype=float).reshape(-1)[m],
-                "b": np.asarray(_get(pose, "beta_tilde_data"), dtype=float).reshape(-1)[m],
-            })
-    if not data:
-        raise UserError("no pose has a usable frequency (positive C_data and beta_data) to fit")
-    all_alpha = np.concatenate([d["alpha"] for d in data])
-
-    if alpha_breaks is not None:
-        grid = _as_vec(alpha_breaks, 4, "alpha_breaks")
-        candidates = [grid]
-    else:
-        grid = default_alpha_grid(all_alpha, n_grid) if alpha_grid is None else np.unique(
-            np.asarray(alpha_grid, dtype=float))
-        candidates = [np.array(c) for c in itertools.combinations(grid, 4)]
-    best = None
-    n_tried = 0
-    for breaks in candidates:
-        if alpha_breaks is None and np.linalg.matrix_rank(hat_basis(all_alpha, breaks)) < 4:
-            continue
-        n_tried += 1
-        res = _fit_given_breaks(data, breaks, alpha_bar, monotone, method)
-        if best is None or res[3] < best[1][3] - 1e-15 * max(1.0, best[1][3]):
-            best = (breaks, res)
-    if best is None:
-        raise UserError(
-            f"no breakpoint set is identified by the data ({all_alpha.size} usable points over "
-            f"{len(data)} poses); at least 4 distinct alpha values spread over the grid are needed"
-        )
-    breaks, (C_inv, beta_inv, fits, sse) = best
+    masks, data = _usable_data(poses, use)
+    grid, breaks, (C_inv, beta_inv, fits, sse), n_tried = _search_breaks(
+        data, alpha_breaks, alpha_grid, n_grid, alpha_bar, monotone, method)
     if np.any(beta_inv <= 0):
         raise UserError(
             f"the fitted torque constant is zero at alpha_bar = {alpha_bar.tolist()} "
@@ -580,3 +543,56 @@ def fit_alpha_model(poses: Sequence, *, use="up_to_resonance", monotone=True, me
                    "alpha_grid": grid.tolist()}
     return AlphaModel(alpha_breaks=breaks, C_k1=C_k1, alpha_bar=alpha_bar,
                       beta_k1=1.0 / beta_inv, options=options, diagnostics=diagnostics)
+
+
+def _usable_data(poses, use):
+    """Per pose the mask of the frequencies fitted (:func:`select_frequencies`), and for the
+    poses with any, their ``I`` and the used ``alpha``, ``C`` (C_data) and ``b``
+    (beta_tilde_data)."""
+    masks, data = [], []
+    for pose in poses:
+        m = select_frequencies(pose, use)
+        masks.append(m)
+        I = float(_get(pose, "I"))
+        if not (math.isfinite(I) and I > 0):
+            raise UserError(f"pose inertia I must be finite and positive, got {I}")
+        if m.any():
+            data.append({
+                "I": I,
+                "alpha": np.asarray(_get(pose, "alpha"), dtype=float).reshape(-1)[m],
+                "C": np.asarray(_get(pose, "C_data"), dtype=float).reshape(-1)[m],
+                "b": np.asarray(_get(pose, "beta_tilde_data"), dtype=float).reshape(-1)[m],
+            })
+    if not data:
+        raise UserError("no pose has a usable frequency (positive C_data and beta_data) to fit")
+    return masks, data
+
+
+def _search_breaks(data, alpha_breaks, alpha_grid, n_grid, alpha_bar, monotone, method):
+    """The breakpoints: given, or the admissible 4-subset of the grid with the least SSE of C
+    (ties within 1e-15 relative keep the first).  Returns ``(grid, breaks, fit, n_tried)``
+    with ``fit`` = :func:`_fit_given_breaks`'s ``(C_inv, beta_inv, fits, sse)``."""
+    all_alpha = np.concatenate([d["alpha"] for d in data])
+    if alpha_breaks is not None:
+        grid = _as_vec(alpha_breaks, 4, "alpha_breaks")
+        candidates = [grid]
+    else:
+        grid = default_alpha_grid(all_alpha, n_grid) if alpha_grid is None else np.unique(
+            np.asarray(alpha_grid, dtype=float))
+        candidates = [np.array(c) for c in itertools.combinations(grid, 4)]
+    best = None
+    n_tried = 0
+    for breaks in candidates:
+        if alpha_breaks is None and np.linalg.matrix_rank(hat_basis(all_alpha, breaks)) < 4:
+            continue
+        n_tried += 1
+        res = _fit_given_breaks(data, breaks, alpha_bar, monotone, method)
+        if best is None or res[3] < best[1][3] - 1e-15 * max(1.0, best[1][3]):
+            best = (breaks, res)
+    if best is None:
+        raise UserError(
+            f"no breakpoint set is identified by the data ({all_alpha.size} usable points over "
+            f"{len(data)} poses); at least 4 distinct alpha values spread over the grid are needed"
+        )
+    breaks, fit = best
+    return grid, breaks, fit, n_tried
