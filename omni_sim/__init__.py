@@ -5,56 +5,34 @@ Public API::
     yaw_inertia(gamma1_deg, gamma2_deg, model_path=None) -> float   # [kg*m^2]
     load_model(path=None, friction=None) -> mujoco.MjModel           # friction: coulomb | lugre
     equilibrium_pose(model, gamma1_set_deg, gamma2_set_deg) -> (gamma1_deg, gamma2_deg)
-    Device(model)                       # the device: start state, encoder, P law, Engine
+    Device(model)   # the device: gear, friction, inertia at a pose, equilibria, start state,
+                    # encoder, P law, Engine (yaw_inertia and equilibrium_pose ask it)
     experiments.campaign(name_or_file), experiments.simulate(exps, model_path, settings)
 """
 
+import gymnasium
+
 from .device import Device, Encoder, Engine
-from .model import (DEFAULT_SCENE, FRICTION_FAMILIES, MODELS_DIR, equilibrium_pose, load_model,
-                    yaw_inertia)
+from .model import DEFAULT_SCENE, FRICTION_FAMILIES, MODELS_DIR, load_model
+
+
+def yaw_inertia(gamma1_deg: float, gamma2_deg: float, model_path=None, model=None) -> float:
+    """MuJoCo's yaw inertia [kg*m^2] with the arm at these ACTUAL angles [deg]
+    (:meth:`Device.inertia` of the model file, default the built-in scene, or of a compiled
+    ``model``)."""
+    device = Device(model) if model is not None else Device.load(model_path)
+    return device.inertia(gamma1_deg, gamma2_deg)
+
+
+def equilibrium_pose(model, gamma1_set_deg: float, gamma2_set_deg: float) -> tuple[float, float]:
+    """The actual (sagged) arm angles [deg] of these servo set points
+    (:meth:`Device.equilibrium`)."""
+    return Device(model).equilibrium(gamma1_set_deg, gamma2_set_deg)
+
 
 __all__ = ["DEFAULT_SCENE", "FRICTION_FAMILIES", "MODELS_DIR", "Device", "Encoder", "Engine",
            "equilibrium_pose", "load_model", "yaw_inertia"]
 
-
-
-def _register_env() -> None:
-    """Register the environment (omni_sim/env.py) with gymnasium, once per process."""
-    import gymnasium as gym
-
-    if "omni_sim/OmniYaw-v0" not in gym.registry:
-        gym.register(id="omni_sim/OmniYaw-v0", entry_point="omni_sim.env:OmniYawEnv",
-                     vector_entry_point="omni_sim.vector_env:OmniYawVectorEnv")
-
-
-class _RegisterWhenGymnasiumLoads:
-    """A meta-path finder that registers the environment right after ``gymnasium`` is first
-    imported: importing gymnasium takes ~0.3 s, which the command line (simulation,
-    identification) does not need, while ``import omni_sim`` then ``gym.make(...)`` works in
-    either order."""
-
-    def find_spec(self, name, path=None, target=None):
-        if name != "gymnasium":
-            return None
-        import importlib.util
-
-        sys.meta_path.remove(self)  # find the real spec without this finder
-        spec = importlib.util.find_spec(name)
-        if spec is None or spec.loader is None:
-            return spec
-        exec_module = spec.loader.exec_module
-
-        def exec_and_register(module):
-            exec_module(module)
-            _register_env()
-
-        spec.loader.exec_module = exec_and_register
-        return spec
-
-
-import sys  # noqa: E402
-
-if "gymnasium" in sys.modules:
-    _register_env()
-elif not any(isinstance(f, _RegisterWhenGymnasiumLoads) for f in sys.meta_path):
-    sys.meta_path.insert(0, _RegisterWhenGymnasiumLoads())
+# the gymnasium environments (gymnasium's documented way: registered when the package is imported)
+gymnasium.register(id="omni_sim/OmniYaw-v0", entry_point="omni_sim.env:OmniYawEnv",
+                   vector_entry_point="omni_sim.vector_env:OmniYawVectorEnv")
