@@ -11,7 +11,7 @@ import importlib
 
 #: The package's public names and the module each lives in.  They are imported on first use
 #: (PEP 562), so that ``import identification.errors`` or ``identification.dataset`` does not
-#: load scipy (the command line forks its figure worker before the heavy imports).
+#: load scipy (a command that only reads or writes datasets never needs it).
 _EXPORTS = {
     "dataset": ("Run", "read_dataset", "read_run", "write_run"),
     "errors": ("UserError",),

@@ -79,7 +79,6 @@ __all__ = [
     "SimResult",
     "simulate_alpha",
     "simulate_alpha_batch",
-    "simulate_alpha_reference",
     "simulate_linear",
     "set_kernel",
     "zoh_coefficients",
@@ -240,15 +239,27 @@ def simulate_linear(C_linear, beta_tilde_linear, r, dt, kp, theta0=0.0, phi0=0.0
     return _finish(single, theta=theta, phi=phi, v=v, C=Cs, beta_tilde=bs)
 
 
-def simulate_alpha_reference(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_linear,
-                             theta0=0.0, phi0=0.0, r_dot=None, r_ddot=None,
-                             max_iter=DEFAULT_MAX_ITER) -> SimResult:
+#: A compiled implementation of :func:`_batch_loop_numpy` (same arguments, the same numbers to
+#: a few ulps per step), registered by an application with :func:`set_kernel`; None: the numpy
+#: loop.  This package never imports a compiler itself (numpy/scipy only).
+_KERNEL = None
+
+
+def set_kernel(kernel):
+    """Register ``kernel``, a compiled implementation of the time loop of
+    :func:`simulate_alpha_batch` (and so of :func:`simulate_alpha`) with the arguments of
+    :func:`_batch_loop_numpy`, giving the same numbers to a few ulps per step (e.g.
+    ``omni_app.alpha_kernel``); ``None`` restores the numpy loop.  Returns the previous one."""
+    global _KERNEL
+    previous, _KERNEL = _KERNEL, kernel
+    return previous
+
+
+def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_linear, theta0=0.0,
+                   phi0=0.0, r_dot=None, r_ddot=None, max_iter=DEFAULT_MAX_ITER) -> SimResult:
     """α-invariant model (37) by the quasilinear iteration (43)–(46) with exact ZOH steps.
 
-    The straightforward implementation (one convergence test per iteration), kept as the
-    reference of :func:`simulate_alpha`, which gives the same numbers (to a few ulps per step:
-    numpy's exp may run other SIMD code on arrays than on the reference's rows, depending on
-    the CPU) and the same iterations.
+    The runs (rows of ``r``) are one batch (:func:`simulate_alpha_batch`'s ``groups``).
 
     Parameters
     ----------
@@ -269,135 +280,6 @@ def simulate_alpha_reference(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_
         Reference derivatives, same shape as ``r``; numerical if omitted (module docstring).
     max_iter : int
         Bound on the iteration index i of (44).
-
-    Returns
-    -------
-    SimResult
-    """
-    if max_iter < 2:
-        raise ValueError(f"max_iter must be at least 2 (the rule (46) compares two iterates), got {max_iter}")
-    single, r2, rd, rdd, (I, Cl, bl, th, ph) = _prepare(
-        r, dt, r_dot, r_ddot, I, C_linear, beta_tilde_linear, theta0, phi0)
-    R, n = r2.shape
-    invI = 1.0 / I
-    breaks, c_inv = model.alpha_breaks, model.C_inv
-    b0, b1 = model.beta_inv
-    a0, a1 = model.alpha_bar
-    b_slope = (b1 - b0) / (a1 - a0)
-    b_floor = model.options["beta_floor_fraction"] * min(b0, b1)
-    # alpha range over which beta_tilde varies (clamped model: held outside [a0, a1])
-    a_lo, a_hi = (a0, a1) if model.options.get("beta_clamp", False) else (-np.inf, np.inf)
-
-    theta = np.empty((R, n))
-    phi = np.empty((R, n))
-    v_out = np.empty((R, n))
-    alpha_out = np.empty((R, n))
-    C_out = np.empty((R, n))
-    b_out = np.empty((R, n))
-    n_iter = np.empty((R, n), dtype=np.int32)
-    not_conv = np.zeros(R, dtype=np.int64)
-    bracketed = np.zeros(R, dtype=np.int64)
-
-    def coefficients(a, inv_i):
-        """C(α), β̃(α) of the model for inertia 1/inv_i."""
-        return (np.interp(a, breaks, c_inv) * inv_i,
-                np.maximum(b0 + b_slope * (np.clip(a, a_lo, a_hi) - a0), b_floor) * inv_i)
-
-    def g(a, v, vd2, kr, ph, inv_i):
-        """One application of (44) with Φ̇ from C(α), β̃(α): the map α -> α^(i+1)."""
-        Ca, ba = coefficients(a, inv_i)
-        return vd2 - v * (kr - kp * (ba * v - Ca * ph))
-
-    for k in range(n):
-        theta[:, k] = th
-        phi[:, k] = ph
-        v = kp * (r2[:, k] - th)
-        vd = kp * (rd[:, k] - ph)
-        vd2 = vd * vd
-        kr = kp * rdd[:, k]
-        # (45'): first iterate of v̈ from the linear model's acceleration; α^(1) by (44).
-        a = vd2 - v * (kr - kp * (bl * v - Cl * ph))
-        its = np.ones(R, dtype=np.int32)
-        active = np.ones(R, dtype=bool)
-        hist = [a]
-        for i in range(2, max_iter + 1):
-            a_new = g(a, v, vd2, kr, ph, invI)
-            done = np.abs(a_new - a) < _tolerance(a_new)
-            a = np.where(active, a_new, a)
-            hist.append(a)
-            its = np.where(active, i, its)
-            active &= ~done
-            if not active.any():
-                break
-        if active.any():
-            a, solved = _bisect_fallback(g, np.stack(hist, axis=1), active, (v, vd2, kr, ph, invI))
-            bracketed += solved
-            active &= ~solved
-        not_conv += active
-        C, b = coefficients(a, invI)
-        v_out[:, k] = v
-        alpha_out[:, k] = a
-        C_out[:, k] = C
-        b_out[:, k] = b
-        n_iter[:, k] = its
-        if k + 1 < n:
-            E, g1, g2 = zoh_coefficients(C, dt)
-            u = b * v
-            th = th + g1 * ph + g2 * u
-            ph = E * ph + g1 * u
-    return _finish(single, theta=theta, phi=phi, v=v_out, C=C_out, beta_tilde=b_out,
-                   alpha=alpha_out, n_iter=n_iter,
-                   n_not_converged=(int(not_conv[0]) if single else not_conv),
-                   n_bracketed=(int(bracketed[0]) if single else bracketed))
-
-
-#: A compiled replacement of :func:`_batch_loop_numpy` (same arguments, same numbers bit for
-#: bit), registered by an application with :func:`set_kernel`; None: the numpy loop.  This
-#: package never imports a compiler itself (numpy/scipy only).
-_KERNEL = None
-
-
-def set_kernel(kernel):
-    """Register ``kernel``, a compiled implementation of the time loop of
-    :func:`simulate_alpha_batch` (and so of :func:`simulate_alpha`) with the arguments of
-    :func:`_batch_loop_numpy`, giving the same numbers to a few ulps per step (e.g.
-    ``omni_app.alpha_kernel``); ``None`` restores the numpy loop.  Returns the previous one."""
-    global _KERNEL
-    previous, _KERNEL = _KERNEL, kernel
-    return previous
-
-
-#: Iteration indices i of (44) computed together (without a convergence test in between) by
-#: :func:`simulate_alpha`; inclusive ranges covering 2..max_iter.
-_CHUNKS = ((2, 4), (5, 7), (8, 10), (11, 14), (15, 19), (20, 26), (27, 35), (36, 50))
-
-try:  # np.interp without its Python wrapper (same C function, same numbers)
-    from numpy._core.multiarray import interp as _interp
-except ImportError:  # pragma: no cover - other numpy layouts
-    _interp = np.interp
-
-
-def _chunks(max_iter):
-    out, lo = [], 2
-    for a, b in _CHUNKS:
-        if lo > max_iter:
-            break
-        hi = min(b, max_iter)
-        out.append((lo, hi))
-        lo = hi + 1
-    if lo <= max_iter:
-        out.append((lo, max_iter))
-    return out
-
-
-def simulate_alpha(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tilde_linear, theta0=0.0,
-                   phi0=0.0, r_dot=None, r_ddot=None, max_iter=DEFAULT_MAX_ITER) -> SimResult:
-    """α-invariant model (37) by the quasilinear iteration (43)–(46) with exact ZOH steps.
-
-    Same arguments and numbers (to a few ulps per step) as :func:`simulate_alpha_reference`, whose
-    docstring lists the parameters and units; faster: the iterations (44) of a step are computed
-    in blocks for all runs at once and the stopping rule (46) is applied to a block afterwards
-    (module docstring).
 
     Returns
     -------
@@ -430,10 +312,10 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
     kp, I, C_linear, beta_tilde_linear, theta0, phi0 : float or array_like (n_runs,)
         Per run.
     groups : array_like of int (n_runs,), optional
-        The runs that :func:`simulate_alpha_reference` would simulate as one batch (default:
-        all one batch).  The bisection fallback of a step stops when all the runs of a batch
-        meet its tolerance, so the batch decides the last bits of a bisected α; with the
-        groups given, each run's numbers are those of its own batch's reference call.
+        The runs that :func:`simulate_alpha` would simulate as one batch (default: all one
+        batch).  The bisection fallback of a step stops when all the runs of a batch meet its
+        tolerance, so the batch decides the last bits of a bisected α; with the groups given,
+        each run's numbers are those of its own batch's :func:`simulate_alpha` call.
     keep : iterable of str, optional
         The arrays of :class:`SimResult` to return (e.g. ``("theta",)``); the others are
         None and not stored (less memory).  Default: all.
@@ -525,8 +407,9 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
 def _batch_loop_numpy(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
                       b0, b1, a0, a1, b_slope, b_floor, clamp, dt, max_iter, out_th, out_ph,
                       out_v, out_a, out_C, out_b, out_it, not_conv, bracketed):
-    """The time loop of :func:`simulate_alpha_batch` (numpy), and the contract of a compiled
-    replacement registered with :func:`set_kernel`.
+    """The time loop of :func:`simulate_alpha_batch` (numpy, vectorised over runs): the
+    reference of a compiled implementation registered with :func:`set_kernel`, which takes
+    these arguments and does these operations in this order.
 
     Runs are columns, sorted longest first; ``alive[k]`` runs (a prefix) are still going at
     step k.  Inputs: ``Rt``, ``RDt``, ``RDDt`` (n, R) reference and its derivatives; per run
@@ -537,97 +420,64 @@ def _batch_loop_numpy(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, b
     ``out_v``, ``out_a``, ``out_C``, ``out_b`` (n, R) float64, ``out_it`` (n, R) int32,
     ``not_conv``, ``bracketed`` (R,) int64 (added to).
     """
-    n = Rt.shape[0]
-    maximum, absolute, clip = np.maximum, np.abs, np.clip
-    # Operations that cannot change a bit, skipped: x - 0.0 == x; and with β̃ clamped to
-    # [a0, a1] the line lies between b0 and b1, so a floor below half of both is never taken.
-    shift = a0 != 0.0
-    floor = not (clamp and b0 > 0 and b1 > 0 and b_floor < 0.5 * min(b0, b1))
-
-    def beta(a, inv_i):
-        x = clip(a, a0, a1) if clamp else a
-        x = b0 + b_slope * ((x - a0) if shift else x)
-        return (maximum(x, b_floor) if floor else x) * inv_i
+    a_lo, a_hi = (a0, a1) if clamp else (-np.inf, np.inf)   # β̃ varies over [a_lo, a_hi]
 
     def coefficients(a, inv_i):
-        return _interp(a, breaks, c_inv) * inv_i, beta(a, inv_i)
+        """C(α), β̃(α) of the model for inertia 1/inv_i."""
+        return (np.interp(a, breaks, c_inv) * inv_i,
+                np.maximum(b0 + b_slope * (np.clip(a, a_lo, a_hi) - a0), b_floor) * inv_i)
 
     def g(a, v, vd2, kr, ph, inv_i, kp):
-        Ca = _interp(a, breaks, c_inv) * inv_i
-        return vd2 - v * (kr - kp * (beta(a, inv_i) * v - Ca * ph))
+        """One application of (44) with Φ̇ from C(α), β̃(α): the map α -> α^(i+1)."""
+        Ca, ba = coefficients(a, inv_i)
+        return vd2 - v * (kr - kp * (ba * v - Ca * ph))
 
-    chunks = _chunks(max_iter)
-    m_prev = -1
     with np.errstate(all="ignore"):
-        for k in range(n):
+        for k in range(Rt.shape[0]):
             m = int(alive[k])
-            if m != m_prev:
-                th, ph = th[:m], ph[:m]
-                kp, invI, Cl, bl, gk = kp_[:m], invI_[:m], Cl_[:m], bl_[:m], grp[:m]
-                m_prev = m
-            out_th[k, :m] = th
-            out_ph[k, :m] = ph
-            v = kp * (Rt[k, :m] - th)
-            vd = kp * (RDt[k, :m] - ph)
+            kp, inv_i, gk = kp_[:m], invI_[:m], grp[:m]
+            th_k, ph_k = th[:m].copy(), ph[:m].copy()
+            out_th[k, :m] = th_k
+            out_ph[k, :m] = ph_k
+            v = kp * (Rt[k, :m] - th_k)
+            vd = kp * (RDt[k, :m] - ph_k)
             vd2 = vd * vd
             kr = kp * RDDt[k, :m]
-            # (45'): first iterate from the linear model's acceleration; α^(1) by (44)
-            a = vd2 - v * (kr - kp * (bl * v - Cl * ph))
-            its = np.empty(m, dtype=np.int32)
-            idx = None            # runs still iterating (None: all)
-            args = (v, vd2, kr, ph, invI, kp)
-            prev = a
-            hist = [(None, a)]      # (runs, iterates) of each block, for the fallback
-            for i0, i1 in chunks:
-                seq = []
-                x = prev
-                for _ in range(i0, i1 + 1):
-                    x = g(x, *args)
-                    seq.append(x)
-                S = np.stack(seq, axis=1)
-                P = np.concatenate([prev[:, None], S[:, :-1]], axis=1)
-                done = absolute(S - P) < maximum(1e-6, 1e-3 * absolute(S))
-                first = done.argmax(axis=1)
-                fin = done[np.arange(len(first)), first]
-                rows = np.flatnonzero(fin) if idx is None else idx[fin]
-                if idx is None:
-                    a = a.copy()
-                a[rows] = S[fin, first[fin]]
-                its[rows] = i0 + first[fin]
-                hist.append((idx, S))
-                if fin.all():
+            args = (v, vd2, kr, ph_k, inv_i, kp)
+            # (45'): first iterate of v̈ from the linear model's acceleration; α^(1) by (44)
+            a = vd2 - v * (kr - kp * (bl_[:m] * v - Cl_[:m] * ph_k))
+            its = np.ones(m, dtype=np.int32)
+            active = np.ones(m, dtype=bool)   # runs still iterating (a converged run is frozen)
+            hist = [a]
+            for i in range(2, max_iter + 1):
+                a_new = g(a, *args)
+                done = np.abs(a_new - a) < _tolerance(a_new)
+                a = np.where(active, a_new, a)
+                hist.append(a)
+                its = np.where(active, i, its)
+                active &= ~done
+                if not active.any():
                     break
-                keep = ~fin
-                idx = np.flatnonzero(keep) if idx is None else idx[keep]
-                args = tuple(y[keep] for y in args)
-                prev = S[keep, -1]
             else:
                 # (46) not met within max_iter: bisection, batch by batch (module docstring)
-                its[idx] = max_iter
-                H = np.column_stack([h[idx] if ix is None else h[np.searchsorted(ix, idx)]
-                                     for ix, h in hist])
-                a[idx] = H[:, -1]
-                gsub = gk[idx]
-                for gid in np.unique(gsub):
-                    sel = gsub == gid
-                    sub_args = tuple(y[sel] for y in args)
-                    a_g, solved = _bisect_fallback(g, H[sel], np.ones(int(sel.sum()), dtype=bool),
-                                                   sub_args)
-                    rows = idx[sel]
-                    a[rows] = a_g
-                    bracketed[rows] += solved
-                    not_conv[rows] += ~solved
-            C, b = coefficients(a, invI)
+                hist = np.stack(hist, axis=1)
+                for gid in np.unique(gk[active]):
+                    batch = active & (gk == gid)
+                    a_b, solved = _bisect_fallback(g, hist, batch, args)
+                    a = np.where(batch, a_b, a)
+                    bracketed[:m] += solved
+                    not_conv[:m] += batch & ~solved
+            C, b = coefficients(a, inv_i)
             out_v[k, :m] = v
             out_a[k, :m] = a
             out_C[k, :m] = C
             out_b[k, :m] = b
             out_it[k, :m] = its
-            if k + 1 < n:
+            if k + 1 < Rt.shape[0]:
                 E, g1, g2 = zoh_coefficients(C, dt)
                 u = b * v
-                th = th + g1 * ph + g2 * u
-                ph = E * ph + g1 * u
+                th[:m] = th_k + g1 * ph_k + g2 * u
+                ph[:m] = E * ph_k + g1 * u
 
 
 def _tolerance(alpha):

@@ -165,40 +165,13 @@ def _dispatch(args: argparse.Namespace) -> int:
     raise AssertionError(args.command)
 
 
-def _reproduce_worker(argv: list[str]):
-    """``omni reproduce``'s figure worker (:func:`omni_app.figure_worker.start_reproduce_worker`),
-    forked before the parser and the command import MuJoCo, scipy and the simulator: it loads
-    matplotlib on the core that would otherwise wait for them.  None for other commands, for
-    ``--help`` and for ``--friction all`` (which draws after its runs); a worker forked for
-    arguments the parser then rejects is stopped by :func:`main`."""
-    if not argv or argv[0] != "reproduce":
-        return None
-    if any(a in ("-h", "--help") for a in argv):
-        return None
-    if any(a == "--friction=all" or (a == "--friction" and nxt == "all")
-           for a, nxt in zip(argv, list(argv[1:]) + [None])):
-        return None
-    import os
-
-    if "numpy" not in sys.modules:
-        # one BLAS thread in this process and its children (what _one_blas_thread sets for the
-        # identification anyway): an idle OpenBLAS thread spins after each call, e.g. after
-        # matplotlib's small matrix inversions, on the core the other process needs
-        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    from .figure_worker import start_reproduce_worker
-    return start_reproduce_worker()
-
-
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    worker = _reproduce_worker(argv)
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
-        if worker is not None:
-            args.figure_worker = worker
         from .accel import install
-        install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
+        install()  # the compiled α loop (loaded at its first use)
         return _dispatch(args) or 0
     except UserError as exc:
         sys.stderr.write(f"error: {exc}\n")
@@ -206,9 +179,6 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("error: interrupted\n")
         return 130
-    finally:
-        if worker is not None:
-            worker.kill()  # stopped if the command failed before using it (else a no-op)
 
 
 if __name__ == "__main__":

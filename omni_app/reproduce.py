@@ -16,18 +16,18 @@ import time
 from pathlib import Path
 
 
-from identification.dataset import atomic_output_dir
+from identification.dataset import atomic_output_dir, write_run
 from identification.errors import UserError
 from identification.identify import identify_runs
 from identification.validation import Params, validate_runs, write_predictions
 from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim import truth
+from omni_sim.device import Device
 
 from . import figures as F
 from .identify_report import write_identify_report
-from .figure_worker import start_reproduce_worker
-from .workers import Workers
+
 
 def _model_label(model_path) -> str:
     """``built-in scene_coulomb.xml`` for a built-in scene (where it is installed says
@@ -41,16 +41,12 @@ def _model_label(model_path) -> str:
 
 
 def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
-                  campaign="paper", on_stage=None) -> dict:
+                  campaign="paper") -> dict:
     """Run every stage in memory; returns everything the writers need.
 
     ``model``: an already compiled (possibly modified) model to run instead of the file
     ``model_path`` (e.g. the friction study's scaled models); ``campaign``: the campaign to
-    generate (name or file, :func:`omni_sim.experiments.campaign`); ``on_stage``: called as
-    ``on_stage("simulated", runs)``, ``on_stage("poses", ident)`` and ``on_stage("inertia",
-    ident)`` (the identification's stages, :func:`identify_runs`) and ``on_stage("identified",
-    ident)`` as soon as those
-    exist (``omni reproduce`` starts writing the dataset and drawing figures then).
+    generate (name or file, :func:`omni_sim.experiments.campaign`).
 
     Raises
     ------
@@ -59,37 +55,23 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     """
     from tqdm import tqdm
 
-    # no monitor thread (it only nudges stalled bars): the dataset writer is forked while the
-    # bar is up, and a fork is safe only with no other thread running (workers.fork_is_safe)
-    tqdm.monitor_interval = 0
-    from .accel import install, start_prewarm
-    install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
+    from .accel import install
+    install()  # the compiled α loop (loaded at its first use)
     in_memory = model is not None and model_path is None
     if model is None:
         model = om.load_model(model_path)
+    device = Device(model)  # built once: the campaign, the ground truth
     t0 = time.perf_counter()
     bar = tqdm(total=5, disable=not progress, unit="stage", leave=False)
     bar.set_description("simulating the paper campaign")
     exps = ex.campaign(campaign)
-    # the kernels are loaded by a thread while MuJoCo simulates (its threads release the GIL;
-    # the loading's CPU costs the rollout half its time, and the main process none of it), and
-    # joined before anything forks: the dataset writer forked after the simulation has them;
-    # so is scipy.optimize, which the identification imports at its first fit (~0.3 s)
-    warm = start_prewarm(modules=("scipy.optimize",))
-    try:
-        runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, model=model)
-    finally:
-        warm.join()
-    if on_stage is not None:
-        on_stage("simulated", runs)
+    runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, device=device)
     bar.update(1)
     bar.set_description("identifying")
-    ident = identify_runs(runs, on_stage=on_stage)
+    ident = identify_runs(runs)
     if ident.inertia is None or ident.alpha_model is None:
         bar.close()
         raise UserError("identification failed on the generated campaign: " + "; ".join(ident.warnings))
-    if on_stage is not None:
-        on_stage("identified", ident)
     params_dict = ident.to_params()
     bar.update(1)
     bar.set_description("validating")
@@ -97,8 +79,8 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     scores, predictions = validate_runs(runs, params)
     bar.update(1)
     bar.set_description("ground truth")
-    scores["summary"]["inertia"] = truth.inertia_truth(model, ident.inertia.params)
-    lin = truth.linear_truth(model, ident)
+    scores["summary"]["inertia"] = truth.inertia_truth(device, ident.inertia.params)
+    lin = truth.linear_truth(device, ident)
     bar.update(1)
     sim_time = sum(len(r.t) for r in runs) * ex.CONTROL_PERIOD_S
     wall = time.perf_counter() - t0
@@ -111,26 +93,19 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
             "predictions": predictions, "linear_truth": lin, "bar": bar}
 
 
-def write_reproduce(folder: Path, res: dict, t0: float, workers: Workers | None = None) -> None:
+def write_reproduce(folder: Path, res: dict, t0: float) -> None:
     """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
     params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
-    (perf_counter), for the real-time factor.  ``workers``: the figure worker that
-    :func:`_early_writer` fed on the way (the dataset and the identification's figures under way
-    already); else one is started here.  The figures are drawn by forked children (POSIX) while
-    this process writes the rest."""
-    if workers is None:
-        workers = start_reproduce_worker()
-        stage = _early_writer(folder, workers)
-        stage("simulated", res["runs"])
-        for name in ("poses", "inertia", "identified"):
-            stage(name, res["ident"])
-    workers.send({"ident": res["ident"], "scores": res["scores"],
-                  "predictions": {name: res["predictions"][name] for name in F.TIME_FIGURE_RUNS
-                                  if name in res["predictions"]}})
+    (perf_counter), for the real-time factor."""
+    (folder / "dataset").mkdir()
+    for run in res["runs"]:
+        write_run(folder / "dataset", run)
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
-    write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
-    workers.wait()
+    (folder / "identify").mkdir()
+    write_identify_report(res["ident"], folder / "identify", source="dataset/")
+    for fn in F.FIGURES:
+        fn(folder, res)
     summary = res["scores"]["summary"]
     summary["run"]["wall_s_total"] = time.perf_counter() - t0
     summary["run"]["real_time_factor"] = summary["run"]["simulated_time_s"] / summary["run"]["wall_s_total"]
@@ -140,44 +115,11 @@ def write_reproduce(folder: Path, res: dict, t0: float, workers: Workers | None 
     (folder / "report.md").write_text(format_report(res))
 
 
-def _early_writer(folder: Path, workers: Workers):
-    """An ``on_stage`` for :func:`run_reproduce` in ``omni reproduce``, as soon as the stages'
-    results exist: the runs are written to ``folder/dataset/`` by a child forked now (it has the
-    compiled CSV writer, loaded while MuJoCo simulated) while this process identifies; the
-    figure worker ``workers`` (:func:`omni_app.figure_worker.start_reproduce_worker`, matplotlib
-    loaded by now) is sent the folder and the runs the figures show, then the identification
-    (it draws part of the figures and a child of its own another part); the validation's
-    results follow from :func:`write_reproduce`."""
-
-    def on_stage(stage, value):
-        if stage == "simulated":
-            (folder / "dataset").mkdir()
-            workers.start([lambda: _write_dataset(folder / "dataset", value)])
-            workers.send({"folder": str(folder),
-                          "runs": [r for r in value if r.name in F.TIME_FIGURE_RUNS]})
-        elif stage == "poses":
-            (folder / "identify").mkdir()
-            workers.send({"ident": value})
-        elif stage in ("inertia", "identified"):
-            workers.send({"ident": value})
-
-    return on_stage
-
-
-def _write_dataset(folder: Path, runs) -> None:
-    """The dataset writer's task: every run into ``folder`` (:func:`write_run`'s files)."""
-    from identification.dataset import write_run
-
-    for run in runs:
-        write_run(folder, run)
-
-
 def _one_blas_thread():
     """A context limiting BLAS (numpy's and scipy's OpenBLAS) to one thread.  The method's
     least-squares problems are small (thousands of samples by at most 7 columns): a second
-    BLAS thread gains nothing, and while the forked writers and figure children keep the other
-    core busy it only waits (identification and scoring took several times longer).  The
-    numbers do not depend on it (the same files, byte for byte)."""
+    BLAS thread gains nothing.  The numbers do not depend on it (the same files, byte for
+    byte)."""
     import contextlib
 
     try:
@@ -220,20 +162,10 @@ def reproduce_command(args) -> int:
     _check_out(out, args.force)
     t0 = time.perf_counter()
     with _one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp:
-        # the figure worker: started by the command line before its heavy imports (matplotlib
-        # is loaded there while this process loads the rest), else now
-        workers = getattr(args, "figure_worker", None) or start_reproduce_worker()
-        try:
-            # the dataset is written, and the identification's figures drawn, as soon as the
-            # runs and the identification exist
-            res = run_reproduce(model_path, args.jobs, progress=sys.stderr.isatty(),
-                                on_stage=_early_writer(tmp, workers))
-            bar = res["bar"]
-            bar.set_description("writing report and figures")
-            write_reproduce(tmp, res, t0, workers)
-        except BaseException:
-            workers.kill()
-            raise
+        res = run_reproduce(model_path, args.jobs, progress=sys.stderr.isatty())
+        bar = res["bar"]
+        bar.set_description("writing report and figures")
+        write_reproduce(tmp, res, t0)
     bar.update(1)
     bar.close()
     _print_summary(res)

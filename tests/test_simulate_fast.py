@@ -1,6 +1,7 @@
-"""The fast α-model simulation (simulate_alpha, simulate_alpha_batch, here with its numpy loop)
-against the reference implementation (simulate_alpha_reference): the same numbers to a stated
-tolerance (they are different code paths, see :func:`_assert_paths_agree`) and the same
+"""The α-model simulation's batching, with its numpy loop (the compiled loop against this one:
+test_alpha_kernel): runs of different lengths, gains and batches (``groups``) in one time loop
+give each run the numbers of its own batch's simulate_alpha call, to the stated tolerance of
+two code paths (:func:`_assert_paths_agree`, which a dropped term fails), with the same
 decisions of the iteration (bisection fallback included); and validation's batching of all
 runs into one time loop."""
 
@@ -11,12 +12,7 @@ import pytest
 
 from identification import simulate as sim
 from identification.nonlinear import AlphaModel, paper_alpha_model
-from identification.simulate import (
-    simulate_alpha,
-    simulate_alpha_batch,
-    simulate_alpha_reference,
-    square_wave_reference,
-)
+from identification.simulate import simulate_alpha, simulate_alpha_batch
 
 DT = 1e-3
 KP = 2.0
@@ -38,13 +34,14 @@ def _sines(freqs, n, amp=0.0498256):
 
 
 #: Per-step allowance [ulp of a run's scale] for two code paths of the α simulation.  The
-#: paths (per-run reference, batched numpy loop, compiled loop) do the same operations in the
-#: same order, except the exponentials e^{-C h} of the step: numpy evaluates them with the
-#: SIMD code it picks for the CPU and the array (AVX-512, AVX2 or scalar), the compiled loop
-#: with the C library's exp as LLVM compiled it for the host; these agree to a few ulps, not
-#: bit for bit.  The closed loop is stable, so a step's difference is carried forward without
-#: growth: after N steps the paths differ by at most ~N x a few ulps of the run's scale
-#: (4 ulp per step: 1.3e-12 after 1500 steps).  Measured on an AVX-512 CPU: <= 4e-14 of the
+#: paths (the numpy loop on a batch or on a part of it, the compiled loop) do the same
+#: operations in the same order, except the exponentials e^{-C h} of the step: numpy evaluates
+#: them with the SIMD code it picks for the CPU and the array (AVX-512, AVX2 or scalar; an
+#: array's length decides which elements go through the vector loop and which through its
+#: remainder), the compiled loop with the C library's exp as LLVM compiled it for the host;
+#: these agree to a few ulps, not bit for bit.  The closed loop is stable, so a step's
+#: difference is carried forward without growth: after N steps the paths differ by at most
+#: ~N x a few ulps of the run's scale (4 ulp per step: 1.3e-12 after 1500 steps).  Measured on an AVX-512 CPU: <= 4e-14 of the
 #: scale (C and α on the steep identified C(α)), ~1e-15 for θ.  A dropped term or a wrong
 #: branch of the bisection moves the numbers by 1e-6 or more (test_a_dropped_term_is_caught).
 ULP_PER_STEP = 4
@@ -71,6 +68,15 @@ def _assert_paths_agree(a, b):
     np.testing.assert_array_equal(a.n_not_converged, b.n_not_converged)
 
 
+def _numpy(fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` with the numpy loop (the registered one restored after)."""
+    previous = sim.set_kernel(None)
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        sim.set_kernel(previous)
+
+
 @pytest.fixture(autouse=True)
 def numpy_loop():
     """These tests check the numpy loop (the compiled one: test_alpha_kernel)."""
@@ -79,43 +85,16 @@ def numpy_loop():
     sim.set_kernel(previous)
 
 
-@pytest.mark.parametrize("model", [AlphaModel.from_dict(IDENTIFIED), paper_alpha_model()],
-                         ids=["identified", "paper"])
-def test_fast_equals_reference_sines(model):
-    r, rd, rdd = _sines([1.5, 2.5, 3.5, 5.0, 7.0], 1500)
-    I = np.array([0.0038, 0.0045, 0.005, 0.0055, 0.0067])
-    kw = dict(C_linear=1 / (36.693 * I), beta_tilde_linear=1 / I, theta0=0.001, phi0=0.02,
-              r_dot=rd, r_ddot=rdd)
-    ref = simulate_alpha_reference(model, I, r, DT, KP, **kw)
-    fast = simulate_alpha(model, I, r, DT, KP, **kw)
-    _assert_paths_agree(fast, ref)
-    if model.options.get("beta_clamp"):
-        assert np.sum(ref.n_bracketed) > 0  # the fallback is exercised
-
-
-def test_fast_equals_reference_step_and_numerical_derivatives():
-    model = paper_alpha_model()
-    t = np.arange(3000) * DT
-    r = np.tile(square_wave_reference(t, 0.25, 0.07), (3, 1))
-    I = np.array([0.004, 0.005, 0.006])
-    kw = dict(C_linear=1 / (36.693 * I), beta_tilde_linear=1 / I, theta0=-0.07)
-    _assert_paths_agree(simulate_alpha(model, I, r, DT, KP, r_dot=0.0, r_ddot=0.0, **kw),
-                 simulate_alpha_reference(model, I, r, DT, KP, r_dot=0.0, r_ddot=0.0, **kw))
-    rs = r[0] * np.linspace(0, 1, 3000)  # smooth enough for numerical derivatives
-    _assert_paths_agree(simulate_alpha(model, 0.005, rs, DT, KP, C_linear=5.0, beta_tilde_linear=200.0),
-                 simulate_alpha_reference(model, 0.005, rs, DT, KP, C_linear=5.0,
-                                          beta_tilde_linear=200.0))
-
-
-def test_batch_of_ragged_groups_equals_per_group_reference():
-    """Runs of different lengths and gains in one call, ``groups`` = the reference's batches."""
+def test_batch_of_ragged_groups_equals_per_group_calls():
+    """Runs of different lengths and gains in one call, ``groups`` = the batches of
+    simulate_alpha calls."""
     model = AlphaModel.from_dict(IDENTIFIED)
     ra, rda, rdda = _sines([2.0, 3.5, 6.0], 1200)
     rb, rdb, rddb = _sines([2.5, 5.0], 900)
     Ia, Ib = np.array([0.004, 0.005, 0.006]), np.array([0.0045, 0.0055])
     kw = lambda I: dict(C_linear=1 / (36.693 * I), beta_tilde_linear=1 / I, theta0=0.0)  # noqa: E731
-    ref_a = simulate_alpha_reference(model, Ia, ra, DT, KP, r_dot=rda, r_ddot=rdda, **kw(Ia))
-    ref_b = simulate_alpha_reference(model, Ib, rb, DT, 2.5, r_dot=rdb, r_ddot=rddb, **kw(Ib))
+    ref_a = simulate_alpha(model, Ia, ra, DT, KP, r_dot=rda, r_ddot=rdda, **kw(Ia))
+    ref_b = simulate_alpha(model, Ib, rb, DT, 2.5, r_dot=rdb, r_ddot=rddb, **kw(Ib))
     # interleaved order, per-run gains
     order = [("b", 0), ("a", 0), ("a", 1), ("b", 1), ("a", 2)]
     src = {"a": (ra, rda, rdda, Ia, KP, ref_a), "b": (rb, rdb, rddb, Ib, 2.5, ref_b)}
@@ -141,18 +120,27 @@ def _row(res, j):
 
 
 def test_a_dropped_term_is_caught():
-    """The tolerance of _assert_paths_agree is tight enough to catch a broken path: the
-    reference with the r̈ term of v̈ dropped (r_ddot = 0), or with kp off by 1e-9."""
+    """The tolerance of _assert_paths_agree is tight enough to catch a broken path: each run of
+    a batch (in its own batch: ``groups``) agrees with its single-run call, and no longer with
+    the r̈ term of v̈ dropped (r_ddot = 0), or with kp off by 1e-9."""
     model = AlphaModel.from_dict(IDENTIFIED)
     r, rd, rdd = _sines([2.5, 5.0], 1500)
     I = np.array([0.0045, 0.0055])
-    kw = dict(C_linear=1 / (36.693 * I), beta_tilde_linear=1 / I, r_dot=rd)
-    ref = simulate_alpha_reference(model, I, r, DT, KP, r_ddot=rdd, **kw)
-    _assert_paths_agree(simulate_alpha(model, I, r, DT, KP, r_ddot=rdd, **kw), ref)
-    with pytest.raises(AssertionError):
-        _assert_paths_agree(simulate_alpha(model, I, r, DT, KP, r_ddot=0.0 * rdd, **kw), ref)
-    with pytest.raises(AssertionError):
-        _assert_paths_agree(simulate_alpha(model, I, r, DT, KP * (1 + 1e-9), r_ddot=rdd, **kw), ref)
+
+    def batch(kp=KP, r_ddot=rdd):
+        return simulate_alpha_batch(model, I, list(r), DT, kp, C_linear=1 / (36.693 * I),
+                                    beta_tilde_linear=1 / I, r_dot=list(rd), r_ddot=list(r_ddot),
+                                    groups=[0, 1])
+
+    singles = [simulate_alpha(model, I[j], r[j], DT, KP, C_linear=1 / (36.693 * I[j]),
+                              beta_tilde_linear=1 / I[j], r_dot=rd[j], r_ddot=rdd[j])
+               for j in range(2)]
+    for a, b in zip(batch(), singles):
+        _assert_paths_agree(a, b)
+    for broken in (batch(r_ddot=0.0 * rdd), batch(kp=KP * (1 + 1e-9))):
+        for a, b in zip(broken, singles):
+            with pytest.raises(AssertionError):
+                _assert_paths_agree(a, b)
 
 
 def test_max_iter_checked():
@@ -162,10 +150,11 @@ def test_max_iter_checked():
 
 
 @pytest.mark.slow
-def test_validation_paper_campaign_equals_per_group_reference():
-    """All 106 runs of the paper campaign: validation's one-loop batch equals the reference
-    called per batch (length, dt, gain), as validation did before; within 1e-12 (in fact
-    bit for bit on some CPUs), with the same count of bisected steps."""
+def test_validation_paper_campaign_equals_per_group_calls():
+    """All 106 runs of the paper campaign: validation's one-loop batch (with the registered
+    loop: the numpy one here, the compiled one in test_alpha_kernel) equals simulate_alpha with
+    the numpy loop called per batch (length, dt, gain), as validation did before; within
+    1e-12 (in fact bit for bit on some CPUs), with the same count of bisected steps."""
     from identification.identify import identify_runs
     from identification.validation import Params, _initial_velocity, _reference_derivatives, simulate_runs
     from omni_sim import experiments as ex
@@ -181,8 +170,8 @@ def test_validation_paper_campaign_equals_per_group_reference():
     for (_, dt, kp), group in groups.items():
         I, Cl, bl = np.array([params.linear_coefficients(r) for r in group]).T
         d = [_reference_derivatives(r) for r in group]
-        ref = simulate_alpha_reference(
-            params.alpha, I, np.vstack([r.r for r in group]), dt, kp, C_linear=Cl,
+        ref = _numpy(
+            simulate_alpha, params.alpha, I, np.vstack([r.r for r in group]), dt, kp, C_linear=Cl,
             beta_tilde_linear=bl, theta0=[r.theta[0] for r in group],
             phi0=[_initial_velocity(r) for r in group], r_dot=np.vstack([x[0] for x in d]),
             r_ddot=np.vstack([x[1] for x in d]))
