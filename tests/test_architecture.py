@@ -195,3 +195,37 @@ def test_method_layer_loads_without_simulator_or_plotting():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
                           timeout=120)
     assert proc.returncode == 0, proc.stderr
+
+
+#: Process-global machinery the packages do without (issue 25): forking a process that may
+#: have threads (``os.fork``, ``get_context("fork")``), moving objects out of the collector's
+#: reach (``gc.freeze``), import hooks (``sys.meta_path``).
+PROCESS_GLOBAL = {("os", "fork"), ("gc", "freeze"), ("sys", "meta_path")}
+
+
+def process_global_uses(source: str) -> list[str]:
+    """``NAME.ATTR`` uses of :data:`PROCESS_GLOBAL` in ``source``, and the string ``"fork"``
+    as a call's argument (a start method), with line numbers."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                and (node.value.id, node.attr) in PROCESS_GLOBAL):
+            found.append(f"line {node.lineno}: {node.value.id}.{node.attr}")
+        elif isinstance(node, ast.Call) and any(isinstance(a, ast.Constant) and a.value == "fork"
+                                                for a in node.args):
+            found.append(f"line {node.lineno}: start method 'fork'")
+    return found
+
+
+def test_process_global_finder_finds_them():
+    code = ("import os, gc, sys, multiprocessing as mp\nos.fork()\ngc.freeze()\n"
+            "sys.meta_path.insert(0, None)\nmp.get_context('fork')\nmp.get_context('spawn')\n")
+    assert sorted(process_global_uses(code)) == ["line 2: os.fork", "line 3: gc.freeze",
+                                                 "line 4: sys.meta_path",
+                                                 "line 5: start method 'fork'"]
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_no_process_global_machinery(module):
+    bad = process_global_uses(MODULES[module].read_text())
+    assert not bad, f"{module}: {bad}"
