@@ -384,7 +384,7 @@ def _reproduce(spec, model, values: dict, settings, pipe: dict) -> tuple[dict, d
     from omni_sim.device import Device
 
     from .accel import install
-    install()  # compiled kernels: α simulation, CSV writing (loaded at their first use)
+    install()  # the compiled α loop (loaded at its first use)
     exps = _campaign(pipe).experiments(values.get("amplitude_rad"))
     device = Device(model, settings.control_period_s)
     runs = ex.simulate(exps, settings=settings, jobs=1, device=device)
