@@ -215,11 +215,7 @@ def _random_rows(source: str, table: dict) -> tuple[list[str], list[list[float]]
 def parse_study(text: bytes | str, source: str, base_dir: Path | None = None) -> Study:
     """Parse and check a study file (UserError ``SOURCE: KEY: problem`` on the first problem;
     the model is opened to check every model parameter names an existing numeric attribute)."""
-    from omni_sim import experiments as ex
-    from omni_sim import model as om
-    from omni_sim.device import Device
     from omni_sim import variants as va
-    from omni_sim.discrepancy import bank
 
     base_dir = Path(base_dir) if base_dir is not None else Path(".")
     text = text.decode() if isinstance(text, bytes) else text
@@ -231,7 +227,30 @@ def parse_study(text: bytes | str, source: str, base_dir: Path | None = None) ->
     seed = doc.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise _err(source, "seed", f"must be an integer >= 0, got {seed!r}")
-    # base model
+    base, spec = _parse_base(doc, source, base_dir)
+    pipe = _parse_pipeline(doc, source, base_dir)
+
+    def check(key: str, param: str) -> None:
+        try:
+            va.check_param(spec, param)
+        except ValueError as exc:
+            raise _err(source, key, str(exc)) from None
+
+    fixed = _parse_fixed(doc, source, check)
+    params, rows, mode = _parse_variants(doc, source)
+    for k in params:
+        check(f"{mode}.{k}", k)
+        if k in fixed:
+            raise _err(source, f"{mode}.{k}", "also in [fixed]")
+    return Study(source, text, base, pipe, fixed, params, rows, seed)
+
+
+def _parse_base(doc: dict, source: str, base_dir: Path) -> tuple[dict, object]:
+    """``[base]``: a friction family or a model file; returns it and the model's spec."""
+    from omni_sim import model as om
+    from omni_sim import variants as va
+    from omni_sim.device import Device
+
     b = doc.get("base", {})
     if not isinstance(b, dict):
         raise _err(source, "base", "must be a table")
@@ -254,7 +273,15 @@ def parse_study(text: bytes | str, source: str, base_dir: Path | None = None) ->
     except (UserError, ValueError) as exc:
         raise _err(source, "base", str(exc)) from None
     base = {"friction": friction, "model": model}
-    # pipeline
+    return base, spec
+
+
+def _parse_pipeline(doc: dict, source: str, base_dir: Path) -> dict:
+    """``[pipeline]``: reproduce or simulate a campaign, or the discrepancy workflow on a
+    hidden case."""
+    from omni_sim import experiments as ex
+    from omni_sim.discrepancy import bank
+
     p = doc.get("pipeline")
     if not isinstance(p, dict):
         raise _err(source, "pipeline", "missing table [pipeline] (name = " + " | ".join(PIPELINES) + ")")
@@ -291,14 +318,11 @@ def parse_study(text: bytes | str, source: str, base_dir: Path | None = None) ->
         if not 1.0 <= dur <= 60:
             raise _err(source, "pipeline.duration_s", f"must be in [1, 60] s, got {dur}")
         pipe.update(hidden=hidden, duration_s=dur)
+    return pipe
 
-    def check(key: str, param: str) -> None:
-        try:
-            va.check_param(spec, param)
-        except ValueError as exc:
-            raise _err(source, key, str(exc)) from None
 
-    # fixed values
+def _parse_fixed(doc: dict, source: str, check) -> dict:
+    """``[fixed]``: parameters set in every variant."""
     fixed = doc.get("fixed", {})
     if not isinstance(fixed, dict):
         raise _err(source, "fixed", "must be a table")
@@ -306,7 +330,12 @@ def parse_study(text: bytes | str, source: str, base_dir: Path | None = None) ->
     for k, v in fixed.items():
         check(f"fixed.{k}", k)
         fixed[k] = _num(source, f"fixed.{k}", v, k)
-    # variants
+    return fixed
+
+
+def _parse_variants(doc: dict, source: str) -> tuple[list, list, str]:
+    """The variants: exactly one of ``[grid]``, ``[list]``, ``[random]``; returns the varied
+    parameters, the rows of values and the mode."""
     modes = [m for m in ("grid", "list", "random") if m in doc]
     if len(modes) != 1:
         raise _err(source, "grid", "give exactly one of [grid], [list], [random] (found "
@@ -337,15 +366,11 @@ def parse_study(text: bytes | str, source: str, base_dir: Path | None = None) ->
         params, rows = _random_rows(source, table)
     if len(set(params)) != len(params):
         raise _err(source, mode, "a parameter is named twice")
-    for k in params:
-        check(f"{mode}.{k}", k)
-        if k in fixed:
-            raise _err(source, f"{mode}.{k}", "also in [fixed]")
     for r in rows:
         for k, v in zip(params, r):
             if k in ("kp", "friction_scale", "amplitude_rad", "noise_rad") and v < 0:
                 raise _err(source, f"{mode}.{k}", f"must be >= 0, got {v}")
-    return Study(source, text, base, pipe, fixed, params, rows, seed)
+    return params, rows, mode
 
 
 def load_study(path: str | os.PathLike) -> Study:
