@@ -131,9 +131,86 @@ def argmin_masked(A, H, last, negative):
 
 
 @_jit
+def _iterate(x, vj, vd2j, krj, phj, inv_i, kp, breaks, c_inv, b0, a0, a1, b_slope, b_floor,
+             clamp, max_iter, hist_row):
+    """The fixed-point iteration (44) from the first iterate ``x`` until (46) holds or
+    ``max_iter``; every iterate is kept in ``hist_row``.  Returns ``(α, iterations, met)``."""
+    hist_row[0] = x
+    for i in range(2, max_iter + 1):
+        xn = g(x, vj, vd2j, krj, phj, inv_i, kp, breaks, c_inv, b0, a0, a1, b_slope, b_floor,
+               clamp)
+        hist_row[i - 1] = xn
+        if abs(xn - x) < tol(xn):
+            return xn, i, True
+        x = xn
+    return x, max_iter, False
+
+
+@_jit
+def _bracket(A, Hs, vj, vd2j, krj, phj, inv_i, kp, breaks, c_inv, b0, a0, a1, b_slope,
+             b_floor, clamp):
+    """A bracket of the root of h(α) = α − g(α) from the iterates ``A`` (the numpy loop's
+    _bisect_fallback for one run): the nearest iterates to the last with h ≤ 0 and h ≥ 0, or,
+    with no sign change among them, a step on in the direction of travel doubled up to
+    _MAX_CREEP times.  Returns ``(found, lo, hi, h(lo))``."""
+    L = A.shape[0]
+    last = A[L - 1]
+    for q in range(L - 1):
+        Hs[q] = A[q] - A[q + 1]
+    h_last = last - g(last, vj, vd2j, krj, phj, inv_i, kp, breaks, c_inv, b0, a0, a1, b_slope,
+                      b_floor, clamp)
+    Hs[L - 1] = h_last
+    neg = argmin_masked(A, Hs, last, True)
+    pos = argmin_masked(A, Hs, last, False)
+    okj = Hs[neg] <= 0 and Hs[pos] >= 0
+    a_n, a_p, h_n, h_p = A[neg], A[pos], Hs[neg], Hs[pos]
+    if not okj:
+        # no sign change among the iterates: step on in the direction of travel
+        step = last - A[L - 2]
+        for mm in range(_MAX_CREEP):
+            if step == 0:
+                break
+            xx = last + step * 2.0 ** mm
+            hx = xx - g(xx, vj, vd2j, krj, phj, inv_i, kp, breaks, c_inv, b0, a0, a1, b_slope,
+                        b_floor, clamp)
+            if hx * h_last <= 0:
+                a_n, h_n, a_p, h_p = last, h_last, xx, hx
+                okj = True
+                break
+    return okj, npmin(a_n, a_p), npmax(a_n, a_p), (h_n if a_n <= a_p else h_p)
+
+
+@_jit
+def _zoh_step(C, b, vj, thj, phj, dt):
+    """The exact ZOH step of θ'' + C θ' = b v (identification.simulate.zoh_coefficients)."""
+    x = C * dt
+    if abs(x) < _SERIES_BELOW:
+        s1 = 0.0
+        s2 = 0.0
+        for c in range(_N_SERIES):
+            s1 = s1 * (-x) + _G1[c]
+            s2 = s2 * (-x) + _G2[c]
+        G1 = s1
+        G2 = s2
+    else:
+        em1 = math.expm1(-x)
+        G1 = -em1 / x
+        G2 = (1.0 - G1) / x
+    E = math.exp(-x)
+    g1 = dt * G1
+    g2 = dt * dt * G2
+    u = b * vj
+    return thj + g1 * phj + g2 * u, E * phj + g1 * u
+
+
+@_jit
 def loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv, b0, b1,
          a0, a1, b_slope, b_floor, clamp, dt, max_iter, out_th, out_ph, out_v, out_a, out_C,
          out_b, out_it, not_conv, bracketed):
+    """The time loop: at each step every live run iterates (44)–(46) (:func:`_iterate`); runs
+    that do not meet (46) within ``max_iter`` are bracketed (:func:`_bracket`) and bisected
+    batch by batch (``grp``: all runs of a batch to the batch's common stopping step, as the
+    numpy loop does); then every run takes its exact ZOH step (:func:`_zoh_step`)."""
     n, R = Rt.shape
     hist = np.empty((R, max_iter))
     Hs = np.empty(max_iter)
@@ -141,7 +218,6 @@ def loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
     v = np.empty(R)
     vd2 = np.empty(R)
     kr = np.empty(R)
-    conv = np.zeros(R, dtype=np.bool_)
     pending = np.empty(R, dtype=np.int64)
     ok = np.zeros(R, dtype=np.bool_)
     lo = np.empty(R)
@@ -154,35 +230,19 @@ def loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
             out_th[k, j] = th[j]
             out_ph[k, j] = ph[j]
             kp = kp_[j]
-            vj = kp * (Rt[k, j] - th[j])
+            v[j] = kp * (Rt[k, j] - th[j])
             vd = kp * (RDt[k, j] - ph[j])
-            vd2j = vd * vd
-            krj = kp * RDDt[k, j]
-            v[j] = vj
-            vd2[j] = vd2j
-            kr[j] = krj
+            vd2[j] = vd * vd
+            kr[j] = kp * RDDt[k, j]
             # (45'): first iterate from the linear model's acceleration; α^(1) by (44)
-            x = vd2j - vj * (krj - kp * (bl_[j] * vj - Cl_[j] * ph[j]))
-            hist[j, 0] = x
-            its = max_iter
-            done = False
-            for i in range(2, max_iter + 1):
-                xn = g(x, vj, vd2j, krj, ph[j], invI_[j], kp, breaks, c_inv, b0, a0, a1,
-                       b_slope, b_floor, clamp)
-                hist[j, i - 1] = xn
-                if abs(xn - x) < tol(xn):
-                    x = xn
-                    its = i
-                    done = True
-                    break
-                x = xn
-            a[j] = x
-            out_it[k, j] = its
+            x0 = vd2[j] - v[j] * (kr[j] - kp * (bl_[j] * v[j] - Cl_[j] * ph[j]))
+            a[j], out_it[k, j], done = _iterate(x0, v[j], vd2[j], kr[j], ph[j], invI_[j], kp,
+                                                breaks, c_inv, b0, a0, a1, b_slope, b_floor,
+                                                clamp, max_iter, hist[j])
             if not done:
                 pending[n_pending] = j
                 n_pending += 1
-        # (46) not met within max_iter: bisection, batch by batch (the numpy loop's
-        # _bisect_fallback on each batch's pending runs)
+        # (46) not met within max_iter: bisection, batch by batch
         for p0 in range(n_pending):
             gid = grp[pending[p0]]
             first = True
@@ -192,54 +252,12 @@ def loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
                     break
             if not first:
                 continue
-            any_ok = False
             for p in range(p0, n_pending):
                 j = pending[p]
-                if grp[j] != gid:
-                    continue
-                A = hist[j]
-                L = max_iter
-                last = A[L - 1]
-                for q in range(L - 1):
-                    Hs[q] = A[q] - A[q + 1]
-                h_last = last - g(last, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j], breaks,
-                                  c_inv, b0, a0, a1, b_slope, b_floor, clamp)
-                Hs[L - 1] = h_last
-                neg = argmin_masked(A, Hs, last, True)
-                pos = argmin_masked(A, Hs, last, False)
-                okj = Hs[neg] <= 0 and Hs[pos] >= 0
-                a_n = A[neg]
-                a_p = A[pos]
-                h_n = Hs[neg]
-                h_p = Hs[pos]
-                if not okj:
-                    # no sign change among the iterates: step on in the direction of travel
-                    step = last - A[L - 2]
-                    found = False
-                    far = last
-                    h_far = h_last
-                    for mm in range(_MAX_CREEP):
-                        if step == 0:
-                            break
-                        xx = last + step * 2.0 ** mm
-                        hx = xx - g(xx, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j], breaks,
-                                    c_inv, b0, a0, a1, b_slope, b_floor, clamp)
-                        if hx * h_last <= 0:
-                            far = xx
-                            h_far = hx
-                            found = True
-                            break
-                    if found:
-                        a_n = last
-                        h_n = h_last
-                        a_p = far
-                        h_p = h_far
-                        okj = True
-                ok[j] = okj
-                any_ok = any_ok or okj
-                lo[j] = npmin(a_n, a_p)
-                hi[j] = npmax(a_n, a_p)
-                h_lo[j] = h_n if a_n <= a_p else h_p
+                if grp[j] == gid:
+                    ok[j], lo[j], hi[j], h_lo[j] = _bracket(
+                        hist[j], Hs, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j], breaks,
+                        c_inv, b0, a0, a1, b_slope, b_floor, clamp)
             for _ in range(_MAX_BISECT):
                 all_done = True
                 for p in range(p0, n_pending):
@@ -282,23 +300,4 @@ def loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
             out_C[k, j] = C
             out_b[k, j] = b
             if k + 1 < n:
-                # exact ZOH step (identification.simulate.zoh_coefficients)
-                x = C * dt
-                if abs(x) < _SERIES_BELOW:
-                    s1 = 0.0
-                    s2 = 0.0
-                    for c in range(_N_SERIES):
-                        s1 = s1 * (-x) + _G1[c]
-                        s2 = s2 * (-x) + _G2[c]
-                    G1 = s1
-                    G2 = s2
-                else:
-                    em1 = math.expm1(-x)
-                    G1 = -em1 / x
-                    G2 = (1.0 - G1) / x
-                E = math.exp(-x)
-                g1 = dt * G1
-                g2 = dt * dt * G2
-                u = b * v[j]
-                th[j] = th[j] + g1 * ph[j] + g2 * u
-                ph[j] = E * ph[j] + g1 * u
+                th[j], ph[j] = _zoh_step(C, b, v[j], th[j], ph[j], dt)
