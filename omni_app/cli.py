@@ -55,7 +55,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
+    for add in (_add_generate, _add_identify, _add_fit_inertia, _add_validate, _add_reproduce,
+                _add_discrepancy, _add_bench, _add_sweep):  # one function per command
+        add(sub)
+    return parser
 
+
+def _add_generate(sub) -> None:
     p = sub.add_parser("generate", help="run experiments on the virtual Omni and write a dataset")
     p.add_argument("--campaign", default="paper", metavar="{paper,sine,step,FILE.toml}",
                    help="paper (Table 1 sines + Table 2 squares; the file omni_sim/campaigns/paper.toml), "
@@ -76,21 +82,29 @@ def build_parser() -> argparse.ArgumentParser:
                    help="standard deviation of white encoder noise [rad] (default 0)")
     p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
 
+
+def _add_identify(sub) -> None:
     p = sub.add_parser("identify", help="fit the paper's models to a dataset; writes DIR/params.json")
     p.add_argument("data", help="dataset folder")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
 
+
+def _add_fit_inertia(sub) -> None:
     p = sub.add_parser("fit-inertia", help="fit the inertia model (6) to a table of linear coefficients")
     p.add_argument("table", help="CSV with columns gamma1_deg,gamma2_deg,C_linear,beta_tilde_linear")
     p.add_argument("--out", default=None, help="write the JSON result to this file")
 
+
+def _add_validate(sub) -> None:
     p = sub.add_parser("validate", help="score the linear and alpha-invariant models against a dataset")
     p.add_argument("data", help="dataset folder")
     p.add_argument("--params", required=True, help="params.json written by omni identify")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
 
+
+def _add_reproduce(sub) -> None:
     p = sub.add_parser("reproduce", help="the main job: generate, identify, validate, report")
     p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
     _friction_option(p, all_=True)
@@ -98,6 +112,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
     p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
 
+
+def _add_discrepancy(sub) -> None:
     p = sub.add_parser("discrepancy", help="find, name and fix the effect a model is missing")
     p.add_argument("--measured", default=None, help="measured dataset folder")
     p.add_argument("--model", default=None, help="MJCF file of the model to test")
@@ -114,6 +130,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--demo", action="store_true", help="hide an effect in a copy of the virtual Omni and find it")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
 
+
+def _add_bench(sub) -> None:
     p = sub.add_parser("bench", help="print and write the performance figures")
     p.add_argument("--out", default=None, help="write the figures as JSON to this file")
     _friction_option(p, what="the campaign and reproduce figures on: ")
@@ -122,6 +140,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also time omni discrepancy on the whole paper campaign (106 runs) with the "
                         "whole effect library (takes minutes)")
 
+
+def _add_sweep(sub) -> None:
     p = sub.add_parser("sweep", help="a study of many model variants on Dask (local or a cluster)")
     p.add_argument("spec", nargs="?", default=None, metavar="SPEC.toml",
                    help="study file (base model, pipeline, parameters to vary; see --example)")
@@ -134,7 +154,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--example", action="store_true", help="print a small runnable study file")
     p.add_argument("--plot", default=None, metavar="DIR",
                    help="draw each figure of DIR/results.csv against each varied parameter (PNG into DIR)")
-    return parser
 
 
 def _dispatch(args: argparse.Namespace) -> int:
