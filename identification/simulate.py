@@ -353,24 +353,12 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
     order = np.argsort(-lens, kind="stable")
     n = int(lens.max())
     lens_s = lens[order]
-    Rt = np.zeros((n, R))
-    RDt = np.zeros((n, R))
-    RDDt = np.zeros((n, R))
-    for j, o in enumerate(order):
-        Rt[:lens_s[j], j] = rs[o]
-        RDt[:lens_s[j], j] = rds[o]
-        RDDt[:lens_s[j], j] = rdds[o]
+    Rt, RDt, RDDt = (_padded([x[o] for o in order], n) for x in (rs, rds, rdds))
     I_, Cl_, bl_, th, ph, kp_ = (per_run(x)[order] for x in
                                  (I, C_linear, beta_tilde_linear, theta0, phi0, kp))
     grp = grp[order]
     invI_ = 1.0 / I_
-    breaks = np.asarray(model.alpha_breaks, dtype=float)
-    c_inv = np.asarray(model.C_inv, dtype=float)
-    b0, b1 = model.beta_inv
-    a0, a1 = model.alpha_bar
-    b_slope = (b1 - b0) / (a1 - a0)
-    b_floor = model.options["beta_floor_fraction"] * min(b0, b1)
-    clamp = bool(model.options.get("beta_clamp", False))
+    breaks, c_inv, b0, b1, a0, a1, b_slope, b_floor, clamp = _model_constants(model)
     # outputs (n, R) indexed [step, run], stored run-major so that each run's result is a
     # contiguous view (no copies)
     names = ("theta", "phi", "v", "alpha", "C", "beta_tilde", "n_iter")
@@ -402,6 +390,24 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
         results[o] = SimResult(**arrays, n_not_converged=int(not_conv[j]),
                                n_bracketed=int(bracketed[j]))
     return results
+
+
+def _padded(rows, n: int) -> np.ndarray:
+    """The 1-D ``rows`` as the columns of an (n, len(rows)) array, zero past each row's end."""
+    out = np.zeros((n, len(rows)))
+    for j, x in enumerate(rows):
+        out[:x.size, j] = x
+    return out
+
+
+def _model_constants(model: AlphaModel) -> tuple:
+    """What the time loop needs of the α model: C's breakpoints and 1/C_k1, β̃'s line (its ends
+    b0, b1 at ᾱ0, ᾱ1 and slope), its floor and whether it is clamped."""
+    b0, b1 = model.beta_inv
+    a0, a1 = model.alpha_bar
+    return (np.asarray(model.alpha_breaks, dtype=float), np.asarray(model.C_inv, dtype=float),
+            b0, b1, a0, a1, (b1 - b0) / (a1 - a0), model.options["beta_floor_fraction"] * min(b0, b1),
+            bool(model.options.get("beta_clamp", False)))
 
 
 def _batch_loop_numpy(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
