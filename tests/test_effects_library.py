@@ -121,10 +121,11 @@ def test_added_dcmotor_equals_the_mjcf_element():
                          (fx.get("cogging"), [0.002, 0.7])])
     m = s2.compile()
     xml = (om.MODELS_DIR / "scene_coulomb.xml").read_text().replace(
-        '<include file="stage.xml"/>',
+        '</mujoco>',
         '<actuator><dcmotor name="p" joint="yaw" input="none" resistance="1" lugre="3 0 0.01 0.02 0.4"/>'
         f'<dcmotor name="c" joint="yaw" input="none" resistance="1" cogging="0.002 {fx.COGGING_PERIODS} 0.7"/>'
-        '</actuator><include file="stage.xml"/>')
+        '</actuator></mujoco>')
+    assert xml.count("<dcmotor") == 2
     for inc in ("omni.xml", "stage.xml"):
         xml = xml.replace(f'file="{inc}"', f'file="{om.MODELS_DIR / inc}"')
     ref = mujoco.MjModel.from_xml_string(xml)
