@@ -78,7 +78,7 @@ def _pose_key(run: Run):
     return ("actual", round(run.gamma1_deg, 2), round(run.gamma2_deg, 2))
 
 
-def identify_runs(runs: list[Run], linear_only: bool = False, on_stage=None) -> Identification:
+def identify_runs(runs: list[Run], linear_only: bool = False) -> Identification:
     """Fit sines, local and global linear models per pose, and the inertia model.
 
     Parameters
@@ -87,11 +87,6 @@ def identify_runs(runs: list[Run], linear_only: bool = False, on_stage=None) -> 
         A dataset (any kinds; only ``kind == "sine"`` runs are used).
     linear_only : bool
         Stop after the per-pose linear models (no inertia or alpha model).
-    on_stage : callable, optional
-        Called as ``on_stage("poses", ident)`` with the per-pose stage's
-        :class:`Identification` (no inertia or alpha model yet) and
-        ``on_stage("inertia", ident)`` once the inertia model is fitted too (no alpha model
-        yet), each as soon as it exists (e.g. to draw their figures while the rest is fitted).
 
     Raises
     ------
@@ -127,8 +122,6 @@ def identify_runs(runs: list[Run], linear_only: bool = False, on_stage=None) -> 
     inertia = None
     if linear_only:
         return Identification(poses, None, warnings, ignored)
-    if on_stage is not None:
-        on_stage("poses", Identification(poses, None, list(warnings), ignored))
     if len(usable) >= MIN_POSES:
         inertia = fit_inertia_model([p.gamma1_deg for p in usable], [p.gamma2_deg for p in usable],
                                     [p.C_linear for p in usable], [p.beta_tilde_linear for p in usable])
@@ -139,8 +132,6 @@ def identify_runs(runs: list[Run], linear_only: bool = False, on_stage=None) -> 
         warnings.append(f"inertia model not fitted: {len(usable)} pose(s) with a physical global "
                         f"linear model; the inertia model (6)-(8) needs >= {MIN_POSES} poses")
     ident = Identification(poses, inertia, warnings, ignored)
-    if on_stage is not None and inertia is not None:
-        on_stage("inertia", Identification(poses, inertia, list(warnings), ignored))
     ident.alpha_model = _fit_alpha(ident)
     return ident
 

@@ -213,28 +213,6 @@ def test_validate_real_device_like_runs(reproduced, tmp_path):
     assert s["step"]["n_poses"] == 1 and s["sine"]["n_poses"] == 1
 
 
-def test_on_stage_sees_the_stages_and_changes_nothing(reproduced):
-    """identify_runs' ``on_stage`` (omni reproduce draws the stages' figures meanwhile) is
-    called with the per-pose stage, then with the inertia model too, and the identification is
-    the same as without it; reproduce's identify/ has both figures and gc is unfrozen after
-    the forks."""
-    import gc
-
-    from identification.identify import identify_runs
-
-    runs = read_dataset(reproduced / "dataset")
-    seen = []
-    with_hook = identify_runs(runs, on_stage=lambda name, ident: seen.append((name, ident)))
-    without = identify_runs(runs)
-    assert [name for name, _ in seen] == ["poses", "inertia"]
-    (_, poses), (_, inertia) = seen
-    assert poses.inertia is None and poses.alpha_model is None and inertia.alpha_model is None
-    assert [p.label for p in poses.poses] == [p.label for p in without.poses]
-    assert [p.C_linear for p in poses.poses] == [p.C_linear for p in without.poses]
-    assert inertia.inertia.params == without.inertia.params
-    assert with_hook.to_params() == without.to_params()
-    seen.clear()
-    assert identify_runs(runs, linear_only=True, on_stage=lambda *a: seen.append(a)).inertia is None
-    assert seen == []  # linear_only: the stage is the result, no call
+def test_identify_figures_written(reproduced):
+    """reproduce's identify/ holds the identification's own figures."""
     assert {p.name for p in (reproduced / "identify").iterdir()} >= {"local_linear.png", "inertia_fit.png"}
-    assert gc.get_freeze_count() == 0
