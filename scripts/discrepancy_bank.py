@@ -15,7 +15,9 @@ not).
 checks that README.md holds exactly that).
 
 Usage: python scripts/discrepancy_bank.py [--cases NAME ...] [--no-example] [--jobs N] [--out MD]
-       python scripts/discrepancy_bank.py --table [--json JSON]
+                                         [--commit TEXT] [--note TEXT]
+       python scripts/discrepancy_bank.py --table [--json JSON]      (the README's table)
+       python scripts/discrepancy_bank.py --markdown [--json JSON] [--out MD]   (MD from JSON)
 """
 
 from __future__ import annotations
@@ -98,7 +100,8 @@ def bank_markdown(data: dict) -> str:
         f"with `{meta['command']}` on {meta['cpus']} CPU cores shared with other jobs; load average "
         f"(1 min) {meta['load_start']:.2f} at the start"
         + (f", {min(load):.2f}-{max(load):.2f} at the end of each case (mean {sum(load) / len(load):.2f})"
-           if load else "") + f" (nice {meta['nice']}). Every case's full report is in "
+           if load else "") + f" (nice {meta['nice']})."
+        + (f" {meta['note']}" if meta.get("note") else "") + " Every case's full report is in "
         f"`{meta['json']}` beside this file (the README's bank table is made from it: "
         "`python scripts/discrepancy_bank.py --table`).", "",
         "Each truth model is the virtual Omni (`models/scene.xml`) with effects written by "
@@ -159,6 +162,13 @@ def readme_table(data: dict) -> str:
         label = name + (" (outside the library)" if c["outside"] else "")
         rows.append(f"| {label} | {named} | {_fitted_cell(c)} | ×{rep['shrink_factor']:.3g} | "
                     f"{_verdict(c)} | {c['seconds']:.0f} s |")
+    meta, cases = data["meta"], data["cases"]
+    load = [c["load_after"] for c in cases.values() if "load_after" in c]
+    rows += ["", f"{sum(c['pass'] for c in cases.values())} of {len(cases)} cases pass. One run at commit "
+             f"{meta['commit']}, {meta['started'][:10]}: {sum(c['seconds'] for c in cases.values()):.0f} s "
+             f"of wall time in all, one process (`--jobs {meta['jobs']}`, nice {meta['nice']}) on "
+             f"{meta['cpus']} cores shared with other jobs"
+             + (f" (load average {min(load):.1f}-{max(load):.1f})" if load else "") + "."]
     return "\n".join(rows) + "\n"
 
 
@@ -178,11 +188,16 @@ def main(argv=None) -> int:
                     "the JSON beside it)")
     ap.add_argument("--commit", default=None, help="what the header names as the code's commit "
                     "(default: the checkout's, with its uncommitted code paths)")
+    ap.add_argument("--note", default="", help="a sentence for the header (e.g. how the code was checked out)")
     ap.add_argument("--table", action="store_true", help="print the README's bank table made from --json")
+    ap.add_argument("--markdown", action="store_true", help="rewrite --out's table from --json (no run)")
     ap.add_argument("--json", default=str(DEFAULT_OUT.with_suffix(".json")))
     args = ap.parse_args(argv)
     if args.table:
         sys.stdout.write(readme_table(json.loads(Path(args.json).read_text())))
+        return 0
+    if args.markdown:
+        Path(args.out).write_text(bank_markdown(json.loads(Path(args.json).read_text())))
         return 0
     from omni_sim.discrepancy.workflow import run_discrepancy
 
@@ -197,7 +212,8 @@ def main(argv=None) -> int:
             "frequencies_hz": ", ".join(map(str, bank.BANK_FREQUENCIES_HZ)),
             "amplitudes_rad": ", ".join(map(str, bank.BANK_AMPLITUDES_RAD)),
             "step_amplitudes_rad": ", ".join(map(str, bank.BANK_STEP_AMPLITUDES_RAD)),
-            "poses_deg": ", ".join(str(p) for p in bank.BANK_POSES), "noise_rad": bank.BANK_NOISE_RAD}
+            "poses_deg": ", ".join(str(p) for p in bank.BANK_POSES), "noise_rad": bank.BANK_NOISE_RAD,
+            "note": args.note}
     data = {"meta": meta, "cases": {}}
     t_all = time.perf_counter()
     for c in cases:

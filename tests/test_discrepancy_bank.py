@@ -552,6 +552,7 @@ def test_assess_outside_effects_are_checked_against_expect():
 
 # --- the whole bank (slow) -----------------------------------------------------------------
 @pytest.mark.slow
+@pytest.mark.bank
 @pytest.mark.parametrize("case_name", [c.name for c in bank.CASES])
 def test_bank(case_name):
     from omni_sim.discrepancy.workflow import run_discrepancy
@@ -591,3 +592,122 @@ def test_coverage_script_bad_effect(capsys):
     assert cov.main(["--effects", "no_such_effect"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error:") and "no_such_effect" in err and err.count("\n") == 1
+
+
+def _script(name: str):
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_coverage_merge_refuses_other_settings(tmp_path, capsys):
+    """--merge of draws made with another experiment set is an error, not a mislabelled study."""
+    cov = _script("discrepancy_coverage")
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({"settings": {"seed": 0, "experiments": "small"}, "draws": []}))
+    assert cov.main(["--summarise-only", "--merge", str(other), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --merge") and "--experiments small" in err and err.count("\n") == 1
+
+
+# --- the README's figures are the JSONs' ----------------------------------------------------
+README = ROOT / "README.md"
+
+
+def _section(title: str, next_title: str) -> str:
+    text = README.read_text()
+    return text[text.index(title):text.index(next_title)]
+
+
+def _flat(text: str) -> str:
+    return " ".join(text.split())
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.1f}".removesuffix(".0")
+
+
+def _sci(x: float) -> str:
+    m, e = f"{x:.1e}".split("e")
+    return f"{m}e{int(e)}"
+
+
+def test_readme_coverage_figures_are_the_json():
+    """The coverage study's section of README.md says what docs/discrepancy/coverage.json holds:
+    the experiment set (and its size), the table's figures, the fit times, the lowest effect."""
+    cov = _script("discrepancy_coverage")
+    res = json.loads((ROOT / "docs" / "discrepancy" / "coverage.json").read_text())
+    sec = _flat(_section("### Uncertainty that holds", "### Your own robot"))
+    kind = res["settings"]["experiments"]
+    assert [m for m in ("bank", "small") if f"--experiments {m}" in sec] == [kind]
+    exps = cov._experiments(kind)
+    assert f"{len(exps)} runs of {len(exps[0].r) * 1e-3:g} s" in sec
+    for cond, label in (("exact", "exact (no noise, no quantisation)"), ("noisy", "noisy (quantised + 1e-4 rad)")):
+        o = res["overall"][cond]
+        per = {d["effect"] for d in res["draws"] if d["condition"] == cond}
+        n = {sum(d["effect"] == e and d["condition"] == cond for d in res["draws"]) for e in per}
+        assert len(n) == 1, n
+        lo, hi = o["coverage_wilson95"]
+        row = (f"| {label} | {n.pop()} (all {len(per)} effects) | {o['parameters_checked']} | "
+               f"**{_pct(o['coverage'])} %** (Wilson 95 %: {_pct(lo)}–{_pct(hi)} %) | "
+               f"{_sci(o['median_rel_half_width'])} |")
+        assert row in sec, row
+    secs = {c: [d["seconds"] for d in res["draws"] if d["condition"] == c] for c in ("exact", "noisy")}
+    every = secs["exact"] + secs["noisy"]
+    assert (f"Each fit took {min(every):.0f}-{max(every):.0f} s (median {np.median(secs['exact']):.0f} s "
+            f"exact, {np.median(secs['noisy']):.0f} s noisy)") in sec
+    worst = min(res["per_effect"], key=lambda r: r["coverage"])
+    assert (f"The lowest is {worst['effect']} on {worst['condition']} data, {worst['covered']} of "
+            f"{worst['parameters_checked']} ({_pct(worst['coverage'])} %)") in sec
+    ratio = [abs(bank.error(p, f, t)) / h for d in res["draws"] if d["condition"] == "noisy" and d["covered"]
+             for p, f, t, h in zip(d["parameters"], d["fitted"], d["truth"], d["half_width"])]
+    assert f"percentile of |error| / half-width is {np.percentile(ratio, 95):.2f}" in sec
+
+
+BANK_TABLE_START = "<!-- bank table: made by `python scripts/discrepancy_bank.py --table` from docs/discrepancy/bank.json -->"
+BANK_TABLE_END = "<!-- end of bank table -->"
+
+
+def test_readme_bank_table_is_the_json():
+    """The README's bank table is exactly what ``discrepancy_bank.py --table`` makes from
+    docs/discrepancy/bank.json; the JSON's verdicts are what bank.assess says of its reports;
+    the bank section links the table's current location and no stale one."""
+    script = _script("discrepancy_bank")
+    data = json.loads((ROOT / "docs" / "discrepancy" / "bank.json").read_text())
+    assert list(data["cases"]) == [c.name for c in bank.CASES]  # every case, in the bank's order
+    for name, c in data["cases"].items():
+        if "report" in c:
+            assert bank.assess(bank.case(name), c["report"]) == (c["pass"], c["why"]), name
+    sec = _section("### The hidden-effect bank: what it proves", "### Uncertainty that holds")
+    block = sec[sec.index(BANK_TABLE_START) + len(BANK_TABLE_START):sec.index(BANK_TABLE_END)]
+    assert block.strip("\n") == script.readme_table(data).strip("\n")
+    assert "docs/discrepancy/bank.md" in sec
+    for stale in ("docs/discrepancy_bank.md", "bank_rerun.md"):
+        assert stale not in README.read_text()
+    assert script.DEFAULT_OUT == ROOT / "docs" / "discrepancy" / "bank.md"
+
+
+def test_readme_search_examples_are_the_bank_json():
+    """The two examples of the search the README quotes are what the bank's run did: the stand-in
+    pair of delay+friction+armature (its Coulomb and delay) and the set backlash+coulomb's
+    backward step thinned."""
+    data = json.loads((ROOT / "docs" / "discrepancy" / "bank.json").read_text())
+    sec = _flat(_section("## Where model and measurements disagree", "### The hidden-effect bank"))
+    rep = data["cases"]["delay+friction+armature"]["report"]
+    pairs = {c["name"]: c for rnd in rep["candidates"] for c in rnd if c["method"] != "prescreen"}
+    best_pair = max((c for n, c in pairs.items() if n.count("+") == 1), key=lambda c: c["share"])
+    assert best_pair["name"] == "armature+presliding_friction"
+    cd = pairs["coulomb_friction+time_delay"]
+    assert cd["share"] < best_pair["share"]
+    assert (f"whose fit makes up for the missing armature with {cd['parameters']['frictionloss_nm'] * 1e3:.0f} "
+            f"mN m and {cd['parameters']['delay_s'] * 1e3:.1f} ms") in sec
+    rounds = data["cases"]["backlash+coulomb"]["report"]["rounds"]
+    assert rounds[0]["pair_search"]["best"] == "coulomb_friction+joint_stiffness"
+    assert any(r.get("tie") and r.get("runner_up") == "gravity_tilt" for r in rounds if r["round"] == 1)
+    thinned = [r for r in rounds if "backward_step" in r]
+    assert [(r["best"], r["backward_step"]["dropped"]) for r in thinned] == \
+        [("coulomb_friction+gravity_tilt+backlash", "gravity_tilt")]
+    assert ("the pair search accepts Coulomb + a spring, tied with Coulomb + a tilt; the beam's best set "
+            "is Coulomb + tilt + backlash, and the tilt is dropped") in sec
