@@ -551,9 +551,20 @@ def test_assess_outside_effects_are_checked_against_expect():
 
 
 # --- the whole bank (slow) -----------------------------------------------------------------
+#: Cases the workflow fails, by the bank's criteria, on record (docs/discrepancy/bank.md): run
+#: as strict xfails, so each still runs, and a change of its outcome either way is reported.
+KNOWN_FAILURES = {
+    "end_stop": "names presliding_friction with low confidence (x2.3), a stand-in not on the "
+                "case's expect list (none, torque_saturation, joint_stiffness); the list was set "
+                "before any run and is not widened to the result (docs/discrepancy/bank.md)",
+}
+
+
 @pytest.mark.slow
 @pytest.mark.bank
-@pytest.mark.parametrize("case_name", [c.name for c in bank.CASES])
+@pytest.mark.parametrize("case_name", [
+    pytest.param(c.name, marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[c.name]))
+    if c.name in KNOWN_FAILURES else c.name for c in bank.CASES])
 def test_bank(case_name):
     from omni_sim.discrepancy.workflow import run_discrepancy
     hidden = bank.case(case_name)
