@@ -204,6 +204,64 @@ def _zoh_step(C, b, vj, thj, phj, dt):
 
 
 @_jit
+def _bisect_pending(pending, n_pending, grp, hist, Hs, v, vd2, kr, ph, invI_, kp_, breaks, c_inv,
+                    b0, a0, a1, b_slope, b_floor, clamp, max_iter, ok, lo, hi, h_lo, a, bracketed,
+                    not_conv):
+    """The runs ``pending[:n_pending]`` that did not meet (46): bracketed (:func:`_bracket`),
+    then bisected batch by batch -- all runs of a batch (``grp``) until every one of them meets
+    the tolerance, as the numpy loop bisects a batch -- into ``a``; a run with no bracket keeps
+    its last iterate and counts as not converged."""
+    for p0 in range(n_pending):
+        gid = grp[pending[p0]]
+        first = True
+        for p1 in range(p0):
+            if grp[pending[p1]] == gid:
+                first = False
+                break
+        if not first:
+            continue
+        for p in range(p0, n_pending):
+            j = pending[p]
+            if grp[j] == gid:
+                ok[j], lo[j], hi[j], h_lo[j] = _bracket(
+                    hist[j], Hs, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j], breaks,
+                    c_inv, b0, a0, a1, b_slope, b_floor, clamp)
+        for _ in range(_MAX_BISECT):
+            all_done = True
+            for p in range(p0, n_pending):
+                j = pending[p]
+                if grp[j] == gid and ok[j]:
+                    mid = 0.5 * (lo[j] + hi[j])
+                    if not (hi[j] - lo[j] < tol(mid)):
+                        all_done = False
+                        break
+            if all_done:
+                break
+            for p in range(p0, n_pending):
+                j = pending[p]
+                if grp[j] != gid or not ok[j]:
+                    continue
+                mid = 0.5 * (lo[j] + hi[j])
+                h_mid = mid - g(mid, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j],
+                                breaks, c_inv, b0, a0, a1, b_slope, b_floor, clamp)
+                if h_lo[j] * h_mid <= 0:
+                    hi[j] = mid
+                else:
+                    lo[j] = mid
+                    h_lo[j] = h_mid
+        for p in range(p0, n_pending):
+            j = pending[p]
+            if grp[j] != gid:
+                continue
+            if ok[j]:
+                a[j] = 0.5 * (lo[j] + hi[j])
+                bracketed[j] += 1
+            else:
+                a[j] = hist[j, max_iter - 1]
+                not_conv[j] += 1
+
+
+@_jit
 def loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv, b0, b1,
          a0, a1, b_slope, b_floor, clamp, dt, max_iter, out_th, out_ph, out_v, out_a, out_C,
          out_b, out_it, not_conv, bracketed):
@@ -243,54 +301,9 @@ def loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
                 pending[n_pending] = j
                 n_pending += 1
         # (46) not met within max_iter: bisection, batch by batch
-        for p0 in range(n_pending):
-            gid = grp[pending[p0]]
-            first = True
-            for p1 in range(p0):
-                if grp[pending[p1]] == gid:
-                    first = False
-                    break
-            if not first:
-                continue
-            for p in range(p0, n_pending):
-                j = pending[p]
-                if grp[j] == gid:
-                    ok[j], lo[j], hi[j], h_lo[j] = _bracket(
-                        hist[j], Hs, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j], breaks,
-                        c_inv, b0, a0, a1, b_slope, b_floor, clamp)
-            for _ in range(_MAX_BISECT):
-                all_done = True
-                for p in range(p0, n_pending):
-                    j = pending[p]
-                    if grp[j] == gid and ok[j]:
-                        mid = 0.5 * (lo[j] + hi[j])
-                        if not (hi[j] - lo[j] < tol(mid)):
-                            all_done = False
-                            break
-                if all_done:
-                    break
-                for p in range(p0, n_pending):
-                    j = pending[p]
-                    if grp[j] != gid or not ok[j]:
-                        continue
-                    mid = 0.5 * (lo[j] + hi[j])
-                    h_mid = mid - g(mid, v[j], vd2[j], kr[j], ph[j], invI_[j], kp_[j],
-                                    breaks, c_inv, b0, a0, a1, b_slope, b_floor, clamp)
-                    if h_lo[j] * h_mid <= 0:
-                        hi[j] = mid
-                    else:
-                        lo[j] = mid
-                        h_lo[j] = h_mid
-            for p in range(p0, n_pending):
-                j = pending[p]
-                if grp[j] != gid:
-                    continue
-                if ok[j]:
-                    a[j] = 0.5 * (lo[j] + hi[j])
-                    bracketed[j] += 1
-                else:
-                    a[j] = hist[j, max_iter - 1]
-                    not_conv[j] += 1
+        _bisect_pending(pending, n_pending, grp, hist, Hs, v, vd2, kr, ph, invI_, kp_, breaks,
+                        c_inv, b0, a0, a1, b_slope, b_floor, clamp, max_iter, ok, lo, hi, h_lo, a,
+                        bracketed, not_conv)
         for j in range(m):
             aj = a[j]
             C = interp(aj, breaks, c_inv) * invI_[j]
