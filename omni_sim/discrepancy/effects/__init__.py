@@ -1,0 +1,125 @@
+"""The library of named candidate effects, each a change of the MJCF model.
+
+Every effect is a small set of physical parameters and a function that writes them into a
+:class:`mujoco.MjSpec` of the virtual Omni (joint ``yaw``, actuator ``yaw_motor``).  Values are
+*absolute* (the fitted frictionloss, not an increment), starting from what the nominal model
+holds, so a fitted effect is read directly as "the model should say X".
+
+=================  ==========================================  ===================================
+name               MJCF change                                 parameters [unit]
+=================  ==========================================  ===================================
+coulomb_friction   ``yaw`` joint ``frictionloss``               ``frictionloss_nm`` [N*m]
+viscous_damping    ``yaw`` joint ``damping``                    ``damping_nms_per_rad`` [N*m*s/rad]
+joint_stiffness    ``yaw`` joint ``stiffness`` (springref 0)    ``stiffness_nm_per_rad`` [N*m/rad]
+gravity_tilt       ``option/gravity`` tilted (the base tilted)  ``tilt_x_rad``, ``tilt_y_rad`` [rad]
+armature           ``yaw`` joint ``armature``                   ``armature_kgm2`` [kg*m^2]
+actuator_lag       ``yaw_motor`` dyntype filterexact, dynprm[0] ``time_constant_s`` [s]
+time_delay         ``yaw_motor`` ``delay`` (``nsample`` buffer) ``delay_s`` [s]
+torque_saturation  ``yaw_motor`` ``forcerange``                 ``torque_limit_nm`` [N*m]
+torque_gain        ``yaw_motor`` ``gear``                       ``gear_nm_per_v`` [N*m/V]
+position_offset    ``yaw_motor`` affine bias ``biasprm[0]``     ``bias_v`` [V]
+presliding_        LuGre ``dcmotor`` on ``yaw`` (the scene's    ``sigma0_nm_per_rad`` [N*m/rad],
+friction           ``yaw_friction``, else a new passive one)    ``fc_nm``, ``fs_nm`` [N*m],
+                                                                ``vs_rad_per_s`` [rad/s]
+stribeck_friction  new passive LuGre ``dcmotor``                ``fc_nm``, ``fs_nm`` [N*m],
+                   ``yaw_stribeck``, sigma0 fixed stiff         ``vs_rad_per_s`` [rad/s]
+drive_compliance   rotor body + hinge ``yaw``; the turret's     ``stiffness_nm_per_rad`` [N*m/rad],
+                   hinge renamed ``yaw_output``; fixed tendon   ``damping_nms_per_rad`` [N*m*s/rad],
+                   ``yaw_cable`` = q_yaw - q_yaw_output         ``rotor_inertia_kgm2`` [kg*m^2]
+                   (stiffness, damping; rotor armature)
+backlash           the same two-mass drive, ``yaw_cable``       ``half_width_rad`` [rad]
+                   limited to [-b, b] (springlength [-b, b])
+arm_mass           ``upper_arm``, ``forearm`` body masses       ``upper_arm_mass_kg``,
+                   (inertia scaled, CoM kept)                   ``forearm_mass_kg`` [kg]
+cogging            new passive ``dcmotor`` ``yaw_cogging``,     ``amplitude_nm`` [N*m],
+                   torque a*sin(n*q_yaw + phase), n fixed       ``phase_rad`` [rad]
+=================  ==========================================  ===================================
+
+(``yaw``/``yaw_motor`` stand for the :class:`Target`'s joint and actuator; added elements are
+named after the joint, with a suffix ``_2``... if the model already uses the name.  Passive
+actuators are appended after every actuator, so controlled ones keep control index = id.)
+
+The families, one module each (their docstrings give each effect's magnitudes, bounds and
+sources): :mod:`.joint` (the joint's own attributes), :mod:`.actuator` (the drive),
+:mod:`.friction` (passive dcmotor elements: LuGre friction, cogging), :mod:`.two_mass` (rotor
+and cable), :mod:`.body` (gravity tilt, link masses); :mod:`.base` holds :class:`Param`,
+:class:`Effect` and the helpers they share, :mod:`.separation` the experiments that tell two
+candidates apart.  This module is the registry: :data:`LIBRARY` in its fixed order and the
+functions that read and write effects.
+
+"Noise floor" in the families' notes: the gap of the nominal replay to data from the nominal
+model with the encoder's quantisation and 1e-4 rad noise (1.6e-4 rad over
+``bank.bank_experiments()``).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from . import actuator, body, friction, joint, two_mass
+from .base import OMNI, Effect, Param, Target
+from .body import ARM_BODIES
+from .friction import COGGING_PERIODS
+from .separation import DEFAULT_SEPARATION, SEPARATING_EXPERIMENTS, separating_experiment
+
+__all__ = ["LIBRARY", "NAMES", "Effect", "Param", "Target", "OMNI", "ARM_BODIES", "COGGING_PERIODS",
+           "SEPARATING_EXPERIMENTS", "DEFAULT_SEPARATION", "separating_experiment", "applicable", "get",
+           "nominal_values", "apply", "compile_with"]
+
+#: The library, in a fixed order (ties are broken by this order).
+LIBRARY: tuple[Effect, ...] = (
+    joint.COULOMB_FRICTION,
+    joint.VISCOUS_DAMPING,
+    joint.JOINT_STIFFNESS,
+    body.GRAVITY_TILT,
+    joint.ARMATURE,
+    actuator.ACTUATOR_LAG,
+    actuator.TIME_DELAY,
+    actuator.TORQUE_SATURATION,
+    actuator.TORQUE_GAIN,
+    actuator.POSITION_OFFSET,
+    friction.PRESLIDING_FRICTION,
+    friction.STRIBECK_FRICTION,
+    two_mass.DRIVE_COMPLIANCE,
+    two_mass.BACKLASH,
+    body.ARM_MASS,
+    friction.COGGING,
+)
+
+NAMES = tuple(e.name for e in LIBRARY)
+
+
+def applicable(spec: mujoco.MjSpec, target: Target = OMNI) -> tuple[str, ...]:
+    """Names of the library effects that can be written into ``spec`` for ``target``."""
+    return tuple(e.name for e in LIBRARY if e.applies(spec, target))
+
+
+def get(name: str) -> Effect:
+    """The library effect called ``name`` (KeyError if unknown)."""
+    for e in LIBRARY:
+        if e.name == name:
+            return e
+    raise KeyError(name)
+
+
+def nominal_values(effect: Effect, spec: mujoco.MjSpec, target: Target = OMNI) -> np.ndarray:
+    """The parameter values ``spec`` holds for ``effect``, clipped into its bounds."""
+    x = effect.read(spec, target)
+    x = np.where(np.isfinite(x), x, [p.upper for p in effect.params])
+    return effect.clip(x)
+
+
+def apply(spec: mujoco.MjSpec, changes: list[tuple[Effect, np.ndarray]],
+          target: Target = OMNI) -> mujoco.MjSpec:
+    """A copy of ``spec`` with every ``(effect, values)`` written into ``target``."""
+    out = spec.copy()
+    for eff, x in changes:
+        eff.write(out, np.asarray(x, dtype=float), target)
+    return out
+
+
+def compile_with(spec: mujoco.MjSpec, changes: list[tuple[Effect, np.ndarray]],
+                 target: Target = OMNI) -> mujoco.MjModel:
+    """Compile ``spec`` with the changes applied (the spec itself is left untouched)."""
+    return apply(spec, changes, target).compile()
