@@ -36,3 +36,4 @@ __all__ = ["DEFAULT_SCENE", "FRICTION_FAMILIES", "MODELS_DIR", "Device", "Encode
 # the gymnasium environments (gymnasium's documented way: registered when the package is imported)
 gymnasium.register(id="omni_sim/OmniYaw-v0", entry_point="omni_sim.env:OmniYawEnv",
                    vector_entry_point="omni_sim.vector_env:OmniYawVectorEnv")
+gymnasium.register(id="omni_sim/OmniWall-v0", entry_point="omni_sim.wall_env:OmniWallEnv")
