@@ -56,7 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for add in (_add_generate, _add_identify, _add_fit_inertia, _add_validate, _add_reproduce,
-                _add_discrepancy, _add_bench, _add_sweep):  # one function per command
+                _add_discrepancy, _add_bench, _add_sweep, _add_zwidth):  # one function per command
         add(sub)
     return parser
 
@@ -156,6 +156,24 @@ def _add_sweep(sub) -> None:
                    help="draw each figure of DIR/results.csv against each varied parameter (PNG into DIR)")
 
 
+def _add_zwidth(sub) -> None:
+    p = sub.add_parser("zwidth", help="map the virtual walls (K, B) the yaw renders passively (Z-width)")
+    p.add_argument("--model", default=None, metavar="PATH", help="MJCF file (default: the built-in scene)")
+    _friction_option(p)
+    p.add_argument("--ideal", action="store_true",
+                   help="dry friction and encoder quantisation removed, viscous damping kept")
+    p.add_argument("--stiffness", default=None, metavar="START:STOP:N|K1,K2,..",
+                   help="wall stiffnesses [N*m/rad] (default: 20 from 0 to 3 b/T, 1.5x Colgate's B=0 bound)")
+    p.add_argument("--damping", default=None, metavar="START:STOP:N|B1,B2,..",
+                   help="wall dampings [N*m*s/rad] (default: 20 from 0 to 1.25 b)")
+    p.add_argument("--no-quantize", action="store_true", help="exact encoder (default: 15000 counts/rev)")
+    p.add_argument("--delay", type=_nonnegative_int, default=0, help="loop delay [servo periods]")
+    p.add_argument("--substeps", type=_positive_int, default=20, help="physics steps per servo period")
+    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
+    p.add_argument("--out", required=True, metavar="DIR", help="writes DIR/zwidth.json and DIR/zwidth.png")
+    p.add_argument("--force", action="store_true", help="replace a non-empty DIR")
+
+
 def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "generate":
         from .commands import generate
@@ -181,6 +199,9 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "sweep":
         from .sweep import sweep_command
         return sweep_command(args)
+    if args.command == "zwidth":
+        from .zwidth import zwidth_command
+        return zwidth_command(args)
     raise AssertionError(args.command)
 
 

@@ -1,0 +1,309 @@
+"""``omni zwidth``: which virtual walls (K, B) the virtual Omni's yaw renders passively.
+
+The wall is the standard one (:func:`omni_sim.wall_env.wall_torque`): a spring ``K`` and a
+damper ``B`` on the backward-difference velocity of the encoder reading, computed every servo
+period ``T`` and held (zero-order hold) through the motor's torque constant.  Colgate &
+Schenkel (1997) showed this wall on a device with physical damping ``b`` is passive iff
+``b > K T / 2 + |B|``.
+
+**How "passive" is decided (the method, tested in tests/test_zwidth.py).**  Every (K, B) cell is
+one row of a single batch of the device's closed loop (:class:`omni_sim.device.Engine`'s rows
+and thread pool, one ``mujoco.rollout`` call per servo period for all cells).  Each row starts
+at rest inside the wall at penetration ``START_PENETRATION``; the hand is a torque source at the
+yaw: a constant push ``K p0`` that holds the stylus there (conservative: its work is bounded),
+plus a probe.  For ``B >= 0`` the probe is a torque impulse at every sample instant that
+reverses the yaw's velocity, so the velocity is a square wave at the Nyquist frequency
+(``+-PROBE_SPEED``) and the position a triangle with its corners at the samples: the motion
+that attains Colgate & Schenkel's bound (per period the wall returns ``2 X^2 (K + 2 B / T)``
+and the damper takes ``4 b X^2 / T``, X the corner amplitude; for ``B = 0`` every frequency is
+equally bad).  For ``B < 0`` (worst case at DC) the probe is a slow sine torque instead.  After
+the first ``SETTLE_FRACTION`` of the run, the energy the probe puts into the device
+``W = sum_j F_j h (v_j + v_{j+1}) / 2`` (the exact work of a force held over a physics step of
+MuJoCo's semi-implicit Euler) is divided by the energy the viscous damping ``b`` dissipates over
+the same steps: ``index = W / D_b``.  A cell is passive iff ``index >= -TOL`` and the run stayed
+finite and inside the yaw range; for the ideal linear device ``index`` is close to
+``1 - (K T / 2 + |B|) / b``.  The largest passive K of a damping row is interpolated where
+``index`` crosses ``-TOL`` (:func:`boundary`).
+
+The physics step is refined to ``T / substeps`` (default 10) for this tool: Colgate & Schenkel's
+plant is continuous between samples, while the model's own 1 ms step equals the servo period.
+
+The hand's torque goes to the yaw through the motor's own channel (the same joint torque,
+held over the period like the wall's); the wall's part alone is clipped to the drive's limit.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from identification.errors import UserError
+
+#: Probe torque amplitude [N*m]: 0.01 N*m, 1.5 % of the drive's 0.65 N*m peak (gear 0.5 N*m/V
+#: x 1.3 V, models/omni.xml) -- small, so the wall's command never saturates.
+PROBE_TORQUE = 0.01
+#: Probe speed [rad/s] of the Nyquist square-wave velocity (our choice: 0.02 rad/s, so the
+#: triangle's corners are +-1e-5 rad -- a pure test of the sampled wall, below one encoder count).
+PROBE_SPEED = 0.02
+#: Start penetration [rad] (our choice: 0.01 rad, 24 encoder counts, a firm press).
+START_PENETRATION = 0.01
+#: Run length [s] and the fraction skipped before the energy is summed (our choice; the
+#: Nyquist response is reached within a few periods, the 0.3 s covers the slower transients).
+DURATION_S = 1.0
+SETTLE_FRACTION = 0.3
+#: Tolerance of the energy test (fraction of the viscous dissipation; our choice, 2 %: the
+#: numerical energy error of the ideal device is far below it).
+TOL = 0.02
+#: Ramp-up time of the probe's amplitude [s] (our choice; 100 servo periods).
+RAMP_S = 0.1
+#: Slow-sine probe frequency [Hz] for negative B (worst case at DC).
+LOW_PROBE_HZ = 5.0
+#: Physics steps per servo period for the map (the probe's impulse takes one: 1/20 of the
+#: period, so the velocity square wave is within ~3 % of ideal).
+SUBSTEPS = 20
+
+
+def physical_damping(device) -> float:
+    """The yaw's viscous damping ``b`` [N*m*s/rad] (the joint's ``damping``)."""
+    return float(device.model.dof_damping[device.ix.yaw_dof])
+
+
+def map_device(path=None, friction=None, ideal=False, control_period_s=1e-3, substeps=SUBSTEPS,
+               quantize=None):
+    """The device of a map: the model with its physics step refined and the drive's ctrlrange
+    opened (the wall's own clip is applied in :func:`passivity_map`).  Returns
+    ``(device, torque_limit)``."""
+    from omni_sim import model as om
+    from omni_sim.device import Device
+
+    model = om.load_model(path, friction)
+    act = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, "yaw_motor")
+    dev0 = Device(model, control_period_s)
+    torque_limit = dev0.voltage_limit * dev0.torque_constant
+    model = copy.deepcopy(model)
+    model.opt.timestep = control_period_s / substeps
+    model.actuator_ctrlrange[act] = (-1e6, 1e6)
+    dev = Device(model, control_period_s)
+    if ideal:
+        dev.scale_friction(0.0)
+    return dev, torque_limit
+
+
+def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=False, delay=0,
+                  probe=PROBE_TORQUE, probe_speed=PROBE_SPEED, duration_s=DURATION_S, gamma_set_deg=(65.0, 90.0),
+                  nthread=None, record=False):
+    """Run every (K, B) cell and decide passivity (see the module doc).
+
+    Returns a dict: ``passive`` (len(damping) x len(stiffness) bools), ``index`` (W / S),
+    ``diverged``; with ``record`` also the per-row traces."""
+    from omni_sim.device import ENCODER_STEP_RAD, Engine, encoder_reader
+    from omni_sim.wall_env import wall_torque
+
+    K = np.asarray(stiffness, dtype=float)
+    Bv = np.asarray(damping, dtype=float)
+    KK, BB = np.meshgrid(K, Bv)  # rows = damping, columns = stiffness
+    k_row, b_row = KK.ravel(), BB.ravel()
+    n_rows = k_row.size
+    T = device.control_period_s
+    kt = device.torque_constant
+    wall = 0.0
+    theta0 = wall + START_PENETRATION
+    lo, hi = device.model.jnt_range[device.joint_id]
+    n = int(round(duration_s / T))
+    k0 = int(round(SETTLE_FRACTION * n))
+    read = encoder_reader(ENCODER_STEP_RAD if quantize else 0.0)
+    push = k_row * START_PENETRATION
+    sub = device.substeps
+    h = T / sub
+    # the probe: a torque impulse (over the first physics step of each servo period) that
+    # reverses the yaw's velocity at every sample instant, so the velocity is a square wave at
+    # the Nyquist frequency and the position a triangle with its corners at the samples --
+    # Colgate & Schenkel's worst case for B >= 0 (for B = 0 every frequency is as bad); the
+    # first impulse is half (the velocity alternates about zero).  For B < 0 (worst case at
+    # DC) a slow sine of torque amplitude ``probe`` instead.
+    J = 2.0 * probe_speed * device.inertia(*device.equilibrium(*gamma_set_deg))
+    imp = np.zeros((n, sub))
+    imp[:, 0] = J / h * np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
+    imp[0, 0] *= 0.5
+    ts = (np.arange(n * sub) + 0.5) * h
+    low = (np.sin(2 * np.pi * LOW_PROBE_HZ * ts) * np.minimum(1.0, ts / RAMP_S)).reshape(n, sub)
+    probe_sig = np.where(b_row[:, None, None] < 0, probe * low[None], imp[None])
+    bphys = float(device.model.dof_damping[device.ix.yaw_dof])
+    eng = Engine([device] * n_rows, [theta0] * n_rows, [gamma_set_deg] * n_rows, nthread=nthread)
+    try:
+        y_prev = read(np.full(n_rows, theta0), 0.0)
+        queue = [np.zeros(n_rows)] * delay
+        W = np.zeros(n_rows)
+        S = np.zeros(n_rows)
+        bad = np.zeros(n_rows, dtype=bool)
+        qa = eng._qadr[0]
+        act = device.ix.yaw_act
+        qv = 1 + device.model.nq + device.ix.yaw_dof
+        if record:
+            rec = {"theta": np.empty((n_rows, n)), "tau_wall": np.empty((n_rows, n)),
+                   "tau_hand": np.empty((n_rows, n))}
+        for k in range(n):
+            th = eng.x[:, qa].copy()
+            y = read(th, 0.0)
+            tau = wall_torque(y, y_prev, wall, k_row, b_row, T, torque_limit)
+            y_prev = y
+            if delay:
+                queue.append(tau)
+                tau = queue.pop(0)
+            hand = push[:, None] + probe_sig[:, k, :]  # (rows, substeps)
+            # the engine's own batch step (Engine._advance) with a command per physics step
+            eng._ctrl[:, :, act] = (tau[:, None] + hand) / kt
+            eng.pool.rollout(eng._models, eng._datas, eng.x, eng._ctrl, nstep=sub,
+                             skip_checks=True, state=eng._state, sensordata=eng._sens,
+                             chunk_size=eng._chunk)
+            vs = np.concatenate([eng.x[:, qv:qv + 1], eng._state[:, :, qv]], axis=1)
+            eng.x = eng._state[:, -1, :].copy()
+            th1 = eng.x[:, qa]
+            vbar = 0.5 * (vs[:, 1:] + vs[:, :-1])  # the work of a force held over a physics
+            # step is F h (v_j + v_j+1) / 2 in MuJoCo's semi-implicit Euler (its exact
+            # kinetic-energy balance); the push is conservative (bounded work), left out
+            if k >= k0:
+                W += h * (probe_sig[:, k, :] * vbar).sum(axis=1)
+                S += bphys * h * (vs[:, 1:] * vbar).sum(axis=1)
+            if record:
+                rec["theta"][:, k], rec["tau_wall"][:, k], rec["tau_hand"][:, k] = th, tau, hand.mean(axis=1)
+            bad |= ~np.isfinite(th1) | (th1 <= lo + 1e-3) | (th1 >= hi - 1e-3)
+            if bad.all():
+                break
+    finally:
+        eng.close()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        index = np.where(S > 0, W / np.where(S > 0, S, 1.0), 0.0)
+    index[bad] = -1.0
+    passive = (index >= -TOL) & ~bad
+    shape = KK.shape
+    out = {"passive": passive.reshape(shape), "index": index.reshape(shape),
+           "diverged": bad.reshape(shape)}
+    if record:
+        out["trace"] = rec
+    return out
+
+
+def colgate_limit(b: float, B, T: float) -> np.ndarray:
+    """Colgate & Schenkel's largest passive stiffness ``2 (b - |B|) / T`` [N*m/rad] (0 if
+    negative)."""
+    return np.maximum(0.0, 2.0 * (b - np.abs(np.asarray(B, dtype=float))) / T)
+
+
+def boundary(stiffness, index) -> np.ndarray:
+    """Per damping row, the stiffness [N*m/rad] where the energy index first falls below
+    ``-TOL`` along the row (linear interpolation between grid points; NaN if the first column
+    is already not passive, the last column if the whole row is passive)."""
+    K = np.asarray(stiffness, dtype=float)
+    idx = np.asarray(index, dtype=float) + TOL
+    out = np.full(idx.shape[0], np.nan)
+    for i, row in enumerate(idx):
+        if row[0] < 0:
+            continue
+        neg = np.flatnonzero(row < 0)
+        if neg.size == 0:
+            out[i] = K[-1]
+            continue
+        j = int(neg[0])
+        out[i] = K[j - 1] + (K[j] - K[j - 1]) * row[j - 1] / (row[j - 1] - row[j])
+    return out
+
+
+# --- the command --------------------------------------------------------------------------------
+def _parse_range(text: str, what: str) -> list[float]:
+    """``START:STOP:N`` (N evenly spaced values) or a comma-separated list."""
+    try:
+        if ":" in text:
+            a, b, m = text.split(":")
+            m = int(m)
+            if m < 1:
+                raise ValueError
+            vals = np.linspace(float(a), float(b), m).tolist()
+        else:
+            vals = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise UserError(f"--{what}: expected START:STOP:N or a comma-separated list of numbers, "
+                        f"got {text!r}") from None
+    if not vals or not all(math.isfinite(v) for v in vals):
+        raise UserError(f"--{what}: values must be finite numbers, got {text!r}")
+    return vals
+
+
+def zwidth_command(args) -> int:
+    from identification.dataset import atomic_output_dir
+
+    if args.ideal and (args.model or args.friction):
+        raise UserError("--ideal uses the built-in scene: not with --model or --friction")
+    if args.model and args.friction:
+        raise UserError("--model and --friction are exclusive")
+    dev, tlim = map_device(args.model, args.friction, ideal=args.ideal, substeps=args.substeps)
+    b = physical_damping(dev)
+    T = dev.control_period_s
+    K = (_parse_range(args.stiffness, "stiffness") if args.stiffness
+         else np.linspace(0.0, 3.0 * b / T, 20).tolist())
+    B = (_parse_range(args.damping, "damping") if args.damping
+         else np.linspace(0.0, 1.25 * b, 20).tolist())
+    if len(K) < 2:
+        raise UserError("--stiffness: give at least two values")
+    if min(K) < 0:
+        raise UserError(f"--stiffness: values must be >= 0, got {min(K)}")
+    quantize = not args.ideal and not args.no_quantize
+    t0 = time.perf_counter()
+    res = passivity_map(dev, K, B, torque_limit=tlim, quantize=quantize, delay=args.delay,
+                        nthread=args.jobs)
+    elapsed = time.perf_counter() - t0
+    family = "ideal" if args.ideal else dev.friction_family(
+        None if args.model else __import__("omni_sim.model", fromlist=["x"]).model_path(None, args.friction))
+    doc = {
+        "stiffness": K, "damping": B,
+        "passive": res["passive"].tolist(),
+        "physical_damping": b, "sample_period_s": T,
+        "settings": {"model": str(args.model) if args.model else None, "friction": family,
+                     "ideal": bool(args.ideal), "quantize": quantize, "delay_periods": args.delay,
+                     "physics_substeps": args.substeps, "probe_torque": PROBE_TORQUE,
+                     "start_penetration_rad": START_PENETRATION, "duration_s": DURATION_S,
+                     "settle_fraction": SETTLE_FRACTION, "tolerance": TOL,
+                     "torque_limit": tlim, "elapsed_s": round(elapsed, 2)},
+        "energy_index": res["index"].round(6).tolist(),
+        "boundary_stiffness": [None if not np.isfinite(x) else x for x in boundary(K, res["index"])],
+        "colgate_stiffness": colgate_limit(b, B, T).tolist(),
+    }
+    with atomic_output_dir(args.out, force=args.force) as tmp:
+        (tmp / "zwidth.json").write_text(json.dumps(doc, indent=1) + "\n")
+        plot_map(doc, tmp / "zwidth.png")
+    print(f"zwidth: {len(B)} x {len(K)} walls in {elapsed:.1f} s; b = {b:.4g} N*m*s/rad, "
+          f"T = {T:g} s; wrote {Path(args.out) / 'zwidth.json'}, zwidth.png")
+    return 0
+
+
+def plot_map(doc: dict, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    K, B = np.array(doc["stiffness"]), np.array(doc["damping"])
+    P = np.array(doc["passive"], dtype=bool)
+    b, T = doc["physical_damping"], doc["sample_period_s"]
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    KK, BB = np.meshgrid(K, B)
+    ax.scatter(KK[P], BB[P], s=18, c="tab:green", marker="o", label="passive")
+    ax.scatter(KK[~P], BB[~P], s=18, c="tab:red", marker="x", label="not passive")
+    bb = np.linspace(min(B.min(), 0), B.max(), 200)
+    ax.plot(colgate_limit(b, bb, T), bb, "k-", label="Colgate & Schenkel: b = K T/2 + |B|")
+    kb = np.array([np.nan if x is None else x for x in doc["boundary_stiffness"]], dtype=float)
+    ax.plot(kb, B, "b--", drawstyle="default", label="measured boundary (largest passive K)")
+    ax.set_xlabel("wall stiffness K [N m/rad]")
+    ax.set_ylabel("wall damping B [N m s/rad]")
+    s = doc["settings"]
+    ax.set_title(f"Z-width, {s['friction']}, T = {T * 1e3:g} ms, b = {b:.3g}, "
+                 f"q={'on' if s['quantize'] else 'off'}, delay {s['delay_periods']}", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

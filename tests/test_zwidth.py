@@ -1,0 +1,62 @@
+"""omni zwidth: the passivity map of virtual walls, checked against Colgate & Schenkel's bound."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from omni_app.zwidth import boundary, colgate_limit, map_device, passivity_map, physical_damping
+
+
+@pytest.fixture(scope="module")
+def ideal():
+    return map_device(ideal=True)
+
+
+def test_ideal_boundary_within_15_percent_of_colgate(ideal):
+    """On the ideal device (no dry friction, no quantisation) the largest passive K of each
+    damping row B < b is 2 (b - |B|) / T within 15 % (Colgate & Schenkel 1997)."""
+    dev, tlim = ideal
+    b, T = physical_damping(dev), dev.control_period_s
+    B = np.array([0.0, 0.25, 0.5, 0.75]) * b
+    K = np.linspace(0.0, 2.4 * b / T, 25)
+    res = passivity_map(dev, K, B, tlim, duration_s=0.5)
+    kb, kc = boundary(K, res["index"]), colgate_limit(b, B, T)
+    assert np.all(np.abs(kb / kc - 1) < 0.15), (kb, kc)
+    # the map is not all one colour: walls well outside the bound are found active
+    assert res["passive"][:, 0].all() and not res["passive"][:, -1].any()
+
+
+def test_negative_damping_uses_the_low_frequency_probe(ideal):
+    """B < 0: the bound is reached at DC; a wall with b = K T / 2 + |B| far exceeded is active,
+    one well inside it passive."""
+    dev, tlim = ideal
+    b, T = physical_damping(dev), dev.control_period_s
+    res = passivity_map(dev, [0.2 * b / T, 3.0 * b / T], [-0.5 * b], tlim, duration_s=0.5)
+    assert res["passive"].tolist() == [[True, False]]
+
+
+def test_cli_writes_the_contract(tmp_path):
+    out = tmp_path / "zw"
+    r = subprocess.run([sys.executable, "-m", "omni_app", "zwidth", "--ideal", "--stiffness",
+                        "0:20:4", "--damping", "0,0.003,0.006", "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    d = json.loads((out / "zwidth.json").read_text())
+    assert d["stiffness"] == pytest.approx(list(np.linspace(0, 20, 4)))
+    assert d["damping"] == [0.0, 0.003, 0.006]
+    assert np.array(d["passive"]).shape == (3, 4)
+    assert d["physical_damping"] > 0 and d["sample_period_s"] == 1e-3
+    assert d["settings"]["ideal"] is True and d["settings"]["quantize"] is False
+    assert (out / "zwidth.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("argv", [["--stiffness", "1:x"], ["--damping", "nan,1"],
+                                  ["--friction", "coulomb"]])
+def test_cli_user_errors(tmp_path, argv):
+    r = subprocess.run([sys.executable, "-m", "omni_app", "zwidth", "--ideal", *argv, "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.startswith("error:") and "Traceback" not in r.stderr
+    assert not (tmp_path / "o").exists()
