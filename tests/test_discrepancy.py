@@ -215,7 +215,6 @@ def test_simulate_grouped_mixes_structures(spec):
     alone (a crash here once stopped the pair search: equal state sizes, different addresses)."""
     import itertools
 
-    from omni_sim.discrepancy.select import simulate_grouped
     exps = _short([ex.sine_experiment(65, 90, 3.0, record_s=1.0), ex.square_experiment(25, 115)], 300)
     m0 = spec.compile()
     rr = prepare_runs(ex.simulate(exps, model=m0, jobs=1), Device(m0))
@@ -226,7 +225,7 @@ def test_simulate_grouped_mixes_structures(spec):
         models.append(fx.compile_with(spec, changes))
     pairs = [(i, j) for i in range(len(models)) for j in range(len(rr))]
     with Replayer(1) as rep:
-        th = simulate_grouped(rep, models, rr, pairs)
+        th = rep.simulate_grouped(models, rr, pairs)
     with Replayer(1) as rep:
         # each model alone, its runs in one batch (the same rollout path; a one-row replay steps
         # with mj_step, which differs in the last bit for the backlash's limit constraint)
@@ -247,7 +246,7 @@ def test_polish_moves_a_stalled_backlash_fit_into_its_basin(spec):
     rr = prepare_runs(bank.generate(hidden, _one_pose_exps(), jobs=JOBS), Device(m0))
     from omni_sim.discrepancy.fit import FitResult
     with Replayer(JOBS) as rep:
-        prob = Problem(spec, [], [fx.get("backlash")], rr, rep)
+        prob = Problem(fx.ModelBuilder(spec), [], [fx.get("backlash")], rr, rep)
         for start in (0.6 * truth, 1.6 * truth):  # a fit stalled 40 % low / 60 % high
             x0 = np.array([start])
             f, J, raw = prob.evaluate(x0)

@@ -161,6 +161,11 @@ def reachable(source: str, module: str, root: Path = ROOT, packages=PROJECT_PACK
     return seen
 
 
+def library_modules(reached) -> list[str]:
+    """The modules of the effect library (the package and its modules) among ``reached``."""
+    return [m for m in reached if m == EFFECTS or m.startswith(EFFECTS + ".")]
+
+
 def test_bank_reaches_no_effect_library_through_other_modules():
     """bank.py's imports, followed through the project's packages (omni_sim, identification,
     omni_app), never reach the effect library (the package ``omni_sim/discrepancy/effects/``, any
@@ -175,7 +180,7 @@ def test_bank_reaches_no_effect_library_through_other_modules():
     before bank.py without binding a name in it; a ``from . import X`` of bank.py that binds a
     name of that ``__init__`` (e.g. ``LIBRARY``) is followed and reaches the library."""
     reached = reachable(BANK_PY.read_text(), "omni_sim.discrepancy.bank")
-    library = [m for m in reached if m == EFFECTS or m.startswith(EFFECTS + ".")]
+    library = library_modules(reached)
     assert not library, " -> ".join(reached[library[0]])
     assert not [m for m in reached if m.startswith("omni_sim.discrepancy")], sorted(reached)
     # the walk does follow bank.py's imports (a walk that found nothing would pass trivially)
@@ -183,15 +188,16 @@ def test_bank_reaches_no_effect_library_through_other_modules():
 
 
 @pytest.mark.parametrize("src", [
-    "from . import select\n",  # select.py imports the library: one module in between
-    "from .workflow import run_discrepancy\n",  # two (workflow -> select/effects)
+    "from . import workflow\n",  # workflow.py imports the library: one module in between
+    "from .workflow import run_discrepancy\n",  # a name of it
+    "from .effects import friction\n",  # one of the library's modules
     "from . import LIBRARY\n",  # a name of the package's __init__, which re-exports the library
     "def f():\n    from omni_app.discrepancy import demo\n    return demo\n",  # the app, inside a function
     "import importlib\nm = importlib.import_module('omni_sim.discrepancy.workflow')\n",
 ])
 def test_the_import_check_follows_other_modules(src):
     """A bank.py that imports (at any depth) a module that imports the library fails the walk."""
-    assert EFFECTS in reachable(src, "omni_sim.discrepancy.bank")
+    assert library_modules(reachable(src, "omni_sim.discrepancy.bank"))
 
 
 def test_the_import_check_follows_a_chain(tmp_path):
@@ -625,12 +631,12 @@ def test_coverage_merge_refuses_other_settings(tmp_path, capsys):
     assert err.startswith("error: --merge") and "--experiments small" in err and err.count("\n") == 1
 
 
-# --- the README's figures are the JSONs' ----------------------------------------------------
-README = ROOT / "README.md"
+# --- docs/discrepancy.md's figures are the JSONs' -------------------------------------------
+PAGE = ROOT / "docs" / "discrepancy.md"
 
 
 def _section(title: str, next_title: str) -> str:
-    text = README.read_text()
+    text = PAGE.read_text()
     return text[text.index(title):text.index(next_title)]
 
 
@@ -647,12 +653,12 @@ def _sci(x: float) -> str:
     return f"{m}e{int(e)}"
 
 
-def test_readme_coverage_figures_are_the_json():
-    """The coverage study's section of README.md says what docs/discrepancy/coverage.json holds:
+def test_docs_coverage_figures_are_the_json():
+    """The coverage study's section of docs/discrepancy.md says what docs/discrepancy/coverage.json holds:
     the experiment set (and its size), the table's figures, the fit times, the lowest effect."""
     cov = _script("discrepancy_coverage")
     res = json.loads((ROOT / "docs" / "discrepancy" / "coverage.json").read_text())
-    sec = _flat(_section("### Uncertainty that holds", "### Your own robot"))
+    sec = _flat(_section("## Uncertainty that holds", "## Your own robot"))
     kind = res["settings"]["experiments"]
     assert [m for m in ("bank", "small") if f"--experiments {m}" in sec] == [kind]
     exps = cov._experiments(kind)
@@ -683,8 +689,8 @@ BANK_TABLE_START = "<!-- bank table: made by `python scripts/discrepancy_bank.py
 BANK_TABLE_END = "<!-- end of bank table -->"
 
 
-def test_readme_bank_table_is_the_json():
-    """The README's bank table is exactly what ``discrepancy_bank.py --table`` makes from
+def test_docs_bank_table_is_the_json():
+    """docs/discrepancy.md's bank table is exactly what ``discrepancy_bank.py --table`` makes from
     docs/discrepancy/bank.json; the JSON's verdicts are what bank.assess says of its reports;
     the bank section links the table's current location and no stale one."""
     script = _script("discrepancy_bank")
@@ -693,21 +699,21 @@ def test_readme_bank_table_is_the_json():
     for name, c in data["cases"].items():
         if "report" in c:
             assert bank.assess(bank.case(name), c["report"]) == (c["pass"], c["why"]), name
-    sec = _section("### The hidden-effect bank: what it proves", "### Uncertainty that holds")
+    sec = _section("## The hidden-effect bank: what it proves", "## Uncertainty that holds")
     block = sec[sec.index(BANK_TABLE_START) + len(BANK_TABLE_START):sec.index(BANK_TABLE_END)]
     assert block.strip("\n") == script.readme_table(data).strip("\n")
     assert "docs/discrepancy/bank.md" in sec
     for stale in ("docs/discrepancy_bank.md", "bank_rerun.md"):
-        assert stale not in README.read_text()
+        assert stale not in PAGE.read_text() and stale not in (ROOT / "README.md").read_text()
     assert script.DEFAULT_OUT == ROOT / "docs" / "discrepancy" / "bank.md"
 
 
-def test_readme_search_examples_are_the_bank_json():
-    """The two examples of the search the README quotes are what the bank's run did: the stand-in
+def test_docs_search_examples_are_the_bank_json():
+    """The two examples of the search docs/discrepancy.md quotes are what the bank's run did: the stand-in
     pair of delay+friction+armature (its Coulomb and delay) and the set backlash+coulomb's
     backward step thinned."""
     data = json.loads((ROOT / "docs" / "discrepancy" / "bank.json").read_text())
-    sec = _flat(_section("## Where model and measurements disagree", "### The hidden-effect bank"))
+    sec = _flat(_section("# Where model and measurements disagree", "## The hidden-effect bank"))
     rep = data["cases"]["delay+friction+armature"]["report"]
     pairs = {c["name"]: c for rnd in rep["candidates"] for c in rnd if c["method"] != "prescreen"}
     best_pair = max((c for n, c in pairs.items() if n.count("+") == 1), key=lambda c: c["share"])

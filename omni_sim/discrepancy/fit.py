@@ -16,12 +16,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import mujoco
 import numpy as np
 from scipy.optimize import least_squares
 
-from . import effects as fx
-from .replay import Replayer, ReplayRun
+from .runs import ReplayRun
 
 
 #: Parameters whose replay error is piecewise (rough) at small scales, by effect name: the
@@ -116,7 +114,7 @@ class FitResult:
     nfev: int = 0
     raw_residuals: list = field(default_factory=list, repr=False)
 
-    def split(self) -> list[tuple[fx.Effect, np.ndarray]]:
+    def split(self) -> list[tuple]:
         """``[(effect, its parameter values), ...]``."""
         out, i = [], 0
         for e in self.effects:
@@ -130,22 +128,19 @@ class Problem:
 
     Parameters
     ----------
-    spec : MjSpec
-        The model the effects are added to (not modified).
+    builder : omni_sim.discrepancy.effects.ModelBuilder
+        Compiles the model the effects are added to (``builder.compile(changes)``).
     fixed : list of (Effect, values)
         Changes already accepted and held fixed.
     free : list of Effect
         Effects whose parameters are fitted.
     runs : list of ReplayRun
-    replayer : Replayer
-    target : effects.Target
-        The controlled joint and actuator the effects are written into.
+    replayer : omni_sim.discrepancy.replay.Replayer
+        Simulates models on runs (``replayer.simulate(models, runs, pairs)``).
     """
 
-    def __init__(self, spec: mujoco.MjSpec, fixed: list, free: list, runs: list[ReplayRun],
-                 replayer: Replayer, target: fx.Target = fx.OMNI):
-        self.spec, self.fixed, self.free, self.runs, self.rep = spec, list(fixed), list(free), runs, replayer
-        self.target = target
+    def __init__(self, builder, fixed: list, free: list, runs: list[ReplayRun], replayer):
+        self.builder, self.fixed, self.free, self.runs, self.rep = builder, list(fixed), list(free), runs, replayer
         lo, hi, sc = [], [], []
         for e in self.free:
             l, h = e.bounds()
@@ -165,8 +160,9 @@ class Problem:
             i += e.nparam
         return out
 
-    def model(self, x: np.ndarray) -> mujoco.MjModel:
-        return fx.compile_with(self.spec, self.changes(np.asarray(x, float)), self.target)
+    def model(self, x: np.ndarray):
+        """The compiled model with the free effects at ``x`` (and the fixed ones)."""
+        return self.builder.compile(self.changes(np.asarray(x, float)))
 
     def simulate(self, xs: list[np.ndarray], run_idx: list[int] | None = None) -> list[list[np.ndarray]]:
         """Raw residuals ``theta_model - theta`` per parameter vector, per run."""
@@ -214,7 +210,7 @@ class Problem:
 
     def seed(self, fit: FitResult) -> None:
         """Take ``fit``'s residual and Jacobian at ``fit.x`` as this problem's evaluation there
-        (``fit`` must come from a problem with the same spec, effects and runs)."""
+        (``fit`` must come from a problem with the same model, effects and runs)."""
         if fit.jac is not None and fit.resid is not None:
             self._cache = {self._key(fit.x): (fit.resid, fit.jac, fit.raw_residuals)}
 

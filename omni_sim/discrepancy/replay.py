@@ -26,7 +26,6 @@ import hashlib
 import math
 import os
 from collections import OrderedDict
-from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -37,6 +36,7 @@ from identification.errors import UserError
 
 from .. import model as om
 from ..device import Device, Engine, run_p_loop
+from .runs import ReplayRun
 
 #: Fewest samples a run needs to be replayed and localised (0.2 s at 1 kHz: one step edge's
 #: transient at the Omni's ~3.4 Hz resonance).
@@ -47,62 +47,6 @@ MIN_SAMPLES = 200
 CACHE_SAMPLES = 4_000_000
 #: Devices (compiled models with their start-state caches) a :class:`Replayer` keeps.
 MAX_DEVICES = 512
-
-
-@dataclass
-class ReplayRun:
-    """A measured run prepared for replay.
-
-    Attributes
-    ----------
-    name, kind : str
-    t, r, theta, v : ndarray
-        Time [s], reference [rad], measured yaw [rad], measured command [V].
-    dt : float [s]
-        Sample (= control) period.
-    kp : float [V/rad]
-        The P law's gain (in the actuator's control units per rad).
-    gamma_set_deg : tuple of float [deg]
-        Arm servo set points used in the replay; the empty tuple for a model without the
-        Omni's arm (no pose).
-    frequency_hz, amplitude_rad : float
-    meta : dict
-        The run's metadata; a checked ``command_limit`` (:attr:`command_limit`) lives here, so
-        copies of a run made with the positional constructor keep it.
-    """
-
-    name: str
-    kind: str
-    t: np.ndarray
-    r: np.ndarray
-    theta: np.ndarray
-    v: np.ndarray
-    dt: float
-    kp: float
-    gamma_set_deg: tuple[float, float]
-    frequency_hz: float
-    amplitude_rad: float
-    meta: dict = field(default_factory=dict, repr=False)
-
-    @property
-    def n(self) -> int:
-        return len(self.r)
-
-    @property
-    def command_limit(self) -> float:
-        """The P law's saturation [control units]: metadata ``command_limit``, inf if absent
-        (then only the drive's ``ctrlrange`` clips)."""
-        c = self.meta.get("command_limit")
-        return math.inf if c is None else float(c)
-
-    def truncated(self, nmax: int) -> "ReplayRun":
-        """The first ``nmax`` samples of the run (the replay starts from the same state)."""
-        if nmax >= self.n:
-            return self
-        k = slice(0, nmax)
-        return ReplayRun(self.name, self.kind, self.t[k], self.r[k], self.theta[k], self.v[k],
-                         self.dt, self.kp, self.gamma_set_deg, self.frequency_hz,
-                         self.amplitude_rad, self.meta)
 
 
 def prepare_runs(runs: list[Run], device: Device, source: str = "measured data") -> list[ReplayRun]:
@@ -311,6 +255,28 @@ class Replayer:
             while self._traj_samples > CACHE_SAMPLES and len(self._traj) > 1:
                 self._traj_samples -= len(self._traj.popitem(last=False)[1])
         return [fresh[key][:n].copy() for key, n in zip(keys, lengths)]
+
+    def batch_signature(self, model: mujoco.MjModel) -> tuple:
+        """What models must share to be stepped in one batch: the device engine's conditions
+        (state size, substeps, the joint and actuator addresses) and the rollout's (controls,
+        sensors)."""
+        dev = self.device(model)
+        return (dev.nstate, dev.substeps, dev.ix, model.nu, model.nsensordata)
+
+    def simulate_grouped(self, models: list[mujoco.MjModel], runs: list[ReplayRun],
+                         pairs: list[tuple[int, int]]) -> list[np.ndarray]:
+        """:meth:`simulate` of ``pairs`` whose models may differ in structure: one batch per
+        group of models that can share a batch (:meth:`batch_signature`); results in pair
+        order."""
+        groups: dict = {}
+        for b, (i, _) in enumerate(pairs):
+            groups.setdefault(self.batch_signature(models[i]), []).append(b)
+        out: list = [None] * len(pairs)
+        for rows in groups.values():
+            th = self.simulate(models, runs, [pairs[b] for b in rows])
+            for b, theta in zip(rows, th):
+                out[b] = theta
+        return out
 
     def _simulate(self, models, runs, pairs, nmax: int, measurement) -> np.ndarray:
         """One batch of ``pairs`` through the device engine for ``nmax`` samples, shape (B, nmax)."""

@@ -18,6 +18,11 @@ Acceptance (held-out stopping): the best candidate's held-out gap must fall by a
 ``min_share`` of the gap it started from, and that starting gap must stand clearly above the
 measurement noise floor (``noise_factor`` times the noise estimated from the residual's
 sample-to-sample roughness).
+
+The MuJoCo side comes in from the caller: ``builder`` (:class:`~omni_sim.discrepancy.effects.ModelBuilder`:
+effects by name, their nominal values, compiled models) and ``rep``
+(:class:`~omni_sim.discrepancy.replay.Replayer`: simulates models on runs); this module only
+fits, scores and compares.
 """
 
 from __future__ import annotations
@@ -26,12 +31,10 @@ import math
 import time
 from dataclasses import dataclass, field
 
-import mujoco
 import numpy as np
 
-from . import effects as fx
 from .fit import BASIN_SMALLEST, FitResult, Problem, gap, rough
-from .replay import Replayer, ReplayRun
+from .runs import ReplayRun
 
 #: Least share of the round's starting held-out gap the best candidate must remove.
 MIN_SHARE = 0.2
@@ -53,11 +56,6 @@ def share_of(g: float, gap_start: float) -> float:
     if gap_start > 0:
         return 1 - g / gap_start
     return 0.0 if g <= 0 else -math.inf
-
-
-def separating_experiment(a: str, b: str) -> str:
-    """The experiment that would separate candidate ``a`` from ``b``."""
-    return fx.SEPARATING_EXPERIMENTS.get(frozenset({a, b}), fx.DEFAULT_SEPARATION)
 
 
 def kfolds(runs: list[ReplayRun], k: int) -> list[list[int]]:
@@ -117,7 +115,6 @@ class Scored:
     fold_x: list = field(default_factory=list, repr=False)
     folds: list = field(default_factory=list, repr=False)
     seconds: float = 0.0
-    target: fx.Target = fx.OMNI
     prescreen_gap: float = math.nan
 
 
@@ -200,7 +197,7 @@ def _polish_folds(problem: Problem, folds: list[list[int]], start: list[np.ndarr
     for idx, x0 in zip(folds, start):
         held = set(idx)
         train = [r for j, r in enumerate(problem.runs) if j not in held]
-        pf = Problem(problem.spec, problem.fixed, problem.free, train, problem.rep, problem.target)
+        pf = Problem(problem.builder, problem.fixed, problem.free, train, problem.rep)
         f, J, raw = pf.evaluate(x0)
         fit = pf.polish(FitResult(list(pf.free), np.asarray(x0, float), np.asarray(x0, float), gap(raw), J, f,
                                   pf.nsim, raw), cycles=1, basin_start=BASIN_SMALLEST)
@@ -209,10 +206,10 @@ def _polish_folds(problem: Problem, folds: list[list[int]], start: list[np.ndarr
     return out
 
 
-def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.ndarray,
-                runs: list[ReplayRun], rep: Replayer, gap_start: float, k: int = 5,
+def score_round(builder, accepted: list, accepted_x: np.ndarray,
+                runs: list[ReplayRun], rep, gap_start: float, k: int = 5,
                 n_confirm: int = 3, candidates: tuple[str, ...] | None = None,
-                screen_nfev: int = 4, log=None, target: fx.Target = fx.OMNI,
+                screen_nfev: int = 4, log=None,
                 n_screen: int | None = None, prescreen_samples: int | None = None,
                 bases: list | None = None) -> list[Scored]:
     """Fit and score every candidate not yet accepted; best first.
@@ -224,8 +221,8 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
 
     Parameters
     ----------
-    spec : MjSpec
-        The nominal model.
+    builder : omni_sim.discrepancy.effects.ModelBuilder
+        The nominal model and the library (effects by name, nominal values, compiled models).
     accepted, accepted_x : list of Effect, ndarray
         Effects accepted in earlier rounds and their fitted values (free again in this round).
     runs : list of ReplayRun
@@ -246,15 +243,15 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
     prescreen_samples : int
         Samples per run of the prescreen's short records (default :data:`PRESCREEN_SAMPLES`).
     """
-    names = [n for n in (candidates or fx.NAMES) if n not in [e.name for e in accepted]]
+    names = [n for n in (candidates or builder.names) if n not in [e.name for e in accepted]]
     n_screen = N_SCREEN if n_screen is None else n_screen
     prescreen_samples = PRESCREEN_SAMPLES if prescreen_samples is None else prescreen_samples
     folds = kfolds(runs, k)
     jobs = None
     if bases:
-        jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or fx.NAMES)
+        jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or builder.names)
                 if n not in [e.name for e in b]]
-    pre = prescreen(spec, accepted, accepted_x, names, runs, rep, target=target,
+    pre = prescreen(builder, accepted, accepted_x, names, runs, rep,
                     samples=prescreen_samples, log=log, jobs=jobs)
     keep = {c.name for c in pre[:n_screen]}
     scored: list[Scored] = []
@@ -262,16 +259,16 @@ def score_round(spec: mujoco.MjSpec, accepted: list[fx.Effect], accepted_x: np.n
         if c.name not in keep:
             # not among the n_screen best on the short records: scored there only
             scored.append(Scored(c.name, c.effects, FitResult(c.effects, c.x, c.x_start, c.gap), math.inf,
-                                 -math.inf, "prescreen", target=target, prescreen_gap=c.gap))
+                                 -math.inf, "prescreen", prescreen_gap=c.gap))
             continue
         t0 = time.perf_counter()
-        prob = Problem(spec, [], c.effects, runs, rep, target)
+        prob = Problem(builder, [], c.effects, runs, rep)
         fit = prob.fit(c.x, None, max_nfev=screen_nfev)
         sc = _screened(c.name, c.effects, prob, fit, folds, gap_start, t0, log,
                        width=36 if bases else 18)
         sc.prescreen_gap = c.gap
         scored.append(sc)
-    return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
+    return _confirm_best(scored, n_confirm, builder, runs, rep, folds, gap_start, log)
 
 
 #: Samples per run of the short records on which every candidate is prescreened (1 s at 1 kHz:
@@ -295,85 +292,91 @@ class Prescreened:
     gap: float
 
 
-def signature(rep: Replayer, model: mujoco.MjModel) -> tuple:
-    """What models must share to be stepped in one batch: the device engine's conditions (state
-    size, substeps, the joint and actuator addresses) and the rollout's (controls, sensors)."""
-    dev = rep.device(model)
-    return (dev.nstate, dev.substeps, dev.ix, model.nu, model.nsensordata)
-
-
-def simulate_grouped(rep: Replayer, models: list, runs: list[ReplayRun],
-                     pairs: list[tuple[int, int]]) -> list[np.ndarray]:
-    """:meth:`Replayer.simulate` of ``pairs`` whose models may differ in structure: one batch
-    per group of models that can share a batch (:func:`signature`); results in pair order."""
-    groups: dict = {}
-    for b, (i, _) in enumerate(pairs):
-        groups.setdefault(signature(rep, models[i]), []).append(b)
-    out: list = [None] * len(pairs)
-    for rows in groups.values():
-        th = rep.simulate(models, runs, [pairs[b] for b in rows])
-        for b, t in zip(rows, th):
-            out[b] = t
-    return out
-
-
-def prescreen(spec: mujoco.MjSpec, accepted: list, accepted_x: np.ndarray, names: list[str],
-              runs: list[ReplayRun], rep: Replayer, target: fx.Target = fx.OMNI,
+def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
+              runs: list[ReplayRun], rep,
               samples: int = PRESCREEN_SAMPLES, iterations: int = PRESCREEN_ITERATIONS,
               log=None, jobs: list | None = None) -> list[Prescreened]:
     """Fit every candidate coarsely on the first ``samples`` samples of each run; best first.
 
     All candidates advance together: their grid points form one batch (per group of models
-    that can share one, :func:`simulate_grouped`), then each Gauss-Newton iteration simulates
-    every candidate's point and its finite-difference perturbations in one batch and each
-    candidate takes its own damped step.  A candidate thus costs a few short-record batches,
-    not a full campaign; the best :data:`N_SCREEN` go on to the held-out screening.
+    that can share one, :meth:`Replayer.simulate_grouped`), then each Gauss-Newton iteration
+    simulates every candidate's point and its finite-difference perturbations in one batch and
+    each candidate takes its own damped step.  A candidate thus costs a few short-record
+    batches, not a full campaign; the best :data:`N_SCREEN` go on to the held-out screening.
+
+    ``jobs``: (base effects, their values, candidate name) per candidate -- several bases
+    scored in one lockstep (the beam of :func:`score_round`); by default every name on
+    ``accepted``.
     """
     t0 = time.perf_counter()
     short = [r.truncated(samples) for r in runs]
-    probs, x0s, grids = [], [], []
-    # ``jobs``: (base effects, their values, candidate name) per candidate -- several bases
-    # scored in one lockstep (the beam of :func:`score_round`); by default every name on
-    # ``accepted``
     beam = jobs is not None
     jobs = [(list(accepted), accepted_x, n) for n in names] if jobs is None else jobs
     labels = ["+".join([e.name for e in b] + [n]) if beam else n for b, _, n in jobs]
+    probs, x0s, grids = [], [], []
     for base, base_x, name in jobs:
-        eff = fx.get(name)
-        effects = list(base) + [eff]
-        prob = Problem(spec, [], effects, short, rep, target)
-        x0 = np.clip(np.concatenate([np.asarray(base_x, float), fx.nominal_values(eff, spec, target)]),
-                     prob.lower, prob.upper)
-        i0 = len(x0) - eff.nparam
-        pts = []
-        for g in eff.grid(x0[i0:]):
-            xp = x0.copy()
-            xp[i0:] = eff.clip(np.asarray(g, float))
-            pts.append(xp)
-        pts.append(x0)
+        prob, x0, pts = _candidate_grid(builder, base, base_x, name, short, rep)
         probs.append(prob)
         x0s.append(x0)
         grids.append(pts)
-    # 1. every candidate's grid, one batch per model group
-    nr = len(short)
+    best_gap, starts = zip(*_grid_minima(rep, probs, grids, short))
+    best_x, best_gap = _lockstep_gauss_newton(rep, probs, list(starts), list(best_gap), short, iterations)
+    out = [Prescreened(name, probs[c].free, x0s[c], best_x[c], best_gap[c]) for c, name in enumerate(labels)]
+    out.sort(key=lambda c: c.gap)
+    if log:
+        log(f"  prescreen of {len(labels)} candidates on {samples}-sample records: "
+            f"{time.perf_counter() - t0:.1f} s; best " + ", ".join(f"{c.name} ({c.gap:.2e})" for c in out[:N_SCREEN]))
+    return out
+
+
+def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: list[ReplayRun],
+                    rep) -> tuple[Problem, np.ndarray, list[np.ndarray]]:
+    """The problem of ``base`` + candidate ``name`` on ``runs``, its start (``base_x``, the
+    candidate at its nominal values) and its starting grid: the candidate's grid with the base
+    at ``base_x``, then the start itself."""
+    eff = builder.effect(name)
+    prob = Problem(builder, [], list(base) + [eff], runs, rep)
+    x0 = np.clip(np.concatenate([np.asarray(base_x, float), builder.nominal_values(eff)]),
+                 prob.lower, prob.upper)
+    i0 = len(x0) - eff.nparam
+    pts = []
+    for g in eff.grid(x0[i0:]):
+        xp = x0.copy()
+        xp[i0:] = eff.clip(np.asarray(g, float))
+        pts.append(xp)
+    pts.append(x0)
+    return prob, x0, pts
+
+
+def _grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
+                 runs: list[ReplayRun]) -> list[tuple[float, np.ndarray]]:
+    """Each problem's best grid point on ``runs`` and its gap, ``(gap, point)``: every point of
+    every grid simulated together (one batch per group of models that can share one)."""
+    nr = len(runs)
     models, pairs = [], []
-    for c, pts in enumerate(grids):
+    for prob, pts in zip(probs, grids):
         for x in pts:
-            models.append(probs[c].model(x))
+            models.append(prob.model(x))
             pairs += [(len(models) - 1, j) for j in range(nr)]
-    th = simulate_grouped(rep, models, short, pairs)
-    starts, best_gap, m = [], [], 0
-    for c, pts in enumerate(grids):
+    th = rep.simulate_grouped(models, runs, pairs)
+    out, m = [], 0
+    for pts in grids:
         gaps = []
         for _ in pts:
-            gaps.append(gap([th[m * nr + j] - short[j].theta for j in range(nr)]))
+            gaps.append(gap([th[m * nr + j] - runs[j].theta for j in range(nr)]))
             m += 1
         i = int(np.argmin(gaps))
-        starts.append(pts[i].copy())
-        best_gap.append(gaps[i])
-    # 2. lockstep damped Gauss-Newton from each candidate's best grid point: each iteration
-    #    evaluates every candidate's point and its perturbations; a step that made the gap worse
-    #    is undone and the damping raised
+        out.append((gaps[i], pts[i].copy()))
+    return out
+
+
+def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], best_gap: list[float],
+                           runs: list[ReplayRun], iterations: int) -> tuple[list, list]:
+    """Damped Gauss-Newton from each candidate's start (its best grid point, gap ``best_gap``),
+    all candidates in lockstep: each iteration evaluates every candidate's point and its
+    perturbations in one batch; a step that made the gap worse is undone and the damping
+    raised.  Returns each candidate's best point and its gap."""
+    nr = len(runs)
     xs = [x.copy() for x in starts]
     best_x = [x.copy() for x in starts]
     lam = [1e-3] * len(xs)
@@ -387,10 +390,10 @@ def prescreen(spec: mujoco.MjSpec, accepted: list, accepted_x: np.ndarray, names
                 models.append(probs[c].model(xp))
                 pairs += [(len(models) - 1, j) for j in range(nr)]
             spans.append((first, h))
-        th = simulate_grouped(rep, models, short, pairs)
+        th = rep.simulate_grouped(models, runs, pairs)
         for c, (first, h) in enumerate(spans):
             prob = probs[c]
-            raws = [[th[(first + i) * nr + j] - short[j].theta for j in range(nr)]
+            raws = [[th[(first + i) * nr + j] - runs[j].theta for j in range(nr)]
                     for i in range(len(h) + 1)]
             g0 = gap(raws[0])
             if g0 <= best_gap[c]:
@@ -409,12 +412,7 @@ def prescreen(spec: mujoco.MjSpec, accepted: list, accepted_x: np.ndarray, names
             p = len(h)
             dz = np.linalg.solve(A + lam[c] * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p), -J.T @ f0)
             xs[c] = np.clip(xs[c] + dz * prob.scale, prob.lower, prob.upper)
-    out = [Prescreened(name, probs[c].free, x0s[c], best_x[c], best_gap[c]) for c, name in enumerate(labels)]
-    out.sort(key=lambda c: c.gap)
-    if log:
-        log(f"  prescreen of {len(labels)} candidates on {samples}-sample records: "
-            f"{time.perf_counter() - t0:.1f} s; best " + ", ".join(f"{c.name} ({c.gap:.2e})" for c in out[:N_SCREEN]))
-    return out
+    return best_x, best_gap
 
 
 def _screened(name: str, effects, prob, fit, folds, gap_start: float, t0: float, log=None,
@@ -424,27 +422,27 @@ def _screened(name: str, effects, prob, fit, folds, gap_start: float, t0: float,
     raw = _heldout(prob, fold_x, folds)
     g = gap(raw)
     s = Scored(name, effects, fit, g, share_of(g, gap_start), "one-step", raw, fold_x, folds,
-               time.perf_counter() - t0, prob.target)
+               time.perf_counter() - t0)
     if log:
         log(f"  {name:{width}s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
             f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
     return s
 
 
-def _confirm_best(scored: list[Scored], n_confirm: int, spec, runs, rep, folds, gap_start: float,
+def _confirm_best(scored: list[Scored], n_confirm: int, builder, runs, rep, folds, gap_start: float,
                   log=None) -> list[Scored]:
     """Confirm the ``n_confirm`` best screened candidates with exact refits; best first."""
     scored.sort(key=lambda s: s.heldout_gap)
     for s in scored[:n_confirm]:
-        _confirm(spec, s, runs, rep, folds, gap_start, log)
+        _confirm(builder, s, runs, rep, folds, gap_start, log)
     confirmed = sorted(scored[:n_confirm], key=lambda s: s.heldout_gap)
     return confirmed + scored[n_confirm:]
 
 
-def _confirm(spec, s: Scored, runs, rep, folds, gap_start: float, log=None) -> None:
+def _confirm(builder, s: Scored, runs, rep, folds, gap_start: float, log=None) -> None:
     """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
     t0 = time.perf_counter()
-    prob = Problem(spec, [], s.effects, runs, rep, s.target)
+    prob = Problem(builder, [], s.effects, runs, rep)
     # the screening fit already simulated its end point (same model, runs and effects): the
     # converging fit starts there without simulating it again
     prob.seed(s.fit)
@@ -484,10 +482,10 @@ def _thin(grid: np.ndarray, m: int) -> np.ndarray:
     return grid[np.unique(np.round(np.linspace(0, len(grid) - 1, m)).astype(int))]
 
 
-def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_start: float,
+def score_pairs(builder, runs: list[ReplayRun], rep, gap_start: float,
                 k: int = 5, n_confirm: int = 3, n_fit: int = PAIR_FITS,
                 grid_samples: int = PAIR_GRID_SAMPLES, candidates: tuple[str, ...] | None = None,
-                screen_nfev: int = 8, log=None, target: fx.Target = fx.OMNI,
+                screen_nfev: int = 8, log=None,
                 grid_points: int = PAIR_GRID_POINTS) -> list[Scored]:
     """Fit and score *pairs* of candidates jointly; best first.
 
@@ -501,36 +499,23 @@ def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_s
     the best ``n_confirm`` are confirmed with exact per-fold refits.
     """
     import itertools
-    names = candidates or fx.NAMES
+    names = candidates or builder.names
     folds = kfolds(runs, k)
     grid_runs = [r.truncated(grid_samples) for r in runs]
     t0 = time.perf_counter()
     combos = list(itertools.combinations(names, 2))
-    nr = len(grid_runs)
-    models, pairs, pts_of = [], [], []
+    probs, grids = [], []
     for a, b in combos:
-        effects = [fx.get(a), fx.get(b)]
-        prob = Problem(spec, [], effects, grid_runs, rep, target)
-        ga = _thin(effects[0].grid(fx.nominal_values(effects[0], spec, target)), grid_points)
-        gb = _thin(effects[1].grid(fx.nominal_values(effects[1], spec, target)), grid_points)
-        x0 = np.concatenate([fx.nominal_values(e, spec, target) for e in effects])
-        pts = [np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
-                                       effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
-               for u in ga for v in gb] + [np.clip(x0, prob.lower, prob.upper)]
-        pts_of.append(pts)
-        for x in pts:
-            models.append(prob.model(x))
-            pairs += [(len(models) - 1, j) for j in range(nr)]
-    th = simulate_grouped(rep, models, grid_runs, pairs)
-    starts, m = [], 0
-    for (a, b), pts in zip(combos, pts_of):
-        scores = []
-        for _ in pts:
-            scores.append(gap([th[m * nr + j] - grid_runs[j].theta for j in range(nr)]))
-            m += 1
-        i = int(np.argmin(scores))
-        starts.append((scores[i], a, b, pts[i]))
-    del th, models
+        effects = [builder.effect(a), builder.effect(b)]
+        prob = Problem(builder, [], effects, grid_runs, rep)
+        ga = _thin(effects[0].grid(builder.nominal_values(effects[0])), grid_points)
+        gb = _thin(effects[1].grid(builder.nominal_values(effects[1])), grid_points)
+        x0 = np.concatenate([builder.nominal_values(e) for e in effects])
+        grids.append([np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
+                                              effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
+                      for u in ga for v in gb] + [np.clip(x0, prob.lower, prob.upper)])
+        probs.append(prob)
+    starts = [(g, a, b, x) for (a, b), (g, x) in zip(combos, _grid_minima(rep, probs, grids, grid_runs))]
     starts.sort(key=lambda t: t[0])
     if log:
         log(f"  pair grids: {len(starts)} pairs in {time.perf_counter() - t0:.1f} s; best "
@@ -538,11 +523,11 @@ def score_pairs(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer, gap_s
     scored = []
     for _, a, b, x0 in starts[:n_fit]:
         t0 = time.perf_counter()
-        effects = [fx.get(a), fx.get(b)]
-        prob = Problem(spec, [], effects, runs, rep, target)
+        effects = [builder.effect(a), builder.effect(b)]
+        prob = Problem(builder, [], effects, runs, rep)
         fit = prob.fit(x0, None, max_nfev=screen_nfev)
         scored.append(_screened(f"{a}+{b}", effects, prob, fit, folds, gap_start, t0, log, width=36))
-    return _confirm_best(scored, n_confirm, spec, runs, rep, folds, gap_start, log)
+    return _confirm_best(scored, n_confirm, builder, runs, rep, folds, gap_start, log)
 
 
 def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> list[tuple[str | None, float]]:
@@ -588,7 +573,7 @@ def member_runner_up(best: Scored, scored: list[Scored]) -> list[tuple[str | Non
     return out
 
 
-def score_removals(spec: mujoco.MjSpec, best: Scored, runs: list[ReplayRun], rep: Replayer,
+def score_removals(builder, best: Scored, runs: list[ReplayRun], rep,
                    gap_start: float, log=None) -> list[Scored]:
     """The backward step of floating selection: ``best`` without each of its members, refitted
     jointly from ``best``'s values and scored like a confirmed candidate (exact per-fold refits
@@ -604,11 +589,11 @@ def score_removals(spec: mujoco.MjSpec, best: Scored, runs: list[ReplayRun], rep
         effects = [e for i, e in enumerate(best.effects) if i != m]
         x0 = np.concatenate([x for i, (_, x) in enumerate(best.fit.split()) if i != m])
         t0 = time.perf_counter()
-        prob = Problem(spec, [], effects, runs, rep, best.target)
+        prob = Problem(builder, [], effects, runs, rep)
         fit = prob.fit(x0, None, max_nfev=8)
         sc = _screened("+".join(e.name for e in effects), effects, prob, fit, folds, gap_start, t0, log,
                        width=36)
-        _confirm(spec, sc, runs, rep, folds, gap_start, log)
+        _confirm(builder, sc, runs, rep, folds, gap_start, log)
         out.append(sc)
     out.sort(key=lambda s: s.heldout_gap)
     return out

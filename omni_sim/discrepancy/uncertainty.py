@@ -54,17 +54,22 @@ known truth, with and without noise, and reports the intervals' median width too
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
 from .fit import Problem, jacobian_se
-from .replay import Replayer, ReplayRun
+from .runs import ReplayRun
 from .select import Scored
 
 
-def uncertainty(spec, s: Scored, runs, rep) -> dict:
+def uncertainty(builder, s: Scored, runs: list[ReplayRun], rep, encoder_step_rad: float) -> dict:
     """Standard errors and systematic shift of a candidate's parameters.
+
+    ``builder`` compiles the candidate's models and ``rep`` simulates them (as in
+    :mod:`.select`); ``encoder_step_rad`` is the quantisation step of a run whose metadata says
+    ``encoder_quantized`` (:func:`encoder_step`).
 
     Returns a dict of arrays: ``jackknife`` (over the k folds' parameters), ``jacobian`` (at the
     all-runs optimum, :func:`jacobian_se`), ``measurement`` and ``measurement_bias`` (the
@@ -76,9 +81,9 @@ def uncertainty(spec, s: Scored, runs, rep) -> dict:
     k = len(s.fold_x)
     X = np.array(s.fold_x)
     se_jk = np.sqrt((k - 1) / k * np.sum((X - X.mean(axis=0)) ** 2, axis=0)) if k > 1 else np.zeros(len(s.fit.x))
-    prob = Problem(spec, [], s.effects, runs, rep, s.target)
+    prob = Problem(builder, [], s.effects, runs, rep)
     se_jac = jacobian_se(prob, s.fit)
-    se_meas, bias = measurement_effect(s, runs, rep, spec)
+    se_meas, bias = measurement_effect(s, runs, rep, builder, encoder_step_rad)
     b_opt, opt_info = optimiser_term(prob, s.fit)
     b_floor = numerical_floor(prob, s.fit)
     se = np.sqrt(se_jk**2 + se_jac**2 + se_meas**2 + (b_opt**2 + b_floor**2) / 3.0)
@@ -97,14 +102,13 @@ def coverage_factor(k: int) -> float:
 MEASUREMENT_DRAWS = 8
 
 
-def encoder_step(run: ReplayRun) -> float:
-    """Quantisation step [rad] of the run's logged yaw: the encoder's 15000 counts/rev when the
-    metadata says ``encoder_quantized``, else 0."""
-    from ..experiments import ENCODER_STEP_RAD
-    return float(ENCODER_STEP_RAD) if run.meta.get("encoder_quantized") else 0.0
+def encoder_step(run: ReplayRun, step_rad: float) -> float:
+    """Quantisation step [rad] of the run's logged yaw: ``step_rad`` (the Omni's encoder: 15000
+    counts/rev) when the metadata says ``encoder_quantized``, else 0."""
+    return float(step_rad) if run.meta.get("encoder_quantized") else 0.0
 
 
-def measurement_effect(s: Scored, runs: list[ReplayRun], rep: Replayer, spec,
+def measurement_effect(s: Scored, runs: list[ReplayRun], rep, builder, encoder_step_rad: float,
                        draws: int = MEASUREMENT_DRAWS, iterations: int = 4,
                        seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """What the measurement process does to the fitted parameters (parametric bootstrap).
@@ -134,34 +138,54 @@ def measurement_effect(s: Scored, runs: list[ReplayRun], rep: Replayer, spec,
     p = len(s.fit.x)
     if p == 0:
         return np.zeros(p), np.zeros(p)
-    prob = Problem(spec, [], s.effects, runs, rep, s.target)
-    nr = len(runs)
-    steps = [encoder_step(r) for r in runs]
+    prob = Problem(builder, [], s.effects, runs, rep)
+    steps = [encoder_step(r, encoder_step_rad) for r in runs]
+    sigma = _measurement_noise(s, runs, steps)
+    synth = _synthetic_records(prob, s, runs, rep, sigma, steps, draws, np.random.default_rng(seed))
+    xs = _refit_draws(prob, s, synth, rep, draws, iterations)
+    dx = np.array(xs) - s.fit.x
+    return (dx.std(axis=0, ddof=1) if draws > 1 else np.zeros(p)), dx.mean(axis=0)
+
+
+def _measurement_noise(s: Scored, runs: list[ReplayRun], steps: list[float]) -> float:
+    """The encoder noise std [rad] of the measurement process (:func:`measurement_effect`):
+    the records' stated ``noise_rad``, else the all-runs fit's residual RMS with the
+    quantisation's ``step^2/12`` removed."""
     res = s.fit.raw_residuals
     ms = np.mean([np.mean(r**2) for r in res]) if res else 0.0
     q2 = np.mean([st**2 / 12 for st in steps])
     stated = [r.meta.get("noise_rad") for r in runs]
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
            for v in stated):
-        sigma = float(np.sqrt(np.mean(np.square(stated))))  # the records' stated encoder noise
-    else:
-        sigma = math.sqrt(max(ms - q2, 0.0))
-    rng = np.random.default_rng(seed)
+        return float(np.sqrt(np.mean(np.square(stated))))  # the records' stated encoder noise
+    return math.sqrt(max(ms - q2, 0.0))
+
+
+def _synthetic_records(prob: Problem, s: Scored, runs: list[ReplayRun], rep, sigma: float,
+                       steps: list[float], draws: int, rng: np.random.Generator) -> list[ReplayRun]:
+    """``draws`` copies of every run as the fitted model, measured through the process
+    (noise ``sigma``, quantisation ``steps``) in its loop, would log them; draw-major."""
+    nr = len(runs)
     pairs = [(0, j) for _ in range(draws) for j in range(nr)]
     noise = [rng.normal(0.0, sigma, runs[j].n) for _, j in pairs]
     # the true start differs from the measured first sample by the measurement error too
     starts = []
     for _, j in pairs:
-        r = runs[j]
-        th0 = r.theta.copy()
+        th0 = runs[j].theta.copy()
         th0[0] += rng.normal(0.0, sigma) + rng.uniform(-0.5, 0.5) * steps[j]
-        starts.append(ReplayRun(r.name, r.kind, r.t, r.r, th0, r.v, r.dt, r.kp, r.gamma_set_deg,
-                                r.frequency_hz, r.amplitude_rad, r.meta))
+        starts.append(dataclasses.replace(runs[j], theta=th0))
     meas = rep.simulate([prob.model(s.fit.x)], starts, [(0, b) for b in range(len(starts))],
                         measurement=(noise, [steps[j] for _, j in pairs]))
     # the synthetic records, replayed like measured ones (from their own first, measured sample)
-    synth = [ReplayRun(r.name, r.kind, r.t, r.r, y, r.v, r.dt, r.kp, r.gamma_set_deg, r.frequency_hz,
-                       r.amplitude_rad, r.meta) for (_, j), y in zip(pairs, meas) for r in [runs[j]]]
+    return [dataclasses.replace(runs[j], theta=y) for (_, j), y in zip(pairs, meas)]
+
+
+def _refit_draws(prob: Problem, s: Scored, synth: list[ReplayRun], rep, draws: int,
+                 iterations: int) -> list[np.ndarray]:
+    """Each draw's synthetic records fitted like the measured ones: ``iterations`` damped
+    Gauss-Newton steps from the fit, all draws in lockstep (one batch per step)."""
+    p = len(s.fit.x)
+    nr = len(synth) // draws
     w = prob.weights
     xs = [s.fit.x.copy() for _ in range(draws)]
     for _ in range(iterations):
@@ -182,8 +206,7 @@ def measurement_effect(s: Scored, runs: list[ReplayRun], rep: Replayer, spec,
             A = J.T @ J
             dz = np.linalg.solve(A + 1e-6 * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p), -J.T @ f0)
             xs[d] = np.clip(xs[d] + dz * prob.scale, prob.lower, prob.upper)
-    dx = np.array(xs) - s.fit.x
-    return (dx.std(axis=0, ddof=1) if draws > 1 else np.zeros(p)), dx.mean(axis=0)
+    return xs
 
 
 #: Largest contraction rate of the Gauss-Newton iteration the optimiser's term trusts: a rate

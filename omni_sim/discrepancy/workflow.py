@@ -1,4 +1,20 @@
-"""The whole workflow: replay, localise, name (held-out scoring), fit, show the gap shrink."""
+"""The whole workflow: replay, localise, name (held-out scoring), fit, show the gap shrink.
+
+:func:`run_discrepancy` runs the steps in order, each a function of its own:
+
+1. :func:`replay_nominal`: the nominal model's replay of every run, its gap and the noise floor;
+2. :func:`select_effects`: forward selection, one round per effect (every candidate screened
+   and scored on held-out runs, :mod:`.select`), with the pair search of the first round and
+   the backward step of floating selection;
+3. :func:`estimate`: the named effects' uncertainty (:mod:`.uncertainty`) and the held-out
+   replay of the patched model;
+4. :func:`assemble_report`: the content of ``report.json`` (with the localisation of the gap
+   before and after, :mod:`.localise`).
+
+This module joins the MuJoCo side (the model, the effect library, the replay) to the
+statistics, which get the model through an :class:`~omni_sim.discrepancy.effects.ModelBuilder`
+and the simulations through the :class:`~omni_sim.discrepancy.replay.Replayer`.
+"""
 
 from __future__ import annotations
 
@@ -14,13 +30,15 @@ from identification.dataset import Run
 from identification.errors import UserError
 
 from .. import model as om
-from ..device import Device
+from ..device import ENCODER_STEP_RAD, Device
 from . import effects as fx
 from . import select as sel
 from . import uncertainty as un
 from .fit import gap
 from .localise import describe, localise
 from .replay import Replayer, prepare_runs
+from .runs import ReplayRun
+from .select import Scored
 
 #: Samples (all runs together) above which the fits use only the start of each run: the fit and
 #: the candidate scoring cost scale with it; the before/after evaluation always uses whole runs.
@@ -52,37 +70,6 @@ class Outcome:
     theta_before: list
     theta_after: list
     rounds: list = field(default_factory=list)
-
-
-def _load_spec(model_path, target: om.Target | None = None) -> tuple[mujoco.MjSpec, mujoco.MjModel, str]:
-    path = Path(model_path) if model_path is not None else om.DEFAULT_SCENE
-    # UserError on a missing file, bad XML or missing names (the Omni's, or the target's)
-    model = om.load_model(path, target=target)
-    spec = mujoco.MjSpec.from_file(str(path))
-    return spec, model, str(path)
-
-
-def _heldout_theta(spec, scored, runs, rep, target: om.Target = om.OMNI) -> list[np.ndarray]:
-    models = [fx.compile_with(spec, [(e, x) for e, x in _split(scored.effects, fx_)], target)
-              for fx_ in scored.fold_x]
-    pairs = [(f, j) for f, idx in enumerate(scored.folds) for j in idx]
-    th = rep.simulate(models, runs, pairs)
-    out: list = [None] * len(runs)
-    for (f, j), t in zip(pairs, th):
-        out[j] = t
-    return out
-
-
-def _split(effects, x):
-    out, i = [], 0
-    for e in effects:
-        out.append((e, np.asarray(x[i:i + e.nparam], float)))
-        i += e.nparam
-    return out
-
-
-def _confidence(share, margin, unexplained) -> str:
-    return "high" if (margin >= 2 * sel.TIE_MARGIN and unexplained <= sel.UNEXPLAINED_SHARE) else "low"
 
 
 def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None, k: int = 5,
@@ -119,254 +106,406 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     """
     t_start = time.perf_counter()
     spec, model, path = _load_spec(model_path, target)
-    rr = prepare_runs(runs, Device(model, target=target))
-    tgt = om.OMNI if target is None else target  # where the effects are written
-    ok_names = fx.applicable(spec, tgt)  # only candidates that can be written into this model
-    unknown = [c for c in (candidates or ()) if c not in fx.NAMES]
-    if unknown:
-        raise UserError(f"unknown candidate effect(s): {', '.join(unknown)} (library: {', '.join(fx.NAMES)})")
-    candidates = tuple(c for c in (candidates or fx.NAMES) if c in ok_names)
-    if not candidates:
-        raise UserError(f"{path}: none of the candidate effects can be written into this model")
-    if len(rr) < 2:
+    replay_runs = prepare_runs(runs, Device(model, target=target))
+    effect_target = om.OMNI if target is None else target  # where the effects are written
+    candidates = _usable_candidates(candidates, spec, effect_target, path)
+    if len(replay_runs) < 2:
         raise UserError("measured data: at least 2 runs are needed (candidates are scored on runs "
                         "held out of their fit)")
-    total = sum(r.n for r in rr)
-    nfit = max(MIN_FIT_RUN_SAMPLES, max_fit_samples // len(rr)) if total > max_fit_samples else None
-    fit_runs = [r.truncated(nfit) for r in rr] if nfit else rr
+    fit_runs, fit_samples = _fit_runs(replay_runs, max_fit_samples)
+    builder = fx.ModelBuilder(spec, effect_target)
     log = log or (lambda s: None)
     timings = {}
     with Replayer(jobs, target) as rep:
         t0 = time.perf_counter()
-        theta_before = rep.simulate([model], rr)
+        nominal = replay_nominal(model, replay_runs, fit_runs, rep)
         timings["replay_nominal_s"] = time.perf_counter() - t0
-        res_before = [th - r.theta for th, r in zip(theta_before, rr)]
-        gap_before = gap(res_before)
-        fit_before = gap([res[: r.n] for res, r in zip(res_before, fit_runs)])
-        noise = sel.noise_floor(res_before)
-        log(f"gap before {gap_before:.3e} rad, noise floor {noise:.2e} rad, {len(rr)} runs, "
-            f"{total} samples" + (f" (fits use the first {nfit} of each run)" if nfit else ""))
-        accepted, accepted_x, rounds, entries, effect_entries = [], np.zeros(0), [], [], []
-        gap_start = fit_before
-        best_accepted = None
-        beam = None  # the pair search's confirmed pairs, grown together in the next round
-        pairs_scored: list = []
+        log(f"gap before {nominal.gap:.3e} rad, noise floor {nominal.noise:.2e} rad, {len(replay_runs)} runs, "
+            f"{sum(r.n for r in replay_runs)} samples"
+            + (f" (fits use the first {fit_samples} of each run)" if fit_samples else ""))
         t0 = time.perf_counter()
-        rnd = -1
-        # rounds: one per effect, plus one a backward step can free (floating selection)
-        while len(accepted) < max_effects and rnd + 1 < max_effects + 1:
-            rnd += 1
-            if gap_start <= 0:
-                log("the model's replay equals the measured data exactly: nothing to name")
-                break
-            if rnd > 0 and gap_start < sel.NOISE_FACTOR * noise:
-                log(f"round {rnd + 1}: skipped, the held-out gap is at the noise floor")
-                break
-            names = [c for c in candidates if c not in [e.name for e in accepted]]
-            if not names:
-                break
-            log(f"round {rnd + 1}: scoring {len(names)} candidates")
-            scored = sel.score_round(spec, accepted, accepted_x, fit_runs, rep, gap_start, k=k,
-                                     # a beam grows every confirmed pair by any candidate
-                                     # not in it (the accepted pair's members included)
-                                     candidates=tuple(candidates if beam else names), log=log,
-                                     target=tgt, bases=beam)
-            rounds.append(scored)
-            best = scored[0]
-            runner = scored[1] if len(scored) > 1 and math.isfinite(scored[1].heldout_gap) else None
-            # margin: share of the runner-up's remaining held-out gap the best removes on top
-            margin = sel.share_of(best.heldout_gap, runner.heldout_gap) if runner else 1.0
-            ok = best.share >= sel.MIN_SHARE and gap_start >= sel.NOISE_FACTOR * noise
-            entry = {"round": rnd + 1, "best": best.name, "share": best.share,
-                     "runner_up": runner.name if runner else None,
-                     "runner_up_share": runner.share if runner else None, "margin": margin,
-                     "gap_start_rad": gap_start, "gap_heldout_rad": best.heldout_gap,
-                     "accepted": bool(ok)}
-            if runner and margin < sel.TIE_MARGIN:
-                entry["tie"] = True
-                entry["separating_experiment"] = sel.separating_experiment(best.name, runner.name)
-            entries.append(entry)
-            if (rnd == 0 and max_effects >= 2 and gap_start >= sel.REMAINDER_FACTOR * noise
-                    and (best.share < sel.PAIR_SEARCH_SHARE
-                         or best.heldout_gap >= sel.REMAINDER_FACTOR * noise)):
-                # no single effect explains the gap down to the noise: effects that mask each
-                # other (a loop delay takes damping away, dry friction adds it) are only visible
-                # together, and one effect at a time can settle on a stand-in for the pair (a
-                # Stribeck curve for delay + friction), so every pair is fitted jointly too (not
-                # only pairs of the round's best candidates: the delay alone explains nothing,
-                # and the friction can be outranked by a stand-in)
-                log(f"round 1: the best single candidate removes {best.share:.0%} and leaves "
-                    f"{best.heldout_gap / max(noise, 1e-300):.1f} x the noise floor: scoring pairs")
-                pairs = sel.score_pairs(spec, fit_runs, rep, gap_start, k=k, candidates=tuple(names),
-                                        log=log, target=tgt)
-                bp = pairs[0]
-                gain = sel.share_of(bp.heldout_gap, best.heldout_gap)
-                pair_ok = (bp.share >= sel.MIN_SHARE and gain >= sel.MIN_SHARE
-                           and gap_start >= sel.NOISE_FACTOR * noise)
-                entry["pair_search"] = {"best": bp.name, "share": bp.share,
-                                        "gain_over_best_single": gain, "accepted": bool(pair_ok)}
-                if pair_ok:
-                    rounds.append(pairs)
-                    entry["accepted"] = False
-                    for (eff, (ru, mg)) in zip(bp.effects, sel.pair_runner_up(bp, pairs, scored)):
-                        pe = {"round": 1, "pair": bp.name, "best": eff.name, "share": bp.share,
-                              "runner_up": ru, "runner_up_share": None, "margin": mg,
-                              "gap_start_rad": gap_start, "gap_heldout_rad": bp.heldout_gap,
-                              "accepted": True}
-                        if ru is None:
-                            pe["runner_up_note"] = ("no other scored pair keeps the other member; "
-                                                    "margin is against the other member alone")
-                        if ru is not None and mg < sel.TIE_MARGIN:
-                            pe["tie"] = True
-                            pe["separating_experiment"] = sel.separating_experiment(eff.name, ru)
-                        entries.append(pe)
-                        effect_entries.append(pe)
-                    log(f"round 1: accepted the pair {bp.name} (removes {bp.share:.0%}; "
-                        f"{gain:.0%} of what the best single candidate leaves)")
-                    accepted, accepted_x, best_accepted = bp.effects, bp.fit.x, bp
-                    gap_start = bp.heldout_gap
-                    # a beam: the next round adds each candidate to each confirmed pair, not
-                    # only to the accepted one (with a third effect present the best pair can
-                    # be a stand-in: armature + LuGre explains more of delay + Coulomb +
-                    # armature than Coulomb + delay, whose fit then compensates the missing
-                    # armature; the triple grows from Coulomb + delay)
-                    confirmed = [p for p in pairs if p.method == "refit" and math.isfinite(p.heldout_gap)]
-                    if len(confirmed) > 1:
-                        beam = [(p.effects, p.fit.x) for p in confirmed]
-                        pairs_scored = [p for p in pairs if math.isfinite(p.heldout_gap)]
-                    continue  # forward selection goes on from the pair
-                log(f"round 1: best pair {bp.name} removes {bp.share:.0%} ({gain:.0%} of what the best "
-                    "single leaves): not accepted")
-            if not ok:
-                log(f"round {rnd + 1}: best {best.name} removes {best.share:.0%} of the gap: not accepted")
-                break
-            log(f"round {rnd + 1}: accepted {best.name} (removes {best.share:.0%}; runner-up "
-                f"{entry['runner_up']}, margin {margin:.2f})")
-            pool = scored + pairs_scored
-            removed = None
-            if len(best.effects) >= 3:
-                # floating selection, the backward step: a member accepted earlier may be a
-                # stand-in the new member made redundant (a spring fitted with Coulomb friction
-                # to part of a backlash's gap); each member is removed in turn, the rest refitted
-                rem = sel.score_removals(spec, best, fit_runs, rep, gap_start, log=log)
-                pool = pool + rem
-                contribution = sel.share_of(best.heldout_gap, rem[0].heldout_gap)
-                entry["backward_step"] = {"best_without_one": rem[0].name,
-                                          "share_of_its_gap_removed_by_the_set": contribution}
-                if contribution < sel.MIN_SHARE:
-                    removed = [e.name for e in best.effects if e.name not in [f.name for f in rem[0].effects]]
-                    log(f"round {rnd + 1}: {removed[0]} dropped (without it the held-out gap is "
-                        f"{rem[0].heldout_gap:.3e} rad; with it {contribution:.0%} of that is removed, "
-                        f"less than {sel.MIN_SHARE:.0%})")
-                    entry["backward_step"]["dropped"] = removed[0]
-                    best = rem[0]
-            if beam or removed:
-                # every member's runner-up is the best scored set without it (this round's sets,
-                # the pairs, the set without one member); the set may have grown from another
-                # pair than the one accepted
-                effect_entries = []
-                for eff, (ru, mg) in zip(best.effects, sel.member_runner_up(best, pool)):
-                    pe = {"round": rnd + 1, "pair": best.name, "best": eff.name, "share": best.share,
-                          "runner_up": ru, "runner_up_share": None, "margin": mg,
-                          "gap_start_rad": gap_start, "gap_heldout_rad": best.heldout_gap,
-                          "accepted": True,
-                          "runner_up_note": "the best scored set without this effect (named by "
-                                            "what it holds instead; none: the effect dropped)"}
-                    if ru is not None and "+" not in ru and mg < sel.TIE_MARGIN:
-                        pe["tie"] = True
-                        pe["separating_experiment"] = sel.separating_experiment(eff.name, ru)
-                    entries.append(pe)
-                    effect_entries.append(pe)
-                beam = None
-            else:
-                effect_entries.append(entry)
-            accepted, accepted_x, best_accepted = best.effects, best.fit.x, best
-            gap_start = best.heldout_gap
+        selection = select_effects(builder, candidates, fit_runs, rep, nominal.fit_gap, nominal.noise,
+                                   k=k, max_effects=max_effects, log=log)
         timings["naming_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        if best_accepted is not None:
-            unc = un.uncertainty(spec, best_accepted, fit_runs, rep)
-            se, bias = unc["se"], unc["measurement_bias"]
-            cover = un.coverage_factor(len(best_accepted.folds))
-            theta_after = _heldout_theta(spec, best_accepted, rr, rep, tgt)
-        else:
-            theta_after = theta_before
+        unc, theta_after = estimate(builder, selection.best, fit_runs, replay_runs, rep, nominal.theta)
         timings["uncertainty_and_evaluation_s"] = time.perf_counter() - t0
         steps = rep.steps
         warnings = {"unstable_simulations": rep.unstable_warnings, "first": rep.first_warning}
-    res_after = [th - r.theta for th, r in zip(theta_after, rr)]
-    gap_after = gap(res_after)
-    excess0 = math.sqrt(max(gap_before**2 - noise**2, 0.0))
-    excess1 = math.sqrt(max(gap_after**2 - noise**2, 0.0))
-    unexplained = excess1 / excess0 if excess0 > 0 else 0.0
-    effects_out = []
-    if best_accepted is None:
-        e0 = entries[0] if entries else {"best": None, "share": None, "runner_up": None, "margin": None}
-        effects_out.append({"name": "none", "parameters": {}, "uncertainty": {},
-                            "best_candidate": e0["best"], "best_share": e0["share"],
-                            "runner_up": e0["runner_up"], "margin": e0["margin"],
-                            "reason": (
-                                "the model's replay equals the measured data exactly (gap 0): "
-                                "nothing is missing"
-                                if gap_before <= 0 else
-                                f"no library candidate removes a clear share of the held-out gap, "
-                                f"which stands at {gap_before / max(noise, 1e-300):.0f} x the noise "
-                                "floor: the gap is UNEXPLAINED (an effect outside the library, or "
-                                "several), the model is not confirmed"
-                                if gap_before >= sel.REMAINDER_FACTOR * noise else
-                                "no candidate removes a clear share of the held-out gap"
-                                if gap_before >= sel.NOISE_FACTOR * noise else
-                                "the gap is at the measurement noise floor")})
-        patched = spec.copy()
+    settings = {"folds": k, "max_effects": max_effects, "min_share": sel.MIN_SHARE,
+                "noise_factor": sel.NOISE_FACTOR, "tie_margin": sel.TIE_MARGIN,
+                "fit_samples_per_run": fit_samples, "model": path, "joint": effect_target.joint,
+                "actuator": effect_target.actuator, "candidates": list(candidates),
+                "prescreen_samples": sel.PRESCREEN_SAMPLES, "n_screen": sel.N_SCREEN,
+                "mujoco": mujoco.__version__}
+    report = assemble_report(builder, replay_runs, nominal, theta_after, selection, unc, settings)
+    report["mujoco_warnings"] = warnings
+    timings["total_s"] = time.perf_counter() - t_start
+    report["timings"] = {**timings, "physics_steps": steps,
+                         "steps_per_s": steps / max(timings["naming_s"] + timings["replay_nominal_s"], 1e-9)}
+    return Outcome(report, _patched_spec(builder, selection.best), replay_runs, nominal.theta, theta_after,
+                   selection.rounds)
+
+
+# -- inputs ------------------------------------------------------------------------------------
+def _load_spec(model_path, target: om.Target | None = None) -> tuple[mujoco.MjSpec, mujoco.MjModel, str]:
+    path = Path(model_path) if model_path is not None else om.DEFAULT_SCENE
+    # UserError on a missing file, bad XML or missing names (the Omni's, or the target's)
+    model = om.load_model(path, target=target)
+    spec = mujoco.MjSpec.from_file(str(path))
+    return spec, model, str(path)
+
+
+def _usable_candidates(candidates: tuple[str, ...] | None, spec: mujoco.MjSpec, target: om.Target,
+                       path: str) -> tuple[str, ...]:
+    """The asked-for library names (default: all) that can be written into this model."""
+    unknown = [c for c in (candidates or ()) if c not in fx.NAMES]
+    if unknown:
+        raise UserError(f"unknown candidate effect(s): {', '.join(unknown)} (library: {', '.join(fx.NAMES)})")
+    writable = fx.applicable(spec, target)
+    usable = tuple(c for c in (candidates or fx.NAMES) if c in writable)
+    if not usable:
+        raise UserError(f"{path}: none of the candidate effects can be written into this model")
+    return usable
+
+
+def _fit_runs(runs: list[ReplayRun], max_fit_samples: int) -> tuple[list[ReplayRun], int | None]:
+    """The runs the fits use and their length per run: the whole runs, or, when all of them
+    hold more than ``max_fit_samples`` samples, the start of each (at least
+    :data:`MIN_FIT_RUN_SAMPLES`; None: whole runs)."""
+    if sum(r.n for r in runs) <= max_fit_samples:
+        return runs, None
+    n = max(MIN_FIT_RUN_SAMPLES, max_fit_samples // len(runs))
+    return [r.truncated(n) for r in runs], n
+
+
+# -- 1. the nominal model ----------------------------------------------------------------------
+@dataclass
+class NominalReplay:
+    """The nominal model's replay of the runs.
+
+    Attributes
+    ----------
+    theta : list of ndarray [rad]
+        The replayed yaw angle of each run.
+    gap : float [rad]
+        Its gap to the measured runs (whole runs).
+    fit_gap : float [rad]
+        Its gap on the samples the fits use (where the first round starts).
+    noise : float [rad]
+        The measurement noise floor (:func:`omni_sim.discrepancy.select.noise_floor`).
+    """
+
+    theta: list
+    gap: float
+    fit_gap: float
+    noise: float
+
+
+def replay_nominal(model: mujoco.MjModel, runs: list[ReplayRun], fit_runs: list[ReplayRun],
+                   rep: Replayer) -> NominalReplay:
+    """Replay every run on the nominal model: its gap, on whole runs and on the fits' samples,
+    and the noise floor of its residuals."""
+    theta = rep.simulate([model], runs)
+    residuals = [th - r.theta for th, r in zip(theta, runs)]
+    fit_gap = gap([res[: r.n] for res, r in zip(residuals, fit_runs)])
+    return NominalReplay(theta, gap(residuals), fit_gap, sel.noise_floor(residuals))
+
+
+# -- 2. naming the effects ---------------------------------------------------------------------
+@dataclass
+class Selection:
+    """The forward selection's state and record.
+
+    Attributes
+    ----------
+    gap : float [rad]
+        The held-out gap the next round starts from.
+    best : Scored or None
+        The accepted set of effects (its fit and folds), None before any is accepted.
+    beam : list of (effects, values) or None
+        The pair search's confirmed pairs, grown together in the next round.
+    pairs_scored : list of Scored
+        The pair search's scored pairs (alternatives for the members' runner-ups).
+    rounds : list of list of Scored
+        Every round's scored candidates (the report's ``candidates``).
+    entries : list of dict
+        The report's ``rounds``.
+    effect_entries : list of dict
+        One entry per accepted effect, in the order of ``best.effects`` (its share, runner-up,
+        margin, tie).
+    """
+
+    gap: float
+    best: Scored | None = None
+    beam: list | None = None
+    pairs_scored: list = field(default_factory=list)
+    rounds: list = field(default_factory=list)
+    entries: list = field(default_factory=list)
+    effect_entries: list = field(default_factory=list)
+
+    @property
+    def accepted(self) -> list:
+        """The accepted effects (free again in the next round)."""
+        return self.best.effects if self.best is not None else []
+
+    @property
+    def accepted_x(self) -> np.ndarray:
+        """Their fitted values."""
+        return self.best.fit.x if self.best is not None else np.zeros(0)
+
+    def accept(self, best: Scored) -> None:
+        """Take ``best`` as the accepted set; the next round starts from its held-out gap."""
+        self.best, self.gap = best, best.heldout_gap
+
+
+def select_effects(builder: fx.ModelBuilder, candidates: tuple[str, ...], runs: list[ReplayRun],
+                   rep: Replayer, gap_start: float, noise: float, *, k: int, max_effects: int,
+                   log) -> Selection:
+    """Forward selection: each round scores the candidates not yet accepted (with the accepted
+    ones free) on held-out runs and accepts the best if it removes a clear share of the gap;
+    the first round also searches pairs (:func:`_search_pairs`), a round whose set reaches
+    three effects takes the backward step (:func:`_backward_step`).  Rounds: one per effect,
+    plus one a backward step can free."""
+    state = Selection(gap_start)
+    for rnd in range(max_effects + 1):
+        if len(state.accepted) >= max_effects or not _round_due(state, rnd, noise, log):
+            break
+        names = [c for c in candidates if c not in [e.name for e in state.accepted]]
+        if not names:
+            break
+        log(f"round {rnd + 1}: scoring {len(names)} candidates")
+        scored = sel.score_round(builder, state.accepted, state.accepted_x, runs, rep, state.gap, k=k,
+                                 # a beam grows every confirmed pair by any candidate not in it
+                                 # (the accepted pair's members included)
+                                 candidates=tuple(candidates if state.beam else names), log=log,
+                                 bases=state.beam)
+        state.rounds.append(scored)
+        entry = _round_entry(rnd, scored, state.gap, noise)
+        state.entries.append(entry)
+        best = scored[0]
+        if (rnd == 0 and max_effects >= 2 and _pair_search_due(best, state.gap, noise)
+                and _search_pairs(state, builder, names, runs, rep, entry, scored, noise, k, log)):
+            continue  # forward selection goes on from the pair
+        if not entry["accepted"]:
+            log(f"round {rnd + 1}: best {best.name} removes {best.share:.0%} of the gap: not accepted")
+            break
+        log(f"round {rnd + 1}: accepted {best.name} (removes {best.share:.0%}; runner-up "
+            f"{entry['runner_up']}, margin {entry['margin']:.2f})")
+        _accept_round(state, rnd, entry, scored, builder, runs, rep, log)
+    return state
+
+
+def _round_due(state: Selection, rnd: int, noise: float, log) -> bool:
+    """Whether round ``rnd`` is worth scoring: a gap to explain, above the noise after round 1."""
+    if state.gap <= 0:
+        log("the model's replay equals the measured data exactly: nothing to name")
+        return False
+    if rnd > 0 and state.gap < sel.NOISE_FACTOR * noise:
+        log(f"round {rnd + 1}: skipped, the held-out gap is at the noise floor")
+        return False
+    return True
+
+
+def _round_entry(rnd: int, scored: list[Scored], gap_start: float, noise: float) -> dict:
+    """The report's entry of a round: the best candidate, its runner-up and margin (the share of
+    the runner-up's held-out gap the best removes on top), whether it is accepted, a tie."""
+    best = scored[0]
+    runner = scored[1] if len(scored) > 1 and math.isfinite(scored[1].heldout_gap) else None
+    margin = sel.share_of(best.heldout_gap, runner.heldout_gap) if runner else 1.0
+    ok = best.share >= sel.MIN_SHARE and gap_start >= sel.NOISE_FACTOR * noise
+    entry = {"round": rnd + 1, "best": best.name, "share": best.share,
+             "runner_up": runner.name if runner else None,
+             "runner_up_share": runner.share if runner else None, "margin": margin,
+             "gap_start_rad": gap_start, "gap_heldout_rad": best.heldout_gap,
+             "accepted": bool(ok)}
+    if runner and margin < sel.TIE_MARGIN:
+        entry["tie"] = True
+        entry["separating_experiment"] = fx.separating_experiment(best.name, runner.name)
+    return entry
+
+
+def _member_entry(rnd: int, best: Scored, name: str, runner_up: str | None, margin: float,
+                  gap_start: float, note: str | None) -> dict:
+    """The report's entry of one member ``name`` of an accepted set ``best`` (a pair, or a set
+    grown from one), with the best alternative for it and the margin."""
+    entry = {"round": rnd + 1, "pair": best.name, "best": name, "share": best.share,
+             "runner_up": runner_up, "runner_up_share": None, "margin": margin,
+             "gap_start_rad": gap_start, "gap_heldout_rad": best.heldout_gap, "accepted": True}
+    if note:
+        entry["runner_up_note"] = note
+    # a tie only with a single alternative effect (not with a set named "a+b")
+    if runner_up is not None and "+" not in runner_up and margin < sel.TIE_MARGIN:
+        entry["tie"] = True
+        entry["separating_experiment"] = fx.separating_experiment(name, runner_up)
+    return entry
+
+
+def _pair_search_due(best: Scored, gap_start: float, noise: float) -> bool:
+    """Whether round 1 searches pairs: no single effect explains the gap down to the noise."""
+    return (gap_start >= sel.REMAINDER_FACTOR * noise
+            and (best.share < sel.PAIR_SEARCH_SHARE or best.heldout_gap >= sel.REMAINDER_FACTOR * noise))
+
+
+def _search_pairs(state: Selection, builder: fx.ModelBuilder, names: list[str], runs: list[ReplayRun],
+                  rep: Replayer, entry: dict, singles: list[Scored], noise: float, k: int, log) -> bool:
+    """Round 1's pair search; True if a pair was accepted (``state`` then holds it).
+
+    Effects that mask each other (a loop delay takes damping away, dry friction adds it) are
+    only visible together, and one effect at a time can settle on a stand-in for the pair (a
+    Stribeck curve for delay + friction), so every pair is fitted jointly too (not only pairs
+    of the round's best candidates: the delay alone explains nothing, and the friction can be
+    outranked by a stand-in).  A pair is accepted when it removes a clear share of the gap and
+    of what the best single candidate leaves."""
+    best_single = singles[0]
+    log(f"round 1: the best single candidate removes {best_single.share:.0%} and leaves "
+        f"{best_single.heldout_gap / max(noise, 1e-300):.1f} x the noise floor: scoring pairs")
+    pairs = sel.score_pairs(builder, runs, rep, state.gap, k=k, candidates=tuple(names), log=log)
+    best_pair = pairs[0]
+    gain = sel.share_of(best_pair.heldout_gap, best_single.heldout_gap)
+    pair_ok = (best_pair.share >= sel.MIN_SHARE and gain >= sel.MIN_SHARE
+               and state.gap >= sel.NOISE_FACTOR * noise)
+    entry["pair_search"] = {"best": best_pair.name, "share": best_pair.share,
+                            "gain_over_best_single": gain, "accepted": bool(pair_ok)}
+    if not pair_ok:
+        log(f"round 1: best pair {best_pair.name} removes {best_pair.share:.0%} ({gain:.0%} of what the "
+            "best single leaves): not accepted")
+        return False
+    state.rounds.append(pairs)
+    entry["accepted"] = False
+    for eff, (runner_up, margin) in zip(best_pair.effects, sel.pair_runner_up(best_pair, pairs, singles)):
+        note = (None if runner_up is not None else
+                "no other scored pair keeps the other member; margin is against the other member alone")
+        member = _member_entry(0, best_pair, eff.name, runner_up, margin, state.gap, note)
+        state.entries.append(member)
+        state.effect_entries.append(member)
+    log(f"round 1: accepted the pair {best_pair.name} (removes {best_pair.share:.0%}; "
+        f"{gain:.0%} of what the best single candidate leaves)")
+    state.accept(best_pair)
+    # a beam: the next round adds each candidate to each confirmed pair, not only to the
+    # accepted one (with a third effect present the best pair can be a stand-in: armature +
+    # LuGre explains more of delay + Coulomb + armature than Coulomb + delay, whose fit then
+    # compensates the missing armature; the triple grows from Coulomb + delay)
+    confirmed = [p for p in pairs if p.method == "refit" and math.isfinite(p.heldout_gap)]
+    if len(confirmed) > 1:
+        state.beam = [(p.effects, p.fit.x) for p in confirmed]
+        state.pairs_scored = [p for p in pairs if math.isfinite(p.heldout_gap)]
+    return True
+
+
+def _accept_round(state: Selection, rnd: int, entry: dict, scored: list[Scored], builder: fx.ModelBuilder,
+                  runs: list[ReplayRun], rep: Replayer, log) -> None:
+    """Accept round ``rnd``'s best set (after the backward step for three or more effects) and
+    record one entry per accepted effect."""
+    best, removals = _backward_step(scored[0], entry, rnd, state.gap, builder, runs, rep, log)
+    dropped_one = best is not scored[0]
+    if state.beam or dropped_one:
+        # every member's runner-up is the best scored set without it (this round's sets, the
+        # pairs, the set without one member); the set may have grown from another pair than
+        # the one accepted
+        pool = scored + state.pairs_scored + removals
+        note = ("the best scored set without this effect (named by what it holds instead; none: "
+                "the effect dropped)")
+        state.effect_entries = []
+        for eff, (runner_up, margin) in zip(best.effects, sel.member_runner_up(best, pool)):
+            member = _member_entry(rnd, best, eff.name, runner_up, margin, state.gap, note)
+            state.entries.append(member)
+            state.effect_entries.append(member)
+        state.beam = None
     else:
-        i = 0
-        for n_acc, (eff, x) in enumerate(_split(best_accepted.effects, best_accepted.fit.x)):
-            ent = effect_entries[n_acc]
-            sl = slice(i, i + eff.nparam)
-            i += eff.nparam
-            item = {
-                "name": eff.name,
-                "description": eff.description,
-                "parameters": {p.name: float(v) for p, v in zip(eff.params, x)},
-                "nominal": {p.name: float(v) for p, v in zip(eff.params, fx.nominal_values(eff, spec, tgt))},
-                "uncertainty": {p.name: float(cover * s + abs(b))
-                                for p, s, b in zip(eff.params, se[sl], bias[sl])},
-                "uncertainty_kind": f"95 % half-width: {cover:.2f} x standard error (Student t, "
-                                    f"{len(best_accepted.folds) - 1} dof of the fold jackknife) "
-                                    "+ |measurement bias|; the standard error includes the "
-                                    "optimiser's and the replay's numerical terms (Type B)",
-                "standard_error": {p.name: float(s) for p, s in zip(eff.params, se[sl])},
-                **{f"standard_error_{kind}": {p.name: float(s) for p, s in zip(eff.params, unc[kind][sl])}
-                   for kind in ("jackknife", "jacobian", "measurement")},
-                "measurement_bias": {p.name: float(b) for p, b in zip(eff.params, bias[sl])},
-                # numerical terms inside the standard error (GUM Type B half-widths, uniform:
-                # b / sqrt(3) each; omni_sim/discrepancy/uncertainty.py)
-                **{f"{kind}_half_width": {p.name: float(b) for p, b in zip(eff.params, unc[kind][sl])}
-                   for kind in ("optimiser", "numerical_floor")},
-                "units": {p.name: p.unit for p in eff.params},
-                "share_of_round_gap": ent["share"],
-                "runner_up": ent["runner_up"],
-                **({"runner_up_note": ent["runner_up_note"]} if "runner_up_note" in ent else {}),
-                **({"fitted_jointly_with": [n for n in ent["pair"].split("+") if n != eff.name]}
-                   if "pair" in ent else {}),
-                "runner_up_share": ent["runner_up_share"],
-                "margin": ent["margin"],
-                "confidence": _confidence(ent["share"], ent["margin"],
-                                          unexplained if gap_after <= sel.REMAINDER_FACTOR * noise else 1.0),
-            }
-            if ent.get("tie"):
-                item["indistinguishable_from"] = ent["runner_up"]
-                item["separating_experiment"] = ent["separating_experiment"]
-            effects_out.append(item)
-        patched = fx.apply(spec, _split(best_accepted.effects, best_accepted.fit.x), tgt)
-    loc_before = localise(rr, theta_before)
-    loc_after = localise(rr, theta_after)
+        state.effect_entries.append(entry)
+    state.accept(best)
+
+
+def _backward_step(best: Scored, entry: dict, rnd: int, gap_start: float, builder: fx.ModelBuilder,
+                   runs: list[ReplayRun], rep: Replayer, log) -> tuple[Scored, list[Scored]]:
+    """Floating selection's backward step for a set of three or more effects: a member accepted
+    earlier may be a stand-in the new member made redundant (a spring fitted with Coulomb
+    friction to part of a backlash's gap); each member is removed in turn, the rest refitted,
+    and a member whose removal the full set does not clearly improve on is dropped.  Returns
+    the set kept and the scored removals (recorded in ``entry["backward_step"]``)."""
+    if len(best.effects) < 3:
+        return best, []
+    removals = sel.score_removals(builder, best, runs, rep, gap_start, log=log)
+    without = removals[0]
+    contribution = sel.share_of(best.heldout_gap, without.heldout_gap)
+    entry["backward_step"] = {"best_without_one": without.name,
+                              "share_of_its_gap_removed_by_the_set": contribution}
+    if contribution >= sel.MIN_SHARE:
+        return best, removals
+    dropped = [e.name for e in best.effects if e.name not in [f.name for f in without.effects]][0]
+    log(f"round {rnd + 1}: {dropped} dropped (without it the held-out gap is "
+        f"{without.heldout_gap:.3e} rad; with it {contribution:.0%} of that is removed, "
+        f"less than {sel.MIN_SHARE:.0%})")
+    entry["backward_step"]["dropped"] = dropped
+    return without, removals
+
+
+# -- 3. uncertainty and the held-out replay ----------------------------------------------------
+def estimate(builder: fx.ModelBuilder, best: Scored | None, fit_runs: list[ReplayRun],
+             runs: list[ReplayRun], rep: Replayer, theta_before: list) -> tuple[dict | None, list]:
+    """The accepted set's uncertainty (:func:`omni_sim.discrepancy.uncertainty.uncertainty`, on
+    the fits' runs) and the held-out replay of the whole runs (each with its fold's
+    parameters); with nothing accepted, no uncertainty and the nominal replay."""
+    if best is None:
+        return None, theta_before
+    unc = un.uncertainty(builder, best, fit_runs, rep, ENCODER_STEP_RAD)
+    return unc, _heldout_theta(builder, best, runs, rep)
+
+
+def _heldout_theta(builder: fx.ModelBuilder, scored: Scored, runs: list[ReplayRun],
+                   rep: Replayer) -> list[np.ndarray]:
+    models = [builder.compile(_split(scored.effects, fold_x)) for fold_x in scored.fold_x]
+    pairs = [(f, j) for f, idx in enumerate(scored.folds) for j in idx]
+    th = rep.simulate(models, runs, pairs)
+    out: list = [None] * len(runs)
+    for (f, j), t in zip(pairs, th):
+        out[j] = t
+    return out
+
+
+def _split(effects, x) -> list[tuple]:
+    """``[(effect, its values in x), ...]`` of effects whose values are concatenated in ``x``."""
+    out, i = [], 0
+    for e in effects:
+        out.append((e, np.asarray(x[i:i + e.nparam], float)))
+        i += e.nparam
+    return out
+
+
+def _patched_spec(builder: fx.ModelBuilder, best: Scored | None) -> mujoco.MjSpec:
+    """The nominal model with the accepted effects at their all-runs fit (a copy)."""
+    if best is None:
+        return builder.spec.copy()
+    return fx.apply(builder.spec, _split(best.effects, best.fit.x), builder.target)
+
+
+# -- 4. the report -----------------------------------------------------------------------------
+def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: NominalReplay,
+                    theta_after: list, selection: Selection, unc: dict | None, settings: dict) -> dict:
+    """The content of ``report.json`` (the run-time fields ``mujoco_warnings`` and ``timings``
+    are added by :func:`run_discrepancy`)."""
+    noise = nominal.noise
+    gap_before = nominal.gap
+    gap_after = gap([th - r.theta for th, r in zip(theta_after, runs)])
+    excess_before = math.sqrt(max(gap_before**2 - noise**2, 0.0))
+    excess_after = math.sqrt(max(gap_after**2 - noise**2, 0.0))
+    unexplained = excess_after / excess_before if excess_before > 0 else 0.0
+    best = selection.best
+    if best is None:
+        effects = [_none_item(selection.entries, gap_before, noise)]
+    else:
+        # "high" confidence needs the gap left at the noise: above it, as if nothing was explained
+        left = unexplained if gap_after <= sel.REMAINDER_FACTOR * noise else 1.0
+        effects = _effect_items(builder, best, selection.effect_entries, unc, left)
+    loc_before = localise(runs, nominal.theta)
+    loc_after = localise(runs, theta_after)
+    rounds = selection.rounds
     # the library's nearest candidates (round 1, held-out share), for a gap left unexplained
     nearest = [{"name": c.name, "share": c.share, "confidence": "low"}
                for c in (rounds[0] if rounds else []) if c.method != "prescreen"][:3]
-    timings["total_s"] = time.perf_counter() - t_start
-    report = {
-        "effects": effects_out,
+    return {
+        "effects": effects,
         "gap_before": gap_before,
         "gap_after": gap_after,
         "gap_units": "rad (root of the mean over runs of each run's mean-square replay error; "
@@ -377,25 +516,98 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         "unexplained_share": unexplained,
         # True whenever the gap left (after the named effects, or with none named) stands well
         # above the noise floor: the library does not explain the data
-        "unexplained": bool((best_accepted is not None and unexplained > sel.UNEXPLAINED_SHARE)
+        "unexplained": bool((best is not None and unexplained > sel.UNEXPLAINED_SHARE)
                             or gap_after > sel.REMAINDER_FACTOR * noise),
         "where": describe(loc_before, noise),
         "where_after": describe(loc_after, noise),
         "nearest_candidates": nearest,
-        "rounds": entries,
-        "candidates": [[{"name": s.name, "heldout_gap_rad": s.heldout_gap, "share": s.share,
-                         "method": s.method, "prescreen_gap_rad": s.prescreen_gap,
-                         "parameters": {p.name: float(v) for e, x in _split(s.effects, s.fit.x)
-                                        for p, v in zip(e.params, x)}} for s in rnd] for rnd in rounds],
+        "rounds": selection.entries,
+        "candidates": [[_candidate_row(s) for s in round_scored] for round_scored in rounds],
         "localisation": {"before": loc_before, "after": loc_after},
-        "settings": {"folds": k, "max_effects": max_effects, "min_share": sel.MIN_SHARE,
-                     "noise_factor": sel.NOISE_FACTOR, "tie_margin": sel.TIE_MARGIN,
-                     "fit_samples_per_run": nfit, "model": path, "joint": tgt.joint,
-                     "actuator": tgt.actuator, "candidates": list(candidates),
-                     "prescreen_samples": sel.PRESCREEN_SAMPLES, "n_screen": sel.N_SCREEN,
-                     "mujoco": mujoco.__version__},
-        "mujoco_warnings": warnings,
-        "timings": {**timings, "physics_steps": steps,
-                    "steps_per_s": steps / max(timings["naming_s"] + timings["replay_nominal_s"], 1e-9)},
+        "settings": settings,
     }
-    return Outcome(report, patched, rr, theta_before, theta_after, rounds)
+
+
+def _candidate_row(s: Scored) -> dict:
+    """One scored candidate as the report lists it."""
+    return {"name": s.name, "heldout_gap_rad": s.heldout_gap, "share": s.share,
+            "method": s.method, "prescreen_gap_rad": s.prescreen_gap,
+            "parameters": {p.name: float(v) for e, x in _split(s.effects, s.fit.x)
+                           for p, v in zip(e.params, x)}}
+
+
+def _none_item(entries: list[dict], gap_before: float, noise: float) -> dict:
+    """The report's effect ``none``: nothing named, the best candidate and why."""
+    first = entries[0] if entries else {"best": None, "share": None, "runner_up": None, "margin": None}
+    if gap_before <= 0:
+        reason = "the model's replay equals the measured data exactly (gap 0): nothing is missing"
+    elif gap_before >= sel.REMAINDER_FACTOR * noise:
+        reason = (f"no library candidate removes a clear share of the held-out gap, which stands at "
+                  f"{gap_before / max(noise, 1e-300):.0f} x the noise floor: the gap is UNEXPLAINED (an "
+                  "effect outside the library, or several), the model is not confirmed")
+    elif gap_before >= sel.NOISE_FACTOR * noise:
+        reason = "no candidate removes a clear share of the held-out gap"
+    else:
+        reason = "the gap is at the measurement noise floor"
+    return {"name": "none", "parameters": {}, "uncertainty": {},
+            "best_candidate": first["best"], "best_share": first["share"],
+            "runner_up": first["runner_up"], "margin": first["margin"], "reason": reason}
+
+
+def _confidence(margin: float, unexplained: float) -> str:
+    """"high" when the effect beats its runner-up clearly (a margin of at least twice
+    :data:`~omni_sim.discrepancy.select.TIE_MARGIN`) and the gap left is at the noise (an
+    unexplained share of at most :data:`~omni_sim.discrepancy.select.UNEXPLAINED_SHARE`); else
+    "low".  (Every named effect removed at least ``MIN_SHARE`` of its round's gap to be
+    accepted, so its share does not enter.)"""
+    return "high" if (margin >= 2 * sel.TIE_MARGIN and unexplained <= sel.UNEXPLAINED_SHARE) else "low"
+
+
+def _by_param(effect, values) -> dict:
+    """``{parameter name: value}`` of one effect."""
+    return {p.name: float(v) for p, v in zip(effect.params, values)}
+
+
+def _effect_items(builder: fx.ModelBuilder, best: Scored, effect_entries: list[dict], unc: dict,
+                  unexplained: float) -> list[dict]:
+    """The report's entry of every accepted effect: fitted values, nominal values, the 95 %
+    half-width and its parts, the round's share, runner-up, margin and confidence."""
+    cover = un.coverage_factor(len(best.folds))
+    se, bias = unc["se"], unc["measurement_bias"]
+    items, i = [], 0
+    for (eff, x), entry in zip(_split(best.effects, best.fit.x), effect_entries):
+        part = slice(i, i + eff.nparam)
+        i += eff.nparam
+        item = {
+            "name": eff.name,
+            "description": eff.description,
+            "parameters": _by_param(eff, x),
+            "nominal": _by_param(eff, builder.nominal_values(eff)),
+            "uncertainty": _by_param(eff, (cover * s + abs(b) for s, b in zip(se[part], bias[part]))),
+            "uncertainty_kind": f"95 % half-width: {cover:.2f} x standard error (Student t, "
+                                f"{len(best.folds) - 1} dof of the fold jackknife) "
+                                "+ |measurement bias|; the standard error includes the "
+                                "optimiser's and the replay's numerical terms (Type B)",
+            "standard_error": _by_param(eff, se[part]),
+            **{f"standard_error_{kind}": _by_param(eff, unc[kind][part])
+               for kind in ("jackknife", "jacobian", "measurement")},
+            "measurement_bias": _by_param(eff, bias[part]),
+            # numerical terms inside the standard error (GUM Type B half-widths, uniform:
+            # b / sqrt(3) each; omni_sim/discrepancy/uncertainty.py)
+            **{f"{kind}_half_width": _by_param(eff, unc[kind][part])
+               for kind in ("optimiser", "numerical_floor")},
+            "units": {p.name: p.unit for p in eff.params},
+            "share_of_round_gap": entry["share"],
+            "runner_up": entry["runner_up"],
+            **({"runner_up_note": entry["runner_up_note"]} if "runner_up_note" in entry else {}),
+            **({"fitted_jointly_with": [n for n in entry["pair"].split("+") if n != eff.name]}
+               if "pair" in entry else {}),
+            "runner_up_share": entry["runner_up_share"],
+            "margin": entry["margin"],
+            "confidence": _confidence(entry["margin"], unexplained),
+        }
+        if entry.get("tie"):
+            item["indistinguishable_from"] = entry["runner_up"]
+            item["separating_experiment"] = entry["separating_experiment"]
+        items.append(item)
+    return items

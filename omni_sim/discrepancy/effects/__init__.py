@@ -54,6 +54,8 @@ model with the encoder's quantisation and 1e-4 rad noise (1.6e-4 rad over
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
 
@@ -65,7 +67,7 @@ from .separation import DEFAULT_SEPARATION, SEPARATING_EXPERIMENTS, separating_e
 
 __all__ = ["LIBRARY", "NAMES", "Effect", "Param", "Target", "OMNI", "ARM_BODIES", "COGGING_PERIODS",
            "SEPARATING_EXPERIMENTS", "DEFAULT_SEPARATION", "separating_experiment", "applicable", "get",
-           "nominal_values", "apply", "compile_with"]
+           "nominal_values", "apply", "compile_with", "ModelBuilder"]
 
 #: The library, in a fixed order (ties are broken by this order).
 LIBRARY: tuple[Effect, ...] = (
@@ -123,3 +125,38 @@ def compile_with(spec: mujoco.MjSpec, changes: list[tuple[Effect, np.ndarray]],
                  target: Target = OMNI) -> mujoco.MjModel:
     """Compile ``spec`` with the changes applied (the spec itself is left untouched)."""
     return apply(spec, changes, target).compile()
+
+
+@dataclass(frozen=True)
+class ModelBuilder:
+    """The library's effects on one nominal model: what the statistics (:mod:`..fit`,
+    :mod:`..select`, :mod:`..uncertainty`) use to look effects up and to compile the models
+    they simulate, so that they need no MuJoCo of their own.
+
+    Attributes
+    ----------
+    spec : MjSpec
+        The nominal model (never modified).
+    target : Target
+        The controlled joint and actuator the effects are written into.
+    """
+
+    spec: mujoco.MjSpec
+    target: Target = OMNI
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Every library name (:data:`NAMES`)."""
+        return NAMES
+
+    def effect(self, name: str) -> Effect:
+        """The library effect called ``name`` (:func:`get`)."""
+        return get(name)
+
+    def nominal_values(self, effect: Effect) -> np.ndarray:
+        """The values the nominal model holds for ``effect`` (:func:`nominal_values`)."""
+        return nominal_values(effect, self.spec, self.target)
+
+    def compile(self, changes: list[tuple[Effect, np.ndarray]]) -> mujoco.MjModel:
+        """The nominal model with ``changes`` written in, compiled (:func:`compile_with`)."""
+        return compile_with(self.spec, changes, self.target)
