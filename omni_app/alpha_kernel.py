@@ -1,4 +1,4 @@
-"""The α-model simulation's time loop compiled with numba (issue 14).
+"""The α-model simulation's time loop compiled with numba.
 
 :func:`identification.simulate.simulate_alpha_batch` runs a per-time-step recursion (the
 quasilinear iteration (44)–(46) and its bisection fallback, then an exact ZOH step) that numpy

@@ -157,8 +157,8 @@ def compare(results: dict) -> dict:
             "paper": paper_figures(),
             "note": "Each family runs its own scene file as it is; how each was calibrated, "
                     "and which calibration and method choices were made after an alpha-model "
-                    "score had been seen, is in models/calibration*.json and the README "
-                    "('Friction families'). " + STEP_NOTE}
+                    "score had been seen, is in models/calibration*.json and "
+                    "docs/friction-families.md. " + STEP_NOTE}
 
 
 # -- figures ------------------------------------------------------------------------------------

@@ -30,7 +30,7 @@ MODELS_DIR = _models_dir()
 #: The built-in scene (the default friction family; includes ``omni.xml``).
 DEFAULT_SCENE = MODELS_DIR / "scene.xml"
 #: The friction families of the built-in model: one scene each around the shared robot
-#: ``omni.xml`` (README, "Friction families").  ``lugre`` is the default (``scene.xml``).
+#: ``omni.xml`` (docs/friction-families.md).  ``lugre`` is the default (``scene.xml``).
 FRICTION_FAMILIES = ("coulomb", "lugre")
 DEFAULT_FRICTION = "lugre"
 

@@ -197,7 +197,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--families", default=",".join(FRICTION_FAMILIES),
                    help="comma-separated friction families (default: %(default)s)")
     p.add_argument("--campaign", default="paper",
-                   help="campaign name or file (default: paper; see README 'Campaign files')")
+                   help="campaign name or file (default: paper; see docs/campaigns.md)")
     p.add_argument("--jobs", type=int, default=None, help="threads (default: all cores)")
     p.add_argument("--force", action="store_true", help="replace existing friction_study.* files")
     return p

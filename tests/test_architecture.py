@@ -197,7 +197,7 @@ def test_method_layer_loads_without_simulator_or_plotting():
     assert proc.returncode == 0, proc.stderr
 
 
-#: Process-global machinery the packages do without (issue 25): forking a process that may
+#: Process-global machinery the packages do without: forking a process that may
 #: have threads (``os.fork``, ``get_context("fork")``), moving objects out of the collector's
 #: reach (``gc.freeze``), import hooks (``sys.meta_path``).
 PROCESS_GLOBAL = {("os", "fork"), ("gc", "freeze"), ("sys", "meta_path")}

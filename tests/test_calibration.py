@@ -1,6 +1,6 @@
-"""Issue 5: the virtual Omni, measured with the paper's own method, stays within the targets set
-by the paper's measurements of the real device (Tables 3, 9, 10 and section 2.3).  Fails if a change to the model
-moves any figure outside its target.  The figures are re-measured here, not read from the record.
+"""Calibration: the virtual Omni, measured with the paper's own method, stays within the
+targets set by the paper's measurements of the real device (Tables 3, 9, 10 and section 2.3).
+Fails if a change to the model moves any figure outside its target.  The figures are re-measured here, not read from the record.
 """
 
 import json
@@ -164,7 +164,7 @@ def test_coulomb_record_matches_its_scene():
               "resonance_65_90_hz", "C_alpha_fall_65_90", "min_physical_margin"):
         assert record["achieved"][k] == pytest.approx(s[k], rel=1e-9), k
     # the design card's model meets Table 3 and the resonance; it cannot give the paper's
-    # low-frequency signature (README, "Friction families")
+    # low-frequency signature (docs/friction-families.md)
     assert s["max_rel_error_C_linear"] <= 0.10 and s["max_rel_error_beta_tilde_linear"] <= 0.10
     assert s["max_angle_error_deg"] <= 1.5 and abs(s["resonance_65_90_hz"] - 3.4) <= 0.3
     assert s["C_alpha_fall_65_90"] < 3 and s["min_physical_margin"] > 0

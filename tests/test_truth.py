@@ -1,4 +1,4 @@
-"""The identification against the simulator's ground truth (issue 3's simulator checks).
+"""The identification against the simulator's ground truth (docs/results.md, "Ground-truth checks").
 
 Truth comes from the model itself: MuJoCo's mass matrix (yaw inertia), the joint damping, the
 torque constant and the gain -- never from the identification code.
@@ -46,13 +46,13 @@ def test_mujoco_discrete_truth_near_continuous():
 @pytest.fixture(scope="module")
 def frictionless():
     dev = Device.load().without_friction()
-    # small amplitude: the servo-held arm does not lift under centrifugal load (see README)
+    # small amplitude: the servo-held arm does not lift under centrifugal load (see docs/results.md)
     runs = ex.simulate(ex.campaign("sine", sine_amplitude_rad=0.02), device=dev)
     return dev, identify_runs(runs)
 
 
 def test_frictionless_linear_coefficients_match_truth(frictionless):
-    """Issue 3: without friction C_linear and beta_linear match their analytic values within 1 %."""
+    """Without friction C_linear and beta_linear match their analytic values within 1 %."""
     dev, ident = frictionless
     for p in ident.poses:
         d = truth.yaw_dynamics(dev, p.gamma1_deg, p.gamma2_deg)
@@ -63,7 +63,7 @@ def test_frictionless_linear_coefficients_match_truth(frictionless):
 
 
 def test_frictionless_inertia_model_predicts_all_25_poses(frictionless):
-    """Issue 3: the inertia model fitted on 9 poses predicts MuJoCo's inertia at all 25 Table 2
+    """The inertia model fitted on 9 poses predicts MuJoCo's inertia at all 25 Table 2
     poses (16 never fitted) within 2 % (measured: 0.4 %)."""
     dev, ident = frictionless
     res = inertia_truth(dev, ident.inertia.params)
@@ -81,12 +81,12 @@ def _inertia_errors(m):
 def test_dry_friction_biases_the_inertia_by_its_kind():
     """The paper's method sees dry friction as a change of beta_data, so the identified inertia
     is biased -- and the sign tells the friction's kind.  A hard stick (``frictionloss`` +
-    noslip, the first session's model) has a dead band that lowers beta_data at low amplitude:
+    noslip, the coulomb family's kind of stick) has a dead band that lowers beta_data at low amplitude:
     inertia over-estimated at every pose.  The calibrated LuGre drive's pre-sliding stiffness
     makes low-energy motion stiffer, raising beta_data: inertia under-estimated, clearly so at the
     heavy poses (measured: -4 to -7 % for the top third, up to +2 % at the lightest pose)."""
     hard = Device(om.load_model()).without_friction().model
-    hard.dof_frictionloss[om.index(hard).yaw_dof] = 0.0209  # first session's calibrated Fc
+    hard.dof_frictionloss[om.index(hard).yaw_dof] = 0.0209  # the hard-stick calibration's Fc (docs/calibration_coulomb_run.json)
     errs, _ = _inertia_errors(hard)
     assert min(errs) > 0, errs
     errs, inertia = _inertia_errors(om.load_model())
