@@ -11,12 +11,12 @@ case's full workflow report; it is rewritten after each case, so a stopped run k
 did.  A worked example with figures is written to docs/discrepancy_example/ (``--no-example``:
 not).
 
-``--table`` prints the README's bank table made from the JSON (``tests/test_discrepancy_bank.py``
-checks that README.md holds exactly that).
+``--table`` prints the bank table of docs/discrepancy.md made from the JSON
+(``tests/test_discrepancy_bank.py`` checks that docs/discrepancy.md holds exactly that).
 
 Usage: python scripts/discrepancy_bank.py [--cases NAME ...] [--no-example] [--jobs N] [--out MD]
                                          [--commit TEXT] [--note TEXT]
-       python scripts/discrepancy_bank.py --table [--json JSON]      (the README's table)
+       python scripts/discrepancy_bank.py --table [--json JSON]      (docs/discrepancy.md's table)
        python scripts/discrepancy_bank.py --markdown [--json JSON] [--out MD]   (MD from JSON)
 """
 
@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 from omni_sim.discrepancy import bank  # noqa: E402
 
-#: Where the bank's table and its JSON live (README.md links them).
+#: Where the bank's table and its JSON live (docs/discrepancy.md links them).
 DEFAULT_OUT = ROOT / "docs" / "discrepancy" / "bank.md"
 
 
@@ -147,7 +147,8 @@ def _fitted_cell(c: dict) -> str:
 
 
 def readme_table(data: dict) -> str:
-    """The README's bank table (section "The hidden-effect bank: what it proves"), from the JSON."""
+    """The bank table of docs/discrepancy.md (section "The hidden-effect bank: what it proves"),
+    from the JSON."""
     rows = ["| case | named (confidence) | fitted ± 95 % (truth) | held-out gap shrink | result | time |",
             "|---|---|---|---|---|---|"]
     for name, c in data["cases"].items():
@@ -189,7 +190,7 @@ def main(argv=None) -> int:
     ap.add_argument("--commit", default=None, help="what the header names as the code's commit "
                     "(default: the checkout's, with its uncommitted code paths)")
     ap.add_argument("--note", default="", help="a sentence for the header (e.g. how the code was checked out)")
-    ap.add_argument("--table", action="store_true", help="print the README's bank table made from --json")
+    ap.add_argument("--table", action="store_true", help="print docs/discrepancy.md's bank table made from --json")
     ap.add_argument("--markdown", action="store_true", help="rewrite --out's table from --json (no run)")
     ap.add_argument("--json", default=str(DEFAULT_OUT.with_suffix(".json")))
     args = ap.parse_args(argv)
