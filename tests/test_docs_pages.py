@@ -1,0 +1,124 @@
+"""The documentation a newcomer reads: a README of a screen or two that lists every command of
+``omni --help`` and links the docs/ pages; pages whose links and code paths exist; and text
+that describes the code, not how it came to be (no "sess"+"ion" or "issue N" in the README,
+docs/, the packages, the tests, the examples or the model and data notes)."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+import pytest
+
+from omni_app.cli import build_parser
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+#: One or two screens.
+MAX_README_LINES = 200
+#: The pages the README's documentation table links (docs/*.md) and the changelog.
+PAGES = ("results", "model", "calibration", "friction-families", "discrepancy", "sweeps",
+         "performance", "paper-errata", "gymnasium", "campaigns", "architecture")
+#: Words that tell how the code came to be instead of what it is (split so that this file
+#: does not match itself).
+HISTORY = re.compile("sess" + r"ion|issue\s+\d", re.IGNORECASE)
+#: ``subprocess.Popen``'s ``start_new_`` + ``...=True`` argument names a POSIX process group.
+ALLOWED = re.compile("start_new_" + "sess" + "ion=True")
+#: Where the history words are looked for: (folder or file, glob).
+SCANNED = (("README.md", None), ("docs", "**/*"), ("omni_sim", "**/*.py"), ("omni_sim", "**/*.toml"),
+           ("omni_app", "**/*.py"), ("identification", "**/*.py"), ("identification/data", "*.md"),
+           ("tests", "**/*.py"), ("examples", "**/*"), ("models/README.md", None))
+#: Repository paths named in backticks in the README and docs/*.md (checked to exist): a file
+#: (with a suffix) or a folder (ending in ``/``) under one of the project's top-level folders.
+CODE_PATH = re.compile(r"`((?:omni_sim|omni_app|identification|scripts|tests|models|docs|examples)"
+                       r"/[A-Za-z0-9_/-]*(?:\.[A-Za-z0-9_.]+|/))`")
+
+
+def _subcommands() -> set[str]:
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return set(sub.choices)
+
+
+def _readme_commands(text: str) -> set[str]:
+    """The commands of the README's table under "## Commands" (first cell ``omni NAME ...``)."""
+    section = text[text.index("\n## Commands"):]
+    section = section[:section.index("\n## ", 1)]
+    return {m.group(1) for m in re.finditer(r"^\| `omni ([a-z-]+)", section, re.M)}
+
+
+def _scanned_files():
+    for where, pattern in SCANNED:
+        path = ROOT / where
+        files = [path] if pattern is None else sorted(path.glob(pattern))
+        for f in files:
+            if f.is_file() and f.suffix not in (".png", ".pyc") and "__pycache__" not in f.parts:
+                yield f
+
+
+def test_readme_fits_two_screens():
+    n = len(README.read_text().splitlines())
+    assert n <= MAX_README_LINES, f"README.md has {n} lines (at most {MAX_README_LINES})"
+
+
+def test_readme_lists_every_command():
+    """The README's commands table lists exactly the subcommands ``omni --help`` lists."""
+    assert _readme_commands(README.read_text()) == _subcommands()
+
+
+def test_the_command_finder_reads_the_table():
+    text = "# x\n\n## Commands\n\n| command | does |\n|---|---|\n| `omni a --x` | . |\n| `omni b-c` | . |\n\n## Next\n"
+    assert _readme_commands(text) == {"a", "b-c"}
+    assert _readme_commands(text.replace("| `omni b-c` | . |\n", "")) == {"a"}
+
+
+def test_readme_keeps_the_two_setup_commands():
+    """.ci/run runs the second verbatim."""
+    text = README.read_text()
+    for cmd in ("python3 -m venv .venv && . .venv/bin/activate && pip install -e . && omni reproduce --out results",
+                'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test]" && pytest -q'):
+        assert f"```bash\n{cmd}\n```" in text, cmd
+    assert 'pip install -e ".[test]" && pytest -q' in (ROOT / ".ci" / "run").read_text()
+
+
+def test_pages_exist_and_the_readme_links_them():
+    text = README.read_text()
+    for page in PAGES:
+        assert (ROOT / "docs" / f"{page}.md").is_file(), page
+        assert f"(docs/{page}.md)" in text, page
+    assert (ROOT / "CHANGELOG.md").is_file() and "(CHANGELOG.md)" in text
+
+
+@pytest.mark.parametrize("page", ["README.md"] + [f"docs/{p}.md" for p in PAGES])
+def test_links_and_code_paths_exist(page):
+    """Every relative link of a page resolves, and every repository path it names in backticks
+    exists (a renamed module shows up here)."""
+    path = ROOT / page
+    text = path.read_text()
+    for target in re.findall(r"\]\(([^)\s]+)\)", text):
+        if re.match(r"[a-z]+:", target) or target.startswith("#"):
+            continue
+        assert (path.parent / target.split("#")[0]).exists(), f"{page}: link {target}"
+    for name in CODE_PATH.findall(text):
+        if "*" in name or "<" in name:
+            continue
+        assert (ROOT / name).exists(), f"{page}: `{name}` does not exist"
+
+
+def test_no_history_words():
+    hits = []
+    for f in _scanned_files():
+        text = f.read_bytes().decode("utf-8", errors="replace")
+        for i, line in enumerate(text.splitlines(), 1):
+            if HISTORY.search(ALLOWED.sub("", line)):
+                hits.append(f"{f.relative_to(ROOT)}:{i}: {line.strip()[:100]}")
+    assert hits == []
+
+
+def test_the_history_search_finds_them():
+    assert HISTORY.search("as in the first " + "sess" + "ion")
+    assert HISTORY.search("Issue" + " 14: faster")
+    assert not HISTORY.search(ALLOWED.sub("", "Popen(cmd, start_new_" + "sess" + "ion=True)"))
+    assert not HISTORY.search("the issue targets")
+    assert len(list(_scanned_files())) > 100
