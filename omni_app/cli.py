@@ -169,6 +169,9 @@ def _add_zwidth(sub) -> None:
     p.add_argument("--no-quantize", action="store_true", help="exact encoder (default: 15000 counts/rev)")
     p.add_argument("--delay", type=_nonnegative_int, default=0, help="loop delay [servo periods]")
     p.add_argument("--substeps", type=_positive_int, default=20, help="physics steps per servo period")
+    p.add_argument("--probe-speed", type=float, default=0.02, metavar="RAD_PER_S",
+                   help="speed of the Nyquist square-wave probe (default 0.02 rad/s: corners of "
+                        "+-1e-5 rad, below one encoder count)")
     p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
     p.add_argument("--out", required=True, metavar="DIR", help="writes DIR/zwidth.json and DIR/zwidth.png")
     p.add_argument("--force", action="store_true", help="replace a non-empty DIR")

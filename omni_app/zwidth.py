@@ -11,21 +11,23 @@ one row of a single batch of the device's closed loop (:class:`omni_sim.device.E
 and thread pool, one ``mujoco.rollout`` call per servo period for all cells).  Each row starts
 at rest inside the wall at penetration ``START_PENETRATION``; the hand is a torque source at the
 yaw: a constant push ``K p0`` that holds the stylus there (conservative: its work is bounded),
-plus a probe.  For ``B >= 0`` the probe is a torque impulse at every sample instant that
-reverses the yaw's velocity, so the velocity is a square wave at the Nyquist frequency
-(``+-PROBE_SPEED``) and the position a triangle with its corners at the samples: the motion
-that attains Colgate & Schenkel's bound (per period the wall returns ``2 X^2 (K + 2 B / T)``
-and the damper takes ``4 b X^2 / T``, X the corner amplitude; for ``B = 0`` every frequency is
-equally bad).  For ``B < 0`` (worst case at DC) the probe is a slow sine torque instead.  After
-the first ``SETTLE_FRACTION`` of the run, the energy the probe puts into the device
-``W = sum_j F_j h (v_j + v_{j+1}) / 2`` (the exact work of a force held over a physics step of
+plus a probe.  Each cell runs once per probe (``PROBE_PERIODS``): a torque impulse at every
+m-th sample instant that reverses the yaw's velocity, so the velocity is a square wave of
+amplitude ``PROBE_SPEED`` and half-period ``m T`` and the position a triangle with its corners at
+samples.  With ``m = 1`` (the Nyquist frequency) this is the motion that attains Colgate &
+Schenkel's bound for ``B >= 0``: per period the wall returns ``2 X^2 (K + 2 B / T)`` and the
+damper takes ``4 b X^2 / T``, X the corner amplitude (for ``B = 0`` every frequency is equally
+bad).  The slower probes (m = 4, 16) cover the worst cases at low frequency (``B < 0``) and in
+between (a loop delay).  Over the run after
+the first ``SETTLE_FRACTION``, the energy the probe puts into the device ``W = sum_j F_j h (v_j + v_{j+1}) / 2`` (the exact work of a force held over a physics step of
 MuJoCo's semi-implicit Euler) is divided by the energy the viscous damping ``b`` dissipates over
-the same steps: ``index = W / D_b``.  A cell is passive iff ``index >= -TOL`` and the run stayed
-finite and inside the yaw range; for the ideal linear device ``index`` is close to
+the same steps: ``index = W / D_b``.  A cell is passive iff ``index >= -TOL`` under every probe (an input that draws net
+energy out of the device proves it active) and every run stayed finite and inside the yaw
+range; for the ideal linear device ``index`` is close to
 ``1 - (K T / 2 + |B|) / b``.  The largest passive K of a damping row is interpolated where
 ``index`` crosses ``-TOL`` (:func:`boundary`).
 
-The physics step is refined to ``T / substeps`` (default 10) for this tool: Colgate & Schenkel's
+The physics step is refined to ``T / substeps`` (default 20) for this tool: Colgate & Schenkel's
 plant is continuous between samples, while the model's own 1 ms step equals the servo period.
 
 The hand's torque goes to the yaw through the motor's own channel (the same joint torque,
@@ -45,9 +47,6 @@ import numpy as np
 
 from identification.errors import UserError
 
-#: Probe torque amplitude [N*m]: 0.01 N*m, 1.5 % of the drive's 0.65 N*m peak (gear 0.5 N*m/V
-#: x 1.3 V, models/omni.xml) -- small, so the wall's command never saturates.
-PROBE_TORQUE = 0.01
 #: Probe speed [rad/s] of the Nyquist square-wave velocity (our choice: 0.02 rad/s, so the
 #: triangle's corners are +-1e-5 rad -- a pure test of the sampled wall, below one encoder count).
 PROBE_SPEED = 0.02
@@ -60,10 +59,10 @@ SETTLE_FRACTION = 0.3
 #: Tolerance of the energy test (fraction of the viscous dissipation; our choice, 2 %: the
 #: numerical energy error of the ideal device is far below it).
 TOL = 0.02
-#: Ramp-up time of the probe's amplitude [s] (our choice; 100 servo periods).
-RAMP_S = 0.1
-#: Slow-sine probe frequency [Hz] for negative B (worst case at DC).
-LOW_PROBE_HZ = 5.0
+#: Half-periods of the probes' velocity square waves [servo periods] (our choice): 1 is the
+#: Nyquist frequency (Colgate & Schenkel's worst case for B >= 0 without delay), 4 and 16 lower
+#: frequencies (the worst case for B < 0 and, with a loop delay, in between).
+PROBE_PERIODS = (1, 4, 16)
 #: Physics steps per servo period for the map (the probe's impulse takes one: 1/20 of the
 #: period, so the velocity square wave is within ~3 % of ideal).
 SUBSTEPS = 20
@@ -96,22 +95,29 @@ def map_device(path=None, friction=None, ideal=False, control_period_s=1e-3, sub
 
 
 def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=False, delay=0,
-                  probe=PROBE_TORQUE, probe_speed=PROBE_SPEED, duration_s=DURATION_S, gamma_set_deg=(65.0, 90.0),
-                  nthread=None, record=False):
-    """Run every (K, B) cell and decide passivity (see the module doc).
+                  probe_speed=PROBE_SPEED, probe_periods=PROBE_PERIODS, duration_s=DURATION_S,
+                  gamma_set_deg=(65.0, 90.0), nthread=None, record=False):
+    """Run every (K, B) cell under every probe and decide passivity (see the module doc).
 
-    Returns a dict: ``passive`` (len(damping) x len(stiffness) bools), ``index`` (W / S),
-    ``diverged``; with ``record`` also the per-row traces."""
+    Returns a dict: ``passive`` (len(damping) x len(stiffness) bools), ``index`` (the smallest
+    W / D_b over the probes), ``index_per_probe`` (probes x damping x stiffness),
+    ``diverged``; with ``record`` also the rows' traces (row = probe-major, then cell)."""
     from omni_sim.device import ENCODER_STEP_RAD, Engine, encoder_reader
     from omni_sim.wall_env import wall_torque
 
     K = np.asarray(stiffness, dtype=float)
     Bv = np.asarray(damping, dtype=float)
     KK, BB = np.meshgrid(K, Bv)  # rows = damping, columns = stiffness
-    k_row, b_row = KK.ravel(), BB.ravel()
+    periods = [int(m) for m in probe_periods]
+    if not periods or min(periods) < 1:
+        raise UserError(f"probe periods must be whole numbers >= 1, got {probe_periods!r}")
+    P = len(periods)
+    k_row, b_row = np.tile(KK.ravel(), P), np.tile(BB.ravel(), P)
     n_rows = k_row.size
     T = device.control_period_s
     kt = device.torque_constant
+    sub = device.substeps
+    h = T / sub
     wall = 0.0
     theta0 = wall + START_PENETRATION
     lo, hi = device.model.jnt_range[device.joint_id]
@@ -119,21 +125,17 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
     k0 = int(round(SETTLE_FRACTION * n))
     read = encoder_reader(ENCODER_STEP_RAD if quantize else 0.0)
     push = k_row * START_PENETRATION
-    sub = device.substeps
-    h = T / sub
-    # the probe: a torque impulse (over the first physics step of each servo period) that
-    # reverses the yaw's velocity at every sample instant, so the velocity is a square wave at
-    # the Nyquist frequency and the position a triangle with its corners at the samples --
-    # Colgate & Schenkel's worst case for B >= 0 (for B = 0 every frequency is as bad); the
-    # first impulse is half (the velocity alternates about zero).  For B < 0 (worst case at
-    # DC) a slow sine of torque amplitude ``probe`` instead.
+    # probe m: a torque impulse over the first physics step of every m-th servo period that
+    # reverses the yaw's velocity, so the velocity is a square wave of half-period m T and the
+    # position a triangle with its corners at samples; the first impulse is half (the velocity
+    # alternates about zero)
     J = 2.0 * probe_speed * device.inertia(*device.equilibrium(*gamma_set_deg))
-    imp = np.zeros((n, sub))
-    imp[:, 0] = J / h * np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
-    imp[0, 0] *= 0.5
-    ts = (np.arange(n * sub) + 0.5) * h
-    low = (np.sin(2 * np.pi * LOW_PROBE_HZ * ts) * np.minimum(1.0, ts / RAMP_S)).reshape(n, sub)
-    probe_sig = np.where(b_row[:, None, None] < 0, probe * low[None], imp[None])
+    imp = np.zeros((P, n))
+    for i, m in enumerate(periods):
+        ks = np.arange(0, n, m)
+        imp[i, ks] = J / h * np.where(np.arange(ks.size) % 2 == 0, 1.0, -1.0)
+        imp[i, 0] *= 0.5
+    imp_row = np.repeat(imp, KK.size, axis=0)  # (rows, n): the probe's torque in the first step
     bphys = float(device.model.dof_damping[device.ix.yaw_dof])
     eng = Engine([device] * n_rows, [theta0] * n_rows, [gamma_set_deg] * n_rows, nthread=nthread)
     try:
@@ -146,8 +148,7 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
         act = device.ix.yaw_act
         qv = 1 + device.model.nq + device.ix.yaw_dof
         if record:
-            rec = {"theta": np.empty((n_rows, n)), "tau_wall": np.empty((n_rows, n)),
-                   "tau_hand": np.empty((n_rows, n))}
+            rec = {"theta": np.empty((n_rows, n)), "tau_wall": np.empty((n_rows, n))}
         for k in range(n):
             th = eng.x[:, qa].copy()
             y = read(th, 0.0)
@@ -156,23 +157,26 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
             if delay:
                 queue.append(tau)
                 tau = queue.pop(0)
-            hand = push[:, None] + probe_sig[:, k, :]  # (rows, substeps)
-            # the engine's own batch step (Engine._advance) with a command per physics step
-            eng._ctrl[:, :, act] = (tau[:, None] + hand) / kt
+            # the engine's own batch step (Engine._advance) with a command per physics step:
+            # the wall's torque and the push held, the probe's impulse in the first step
+            eng._ctrl[:, :, act] = ((tau + push) / kt)[:, None]
+            eng._ctrl[:, 0, act] += imp_row[:, k] / kt
             eng.pool.rollout(eng._models, eng._datas, eng.x, eng._ctrl, nstep=sub,
                              skip_checks=True, state=eng._state, sensordata=eng._sens,
                              chunk_size=eng._chunk)
-            vs = np.concatenate([eng.x[:, qv:qv + 1], eng._state[:, :, qv]], axis=1)
+            v0 = eng.x[:, qv].copy()
+            vs = eng._state[:, :, qv]
             eng.x = eng._state[:, -1, :].copy()
             th1 = eng.x[:, qa]
-            vbar = 0.5 * (vs[:, 1:] + vs[:, :-1])  # the work of a force held over a physics
-            # step is F h (v_j + v_j+1) / 2 in MuJoCo's semi-implicit Euler (its exact
-            # kinetic-energy balance); the push is conservative (bounded work), left out
             if k >= k0:
-                W += h * (probe_sig[:, k, :] * vbar).sum(axis=1)
-                S += bphys * h * (vs[:, 1:] * vbar).sum(axis=1)
+                # the work of a force held over a physics step is F h (v_j + v_j+1) / 2 in
+                # MuJoCo's semi-implicit Euler (its exact kinetic-energy balance); the push is
+                # conservative (bounded work) and left out
+                W += h * imp_row[:, k] * 0.5 * (v0 + vs[:, 0])
+                vprev = np.concatenate([v0[:, None], vs[:, :-1]], axis=1)
+                S += bphys * h * (vs * 0.5 * (vs + vprev)).sum(axis=1)
             if record:
-                rec["theta"][:, k], rec["tau_wall"][:, k], rec["tau_hand"][:, k] = th, tau, hand.mean(axis=1)
+                rec["theta"][:, k], rec["tau_wall"][:, k] = th, tau
             bad |= ~np.isfinite(th1) | (th1 <= lo + 1e-3) | (th1 >= hi - 1e-3)
             if bad.all():
                 break
@@ -181,10 +185,11 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
     with np.errstate(invalid="ignore", divide="ignore"):
         index = np.where(S > 0, W / np.where(S > 0, S, 1.0), 0.0)
     index[bad] = -1.0
-    passive = (index >= -TOL) & ~bad
-    shape = KK.shape
-    out = {"passive": passive.reshape(shape), "index": index.reshape(shape),
-           "diverged": bad.reshape(shape)}
+    per = index.reshape((P,) + KK.shape)
+    worst = per.min(axis=0)
+    diverged = bad.reshape((P,) + KK.shape).any(axis=0)
+    out = {"passive": (worst >= -TOL) & ~diverged, "index": worst, "index_per_probe": per,
+           "diverged": diverged, "probe_periods": periods}
     if record:
         out["trace"] = rec
     return out
@@ -255,8 +260,10 @@ def zwidth_command(args) -> int:
         raise UserError(f"--stiffness: values must be >= 0, got {min(K)}")
     quantize = not args.ideal and not args.no_quantize
     t0 = time.perf_counter()
+    if not (args.probe_speed > 0 and math.isfinite(args.probe_speed)):
+        raise UserError(f"--probe-speed must be a finite speed > 0 [rad/s], got {args.probe_speed}")
     res = passivity_map(dev, K, B, torque_limit=tlim, quantize=quantize, delay=args.delay,
-                        nthread=args.jobs)
+                        probe_speed=args.probe_speed, nthread=args.jobs)
     elapsed = time.perf_counter() - t0
     family = "ideal" if args.ideal else dev.friction_family(
         None if args.model else __import__("omni_sim.model", fromlist=["x"]).model_path(None, args.friction))
@@ -266,11 +273,14 @@ def zwidth_command(args) -> int:
         "physical_damping": b, "sample_period_s": T,
         "settings": {"model": str(args.model) if args.model else None, "friction": family,
                      "ideal": bool(args.ideal), "quantize": quantize, "delay_periods": args.delay,
-                     "physics_substeps": args.substeps, "probe_torque": PROBE_TORQUE,
+                     "physics_substeps": args.substeps, "probe_speed": args.probe_speed,
+                     "probe_periods": list(PROBE_PERIODS),
                      "start_penetration_rad": START_PENETRATION, "duration_s": DURATION_S,
                      "settle_fraction": SETTLE_FRACTION, "tolerance": TOL,
                      "torque_limit": tlim, "elapsed_s": round(elapsed, 2)},
         "energy_index": res["index"].round(6).tolist(),
+        "energy_index_per_probe": {str(m): x.round(6).tolist()
+                                   for m, x in zip(res["probe_periods"], res["index_per_probe"])},
         "boundary_stiffness": [None if not np.isfinite(x) else x for x in boundary(K, res["index"])],
         "colgate_stiffness": colgate_limit(b, B, T).tolist(),
     }

@@ -29,13 +29,29 @@ def test_ideal_boundary_within_15_percent_of_colgate(ideal):
     assert res["passive"][:, 0].all() and not res["passive"][:, -1].any()
 
 
-def test_negative_damping_uses_the_low_frequency_probe(ideal):
-    """B < 0: the bound is reached at DC; a wall with b = K T / 2 + |B| far exceeded is active,
-    one well inside it passive."""
+def test_negative_damping_is_caught_by_the_slow_probes(ideal):
+    """B = -b/2: Colgate & Schenkel's bound is K < b / T, reached at low frequency (at the
+    Nyquist frequency the same wall is passive up to 3 b / T).  K = 2 b / T is active, found by
+    the slowest probe and not by the Nyquist one; K = 0.2 b / T is passive."""
     dev, tlim = ideal
     b, T = physical_damping(dev), dev.control_period_s
-    res = passivity_map(dev, [0.2 * b / T, 3.0 * b / T], [-0.5 * b], tlim, duration_s=0.5)
+    res = passivity_map(dev, [0.2 * b / T, 2.0 * b / T], [-0.5 * b], tlim, duration_s=0.5)
     assert res["passive"].tolist() == [[True, False]]
+    # the Nyquist probe alone does not see the negative damper: the slow probe is what fails
+    per = res["index_per_probe"]
+    assert per[0, 0, 1] > 0 and per[-1, 0, 1] < -0.02
+
+
+def test_delay_shrinks_the_boundary(ideal):
+    """One servo period of loop delay: at B = 0 the wall's spring lags (1/2 + 1) T, so the
+    passive stiffness falls to about 2 b / (3 T) (the Colgate-type bound with the delay added
+    to the hold's T/2); measured within 25 % (the probes are a finite set of frequencies)."""
+    dev, tlim = ideal
+    b, T = physical_damping(dev), dev.control_period_s
+    K = np.linspace(0.0, 2.0 * b / T, 21)
+    res = passivity_map(dev, K, [0.0], tlim, delay=1, duration_s=0.5)
+    kb = boundary(K, res["index"])[0]
+    assert abs(kb / (2 * b / (3 * T)) - 1) < 0.25, kb
 
 
 def test_cli_writes_the_contract(tmp_path):
