@@ -32,14 +32,14 @@ def test_ideal_boundary_within_15_percent_of_colgate(ideal):
 def test_negative_damping_is_caught_by_the_slow_probes(ideal):
     """B = -b/2: Colgate & Schenkel's bound is K < b / T, reached at low frequency (at the
     Nyquist frequency the same wall is passive up to 3 b / T).  K = 2 b / T is active, found by
-    the slowest probe and not by the Nyquist one; K = 0.2 b / T is passive."""
+    a slow probe and not by the Nyquist one; K = 0.2 b / T is passive."""
     dev, tlim = ideal
     b, T = physical_damping(dev), dev.control_period_s
     res = passivity_map(dev, [0.2 * b / T, 2.0 * b / T], [-0.5 * b], tlim, duration_s=0.5)
     assert res["passive"].tolist() == [[True, False]]
-    # the Nyquist probe alone does not see the negative damper: the slow probe is what fails
+    # the Nyquist probe alone does not see the negative damper: a slow probe is what fails
     per = res["index_per_probe"]
-    assert per[0, 0, 1] > 0 and per[-1, 0, 1] < -0.02
+    assert per[0, 0, 1] > 0 and per[1:, 0, 1].min() < -0.02
 
 
 def test_delay_shrinks_the_boundary(ideal):
