@@ -11,7 +11,7 @@ from identification.dataset import atomic_output_dir, read_dataset, write_run
 from identification.errors import UserError
 
 from omni_sim import model as om
-from omni_sim.discrepancy import bank
+from omni_sim.discrepancy import experiment_set, hidden
 from omni_sim.discrepancy.workflow import run_discrepancy
 
 from . import discrepancy_report as rp
@@ -78,14 +78,14 @@ def demo(out: Path, force: bool = False, case_name: str = DEMO_CASE, log=None) -
     out = Path(out)
     if out.is_dir() and any(out.iterdir()) and not force:
         raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
-    hidden = bank.case(case_name)
-    runs = bank.generate(hidden)
+    case = hidden.case(case_name)
+    runs = hidden.generate(case)
     outcome = run_discrepancy(runs, None, log=log)
-    outcome.report["hidden"] = {"case": hidden.name, "effects": {n: list(v) for n, v in hidden.effects},
-                                "note": hidden.note}
-    intro = (f"Demo: the virtual Omni with a hidden effect -- **{hidden.name}** "
-             f"({hidden.note}) -- generated the 'measured' runs in `measured/` (encoder quantised to "
-             f"15000 counts/rev plus {bank.BANK_NOISE_RAD:g} rad noise); the workflow saw only those "
+    outcome.report["hidden"] = {"case": case.name, "effects": {n: list(v) for n, v in case.effects},
+                                "note": case.note}
+    intro = (f"Demo: the virtual Omni with a hidden effect -- **{case.name}** "
+             f"({case.note}) -- generated the 'measured' runs in `measured/` (encoder quantised to "
+             f"15000 counts/rev plus {experiment_set.NOISE_RAD:g} rad noise); the workflow saw only those "
              f"runs and the unmodified model.")
     with atomic_output_dir(out, force=force) as tmp:
         (tmp / "measured").mkdir()
@@ -106,8 +106,8 @@ def bench_discrepancy(case_name: str = DEMO_CASE, jobs: int | None = None) -> di
         ``discrepancy_samples`` (measured samples), ``discrepancy_named`` (names found) and
         ``discrepancy_correct`` (they match the hidden effect).
     """
-    hidden = bank.case(case_name)
-    runs = bank.generate(hidden, jobs=jobs)
+    case = hidden.case(case_name)
+    runs = hidden.generate(case, jobs=jobs)
     t0 = time.perf_counter()
     outcome = run_discrepancy(runs, None, jobs=jobs)
     wall = time.perf_counter() - t0
@@ -116,7 +116,7 @@ def bench_discrepancy(case_name: str = DEMO_CASE, jobs: int | None = None) -> di
             "discrepancy_steps_per_s": outcome.report["timings"]["steps_per_s"],
             "discrepancy_samples": int(sum(len(r.t) for r in runs)),
             "discrepancy_named": named,
-            "discrepancy_correct": sorted(named) == sorted(hidden.expect)}
+            "discrepancy_correct": sorted(named) == sorted(case.expect)}
 
 
 #: The case hidden by the campaign benchmark (``omni bench --discrepancy-campaign``).
@@ -126,8 +126,9 @@ CAMPAIGN_CASE = "viscous_damping"
 def bench_discrepancy_campaign(case_name: str = CAMPAIGN_CASE, jobs: int | None = None,
                                log=None) -> dict:
     """Time the workflow on the whole paper campaign (106 runs, 686 s at 1 kHz) with the
-    whole library: the truth is the bank's case ``case_name`` (independent of the library),
-    measured with the bank's quantised, noisy encoder.
+    whole library: the truth is the hidden case ``case_name`` (:mod:`omni_sim.discrepancy.hidden`,
+    independent of the library), measured with the quantised, noisy encoder of the compact
+    experiment set (:mod:`omni_sim.discrepancy.experiment_set`).
 
     Returns
     -------
@@ -138,19 +139,19 @@ def bench_discrepancy_campaign(case_name: str = CAMPAIGN_CASE, jobs: int | None 
     from omni_sim import experiments as ex
     from omni_sim.discrepancy import effects as fx
 
-    hidden = bank.case(case_name)
-    runs = bank.generate(hidden, exps=ex.campaign("paper"), jobs=jobs)
+    case = hidden.case(case_name)
+    runs = hidden.generate(case, exps=ex.campaign("paper"), jobs=jobs)
     t0 = time.perf_counter()
     rep = run_discrepancy(runs, None, jobs=jobs, log=log).report
     wall = time.perf_counter() - t0
     named = [e["name"] for e in rep["effects"]]
-    truth = dict(hidden.effects)
+    truth = dict(case.effects)
     params = {e["name"]: {p: {"fitted": v, "half_width_95": e["uncertainty"][p],
                               "truth": (truth[e["name"]][i] if e["name"] in truth else None)}
                           for i, (p, v) in enumerate(e["parameters"].items())}
               for e in rep["effects"] if e["name"] != "none"}
     return {"case": case_name, "wall_s": round(wall, 1), "runs": len(runs),
             "samples": int(sum(len(r.t) for r in runs)), "candidates": len(fx.NAMES),
-            "named": named, "correct": sorted(named) == sorted(hidden.expect),
+            "named": named, "correct": sorted(named) == sorted(case.expect),
             "parameters": params, "shrink_factor": rep["shrink_factor"],
             "physics_steps": rep["timings"]["physics_steps"]}

@@ -14,9 +14,10 @@ Pipelines:
   both models, inertia against MuJoCo's mass matrix) with the variant's run settings; the
   summary figures.
 * ``discrepancy``: "measured" data of the variant with a hidden effect of
-  :mod:`omni_sim.discrepancy.bank` (quantised, noisy encoder), the discrepancy workflow with the
-  variant as the nominal model; the effects it names, whether the bank's criteria pass, the
-  gap's shrink factor.
+  :mod:`omni_sim.discrepancy.hidden` (the compact experiment set of
+  :mod:`omni_sim.discrepancy.experiment_set`, quantised, noisy encoder), the discrepancy
+  workflow with the variant as the nominal model; the effects it names, whether the bank's
+  criteria (:func:`omni_sim.discrepancy.hidden.assess`) pass, the gap's shrink factor.
 * ``simulate``: the campaign only; tracking errors (cheap: for checking a study file).
 """
 
@@ -280,7 +281,7 @@ def _parse_pipeline(doc: dict, source: str, base_dir: Path) -> dict:
     """``[pipeline]``: reproduce or simulate a campaign, or the discrepancy workflow on a
     hidden case."""
     from omni_sim import experiments as ex
-    from omni_sim.discrepancy import bank
+    from omni_sim.discrepancy import experiment_set, hidden
 
     p = doc.get("pipeline")
     if not isinstance(p, dict):
@@ -310,14 +311,14 @@ def _parse_pipeline(doc: dict, source: str, base_dir: Path) -> dict:
             raise _err(source, "pipeline.campaign", str(exc)) from None
         pipe.update(campaign_text=ctext, campaign_source=csource)
     else:
-        hidden = p.get("hidden", "viscous_damping")
-        names = [c.name for c in bank.CASES]
-        if hidden not in names:
-            raise _err(source, "pipeline.hidden", f"must be a case of the bank ({', '.join(names)}), got {hidden!r}")
-        dur = _num(source, "pipeline.duration_s", p.get("duration_s", bank.BANK_DURATION_S))
+        case_name = p.get("hidden", "viscous_damping")
+        names = [c.name for c in hidden.CASES]
+        if case_name not in names:
+            raise _err(source, "pipeline.hidden", f"must be a case of the bank ({', '.join(names)}), got {case_name!r}")
+        dur = _num(source, "pipeline.duration_s", p.get("duration_s", experiment_set.DURATION_S))
         if not 1.0 <= dur <= 60:
             raise _err(source, "pipeline.duration_s", f"must be in [1, 60] s, got {dur}")
-        pipe.update(hidden=hidden, duration_s=dur)
+        pipe.update(hidden=case_name, duration_s=dur)
     return pipe
 
 
@@ -383,12 +384,12 @@ def load_study(path: str | os.PathLike) -> Study:
 # -- one variant (runs on a Dask worker) ---------------------------------------------------
 def _settings(values: dict, seed: int, pipeline: str):
     from omni_sim import experiments as ex
-    from omni_sim.discrepancy import bank
+    from omni_sim.discrepancy import experiment_set
 
     disc = pipeline == "discrepancy"
     return ex.Settings(kp=values.get("kp", ex.KP_DEFAULT),
                        quantize=bool(values.get("quantize", 1.0 if disc else 0.0)),
-                       noise_rad=values.get("noise_rad", bank.BANK_NOISE_RAD if disc else 0.0),
+                       noise_rad=values.get("noise_rad", experiment_set.NOISE_RAD if disc else 0.0),
                        seed=seed)
 
 
@@ -459,21 +460,21 @@ def _discrepancy(spec, model, values, settings, pipe) -> tuple[dict, dict]:
     import tempfile
 
     from omni_sim import experiments as ex
-    from omni_sim.discrepancy import bank
+    from omni_sim.discrepancy import experiment_set, hidden
     from omni_sim.discrepancy.workflow import run_discrepancy
 
-    case = bank.case(pipe["hidden"])
+    case = hidden.case(pipe["hidden"])
     amp = values.get("amplitude_rad")
-    exps = bank.bank_experiments(amplitudes_rad=bank.BANK_AMPLITUDES_RAD if amp is None else (amp,),
-                                 duration_s=pipe["duration_s"])
-    truth_model = bank.truth_spec(case, base=spec.copy()).compile()
+    exps = experiment_set.experiments(amplitudes_rad=experiment_set.AMPLITUDES_RAD if amp is None else (amp,),
+                                      duration_s=pipe["duration_s"])
+    truth_model = hidden.truth_spec(case, base=spec.copy()).compile()
     runs = ex.simulate(exps, settings=settings, jobs=1, model=truth_model)
     with tempfile.TemporaryDirectory(prefix="omni-sweep-") as d:
         nominal = Path(d) / "nominal.xml"
         nominal.write_text(spec.to_xml())
         out = run_discrepancy(runs, nominal, jobs=1)
     rep = out.report
-    ok, why = bank.assess(case, rep)
+    ok, why = hidden.assess(case, rep)
     fig = {"effects": "+".join(e["name"] for e in rep["effects"]), "passed": int(ok), "assessment": why,
            "shrink_factor": rep["shrink_factor"], "gap_before_rad": rep["gap_before"],
            "gap_after_rad": rep["gap_after"], "unexplained": int(rep["unexplained"])}

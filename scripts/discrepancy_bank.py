@@ -1,11 +1,12 @@
 """Run the hidden-effect bank through ``omni discrepancy`` and write docs/discrepancy/bank.md.
 
-For every case of :data:`omni_sim.discrepancy.bank.CASES` a truth model (the virtual Omni with
-the effect written by bank.py with MuJoCo's own features, independently of the effect library)
+For every case of :data:`omni_sim.discrepancy.hidden.CASES` a truth model (the virtual Omni
+with the effect written by :mod:`omni_sim.discrepancy.truth_models` with MuJoCo's own features,
+independently of the effect library)
 generates quantised, noisy "measured" runs (exact ones for ``none_exact``); the workflow sees
 only those runs and the nominal model.  The table lists the hidden and the named effects, the
 parameters (truth vs fitted ± 95 % uncertainty), the held-out gap before/after, the runner-up,
-the margin and the verdict of :func:`omni_sim.discrepancy.bank.assess`.  Beside the table, a
+the margin and the verdict of :func:`omni_sim.discrepancy.hidden.assess`.  Beside the table, a
 JSON (same name, ``.json``) holds the run's settings (commit, dates, machine load) and every
 case's full workflow report; it is rewritten after each case, so a stopped run keeps what it
 did.  A worked example with figures is written to docs/discrepancy_example/ (``--no-example``:
@@ -35,7 +36,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from omni_sim.discrepancy import bank  # noqa: E402
+from omni_sim.discrepancy import experiment_set, hidden  # noqa: E402
 
 #: Where the bank's table and its JSON live (docs/discrepancy.md links them).
 DEFAULT_OUT = ROOT / "docs" / "discrepancy" / "bank.md"
@@ -105,9 +106,10 @@ def bank_markdown(data: dict) -> str:
         f"`{meta['json']}` beside this file (the README's bank table is made from it: "
         "`python scripts/discrepancy_bank.py --table`).", "",
         "Each truth model is the virtual Omni (`models/scene.xml`) with effects written by "
-        "`omni_sim/discrepancy/bank.py` with MuJoCo's own features, independently of the effect "
-        "library the workflow searches (a test checks that bank.py does not use it, directly or "
-        "through another module), at realistic magnitudes (see each case's note in bank.py for the "
+        "`omni_sim/discrepancy/truth_models.py` with MuJoCo's own features, independently of the "
+        "effect library the workflow searches (a test checks that the truth models and the cases do "
+        "not use it, directly or through another module), at realistic magnitudes (see each case's "
+        "note in `omni_sim/discrepancy/hidden.py` for the "
         f"values and their provenance). It generates {meta['runs']} runs of {meta['run_s']:g} s "
         f"(sines at {meta['frequencies_hz']} Hz x {meta['amplitudes_rad']} rad and square waves of "
         f"{meta['step_amplitudes_rad']} rad at poses {meta['poses_deg']} deg) through "
@@ -117,7 +119,7 @@ def bank_markdown(data: dict) -> str:
         "Gaps are held-out RMS replay errors [rad]; ± is the reported 95 % uncertainty (Student-t "
         "factor of the k-fold jackknife times the root-sum-square of the jackknife's, the "
         "Jacobian's and the measurement process's standard errors and the optimiser's and the "
-        "replay's numerical terms, plus the bootstrap's mean shift). Pass (`bank.assess`): library "
+        "replay's numerical terms, plus the bootstrap's mean shift). Pass (`hidden.assess`): library "
         "cases name exactly the hidden effects, each with high confidence, each parameter list as "
         "long as the truth's, every parameter within a finite ± of the truth, held-out gap shrunk "
         ">= 3x; null cases `none`; outside-library cases `none`, or only names of the case's "
@@ -204,16 +206,16 @@ def main(argv=None) -> int:
 
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    cases = [c for c in bank.CASES if args.cases is None or c.name in args.cases]
+    cases = [c for c in hidden.CASES if args.cases is None or c.name in args.cases]
     meta = {"commit": args.commit or _commit(), "started": _now(), "cpus": os.cpu_count(),
             "load_start": os.getloadavg()[0], "nice": os.nice(0), "jobs": args.jobs,
             "command": "python scripts/discrepancy_bank.py " + " ".join(sys.argv[1:] if argv is None else argv),
             "json": out.with_suffix(".json").name,
-            "runs": len(bank.bank_experiments()), "run_s": bank.BANK_DURATION_S,
-            "frequencies_hz": ", ".join(map(str, bank.BANK_FREQUENCIES_HZ)),
-            "amplitudes_rad": ", ".join(map(str, bank.BANK_AMPLITUDES_RAD)),
-            "step_amplitudes_rad": ", ".join(map(str, bank.BANK_STEP_AMPLITUDES_RAD)),
-            "poses_deg": ", ".join(str(p) for p in bank.BANK_POSES), "noise_rad": bank.BANK_NOISE_RAD,
+            "runs": len(experiment_set.experiments()), "run_s": experiment_set.DURATION_S,
+            "frequencies_hz": ", ".join(map(str, experiment_set.FREQUENCIES_HZ)),
+            "amplitudes_rad": ", ".join(map(str, experiment_set.AMPLITUDES_RAD)),
+            "step_amplitudes_rad": ", ".join(map(str, experiment_set.STEP_AMPLITUDES_RAD)),
+            "poses_deg": ", ".join(str(p) for p in experiment_set.POSES), "noise_rad": experiment_set.NOISE_RAD,
             "note": args.note}
     data = {"meta": meta, "cases": {}}
     t_all = time.perf_counter()
@@ -221,13 +223,13 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         entry = {"hidden": [list(e) for e in c.effects], "outside": [list(e) for e in c.outside],
                  "expect": list(c.expect), "exact": c.exact, "note": c.note, "gap_lives": c.gap_lives}
-        runs = bank.generate(c, jobs=args.jobs)
+        runs = hidden.generate(c, jobs=args.jobs)
         try:
             rep = run_discrepancy(runs, None, jobs=args.jobs).report
         except Exception as exc:  # a crash of the workflow is a result of the bank, not its end
             entry.update({"pass": False, "why": f"workflow crashed: {type(exc).__name__}: {exc}"})
         else:
-            ok, why = bank.assess(c, rep)
+            ok, why = hidden.assess(c, rep)
             entry.update({"pass": ok, "why": why, "report": rep})
         entry.update({"seconds": time.perf_counter() - t0, "finished": _now(),
                       "load_after": os.getloadavg()[0]})

@@ -2,7 +2,7 @@
 
 For every effect asked for, ``--n`` random magnitudes are drawn uniformly in the effect's
 realistic range (:data:`omni_sim.discrepancy.bank.RANGES`, stated in the output); for each, the
-bank's independent truth model (:mod:`omni_sim.discrepancy.bank`, written without the effect
+independent truth model (:mod:`omni_sim.discrepancy.truth_models`, written without the effect
 library) generates "measured" runs, with the encoder's quantisation and noise ("noisy") and/or
 exactly ("exact": no noise, no quantisation), and the workflow fits them.  To keep the cost down
 the workflow's candidates are restricted to the true effect: this measures the interval, not the
@@ -32,18 +32,18 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from identification.errors import UserError  # noqa: E402
-from omni_sim.discrepancy import bank  # noqa: E402
+from omni_sim.discrepancy import bank, experiment_set, hidden  # noqa: E402
 
 CONDITIONS = ("noisy", "exact")
-#: Target coverage of the nominal 95 % intervals (issue 15).
+#: Target coverage of the nominal 95 % intervals.
 TARGET = 0.90
 
 
 def _experiments(kind: str):
     if kind == "bank":
-        return bank.bank_experiments()
+        return experiment_set.experiments()
     # a smaller set for quick checks: both poses, 2 frequencies, 1 step size, 1.2 s runs
-    return bank.bank_experiments(frequencies_hz=(1.5, 3.5), step_amplitudes_rad=(0.2,), duration_s=1.2)
+    return experiment_set.experiments(frequencies_hz=(1.5, 3.5), step_amplitudes_rad=(0.2,), duration_s=1.2)
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -59,10 +59,10 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 def one_draw(effect: str, values: tuple, condition: str, seed: int, exps, jobs: int | None) -> dict:
     from omni_sim.discrepancy.workflow import run_discrepancy
-    c = bank.HiddenCase(f"{effect}_draw", ((effect, values),), expect=(effect,),
-                        exact=condition == "exact")
+    c = hidden.HiddenCase(f"{effect}_draw", ((effect, values),), expect=(effect,),
+                          exact=condition == "exact")
     t0 = time.perf_counter()
-    runs = bank.generate(c, exps, seed=seed, jobs=jobs)
+    runs = hidden.generate(c, exps, seed=seed, jobs=jobs)
     rep = run_discrepancy(runs, None, candidates=(effect,), jobs=jobs).report
     out = {"effect": effect, "condition": condition, "seed": seed, "truth": list(values),
            "seconds": time.perf_counter() - t0, "gap_before": rep["gap_before"],
@@ -76,7 +76,7 @@ def one_draw(effect: str, values: tuple, condition: str, seed: int, exps, jobs: 
     out["parameters"] = list(e["parameters"])
     out["terms"] = {k: list(e[k].values()) for k in e if k.startswith("standard_error")}
     out["measurement_bias"] = list(e.get("measurement_bias", {}).values())
-    out["covered"] = [bool(abs(bank.error(p, f, t)) <= h)
+    out["covered"] = [bool(abs(hidden.error(p, f, t)) <= h)
                       for p, f, t, h in zip(out["parameters"], out["fitted"], values, out["half_width"])]
     return out
 
@@ -97,7 +97,7 @@ def summarise(draws: list[dict]) -> dict:
             t["covered"] += int(cov)
             if tr != 0:
                 t["rel_width"].append(h / abs(tr))
-            t["err_over_half"].append(abs(bank.error(p, f, tr)) / h if h > 0 else math.inf)
+            t["err_over_half"].append(abs(hidden.error(p, f, tr)) / h if h > 0 else math.inf)
     per = []
     for (eff, cond), t in sorted(table.items()):
         lo, hi = wilson(t["covered"], t["params"])
@@ -144,7 +144,7 @@ def figure(summary: dict, draws: list[dict], path: Path) -> None:
                 continue
             j = effects.index(d["effect"]) + (i - 0.5) * w
             for p, f, t, h in zip(d["parameters"], d["fitted"], d["truth"], d["half_width"]):
-                r = abs(bank.error(p, f, t)) / h if h > 0 else np.inf
+                r = abs(hidden.error(p, f, t)) / h if h > 0 else np.inf
                 a2.plot(j + np.random.default_rng(hash((f, t)) % 2**32).uniform(-0.12, 0.12),
                         max(r, 1e-3), ".", color=("C0", "C1")[i], ms=4, alpha=0.7)
     a1.axhline(0.95, color="k", lw=0.8, ls=":", label="nominal 95 %")
@@ -198,7 +198,7 @@ def main(argv=None) -> int:
     jpath = out / "coverage.json"
     settings = {"n": args.n, "seed": args.seed, "experiments": args.experiments,
                 "ranges": {e: bank.RANGES[e] for e in effects}, "range_centre": bank.RANGE_CENTRE,
-                "noise_rad": bank.BANK_NOISE_RAD, "candidates": "the true effect only"}
+                "noise_rad": experiment_set.NOISE_RAD, "candidates": "the true effect only"}
     draws: list[dict] = []
     if jpath.exists():
         old = json.loads(jpath.read_text())

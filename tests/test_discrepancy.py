@@ -14,7 +14,7 @@ from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim.device import Device
 from omni_app.cli import main
-from omni_sim.discrepancy import bank
+from omni_sim.discrepancy import experiment_set, hidden
 from omni_sim.discrepancy import effects as fx
 from omni_sim.discrepancy.localise import command_lag
 from omni_sim.discrepancy.replay import Replayer, ReplayRun, prepare_runs
@@ -76,34 +76,34 @@ def test_command_lag_finds_a_delay():
 
 
 def _fast_exps():
-    return bank.bank_experiments(poses=((65.0, 90.0), (25.0, 115.0)), frequencies_hz=(1.5, 3.5),
-                                 amplitudes_rad=(0.04, 0.15), step_amplitudes_rad=(0.05,),
-                                 duration_s=1.2)
+    return experiment_set.experiments(poses=((65.0, 90.0), (25.0, 115.0)), frequencies_hz=(1.5, 3.5),
+                                      amplitudes_rad=(0.04, 0.15), step_amplitudes_rad=(0.05,),
+                                      duration_s=1.2)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("case_name", ["coulomb_friction", "none"])
 def test_fast_hidden_cases(case_name):
     """Representatives of the bank on a smaller experiment set (the whole bank: -m slow)."""
-    hidden = bank.case(case_name)
-    runs = bank.generate(hidden, _fast_exps(), jobs=JOBS)
+    case = hidden.case(case_name)
+    runs = hidden.generate(case, _fast_exps(), jobs=JOBS)
     rep = run_discrepancy(runs, None, k=5, jobs=JOBS).report
-    ok, why = bank.assess(hidden, rep)
+    ok, why = hidden.assess(case, rep)
     assert ok, (why, [e["name"] for e in rep["effects"]], rep["effects"])
 
 
 def _one_pose_exps():
-    return bank.bank_experiments(poses=((65.0, 90.0),), frequencies_hz=(1.5, 3.5),
-                                 amplitudes_rad=(0.04, 0.15), step_amplitudes_rad=(0.05, 0.2),
-                                 duration_s=1.2)
+    return experiment_set.experiments(poses=((65.0, 90.0),), frequencies_hz=(1.5, 3.5),
+                                      amplitudes_rad=(0.04, 0.15), step_amplitudes_rad=(0.05, 0.2),
+                                      duration_s=1.2)
 
 
 @pytest.mark.slow
 def test_fast_masking_pair():
     """Delay + friction mask each other (neither alone explains the gap): the joint pair search
     names both (candidates restricted to keep the test fast)."""
-    hidden = bank.case("delay+friction")
-    runs = bank.generate(hidden, _one_pose_exps(), jobs=JOBS)
+    case = hidden.case("delay+friction")
+    runs = hidden.generate(case, _one_pose_exps(), jobs=JOBS)
     rep = run_discrepancy(runs, None, k=5, jobs=JOBS,
                           candidates=("coulomb_friction", "time_delay")).report
     assert sorted(e["name"] for e in rep["effects"]) == ["coulomb_friction", "time_delay"], rep["rounds"]
@@ -116,8 +116,8 @@ def test_fast_unexplained_gap_is_flagged(tmp_path):
     """An effect outside the (here restricted) library leaves a large gap: ``none`` is named and
     report.json/report.md say the gap is unexplained, not that the model is fine."""
     from omni_app import discrepancy_report as rp
-    hidden = bank.case("cogging")
-    runs = bank.generate(hidden, _one_pose_exps(), jobs=JOBS)
+    case = hidden.case("cogging")
+    runs = hidden.generate(case, _one_pose_exps(), jobs=JOBS)
     out = run_discrepancy(runs, None, k=5, jobs=JOBS, max_effects=1,
                           candidates=("viscous_damping", "armature", "time_delay"))
     rep = out.report
@@ -195,7 +195,7 @@ def test_cli_requires_measured(capsys):
 
 def test_cli_exact_data_names_none(tmp_path, capsys):
     """Data the nominal model itself generated without noise or quantisation (gap exactly 0, the
-    sanity check a user runs first): ``none``, exit 0, no traceback (was a ZeroDivisionError)."""
+    sanity check a user runs first): ``none``, exit 0, no traceback (a gap of 0 divides nothing)."""
     folder = tmp_path / "exact"
     folder.mkdir()
     exps = _short([ex.sine_experiment(65, 90, 2.0), ex.square_experiment(65, 90)], 600)
@@ -212,7 +212,7 @@ def test_cli_exact_data_names_none(tmp_path, capsys):
 def test_simulate_grouped_mixes_structures(spec):
     """Candidates of different structure (added bodies, actuators, delay buffers, filters) in one
     call: grouped into batches the engine can step, each trajectory equal to the model replayed
-    alone (a crash here once stopped the pair search: equal state sizes, different addresses)."""
+    alone (models of equal state size but different addresses must not share a batch)."""
     import itertools
 
     exps = _short([ex.sine_experiment(65, 90, 3.0, record_s=1.0), ex.square_experiment(25, 115)], 300)
@@ -240,10 +240,10 @@ def test_polish_moves_a_stalled_backlash_fit_into_its_basin(spec):
     slack to the truth hidden by the bank's independent truth model (1 mrad), within the
     basin's smallest bracket (fit.BASIN_SMALLEST of the value)."""
     from omni_sim.discrepancy.fit import BASIN_SMALLEST, Problem
-    hidden = bank.case("backlash")
-    truth = hidden.effects[0][1][0]
+    case = hidden.case("backlash")
+    truth = case.effects[0][1][0]
     m0 = spec.compile()
-    rr = prepare_runs(bank.generate(hidden, _one_pose_exps(), jobs=JOBS), Device(m0))
+    rr = prepare_runs(hidden.generate(case, _one_pose_exps(), jobs=JOBS), Device(m0))
     from omni_sim.discrepancy.fit import FitResult
     with Replayer(JOBS) as rep:
         prob = Problem(fx.ModelBuilder(spec), [], [fx.get("backlash")], rr, rep)

@@ -1,6 +1,7 @@
 """The hidden-effect bank: its truth models are independent of the effect library (a syntax
-check of bank.py and the compiled truth models read field by field), the whole bank through
-the workflow (slow) and the coverage study's script (slow, small)."""
+check of the truth side's modules -- truth models, cases, experiment set, bank -- and their
+imports followed through the project; the compiled truth models read field by field), the
+whole bank through the workflow (slow) and the coverage study's script (slow, small)."""
 
 import ast
 import json
@@ -12,15 +13,22 @@ import numpy as np
 import pytest
 
 from omni_sim import model as om
-from omni_sim.discrepancy import bank
+from omni_sim.discrepancy import bank, hidden, truth_models
 from omni_sim.discrepancy import effects as fx
 
 ROOT = Path(__file__).resolve().parent.parent
-BANK_PY = ROOT / "omni_sim" / "discrepancy" / "bank.py"
+#: The truth side: the modules that write truth models, hold the hidden cases and their
+#: experiments, judge a report or draw magnitudes.  None may use the effect library.
+TRUTH_SIDE = ("omni_sim.discrepancy.truth_models", "omni_sim.discrepancy.hidden",
+              "omni_sim.discrepancy.experiment_set", "omni_sim.discrepancy.bank")
+
+
+def _source(module: str) -> str:
+    return ROOT.joinpath(*module.split(".")).with_suffix(".py").read_text()
 
 
 #: The library's writers: calling any of them (as a name or an attribute) writes a truth model
-#: with the library, which bank.py must not do.
+#: with the library, which the truth side must not do.
 WRITERS = ("apply", "compile_with", "write", "nominal_values")
 #: The project's top-level packages: imports into them are followed, others (numpy, mujoco,
 #: the standard library) are not.
@@ -61,14 +69,15 @@ def writer_uses(source: str) -> list[str]:
     return hits
 
 
-def test_bank_does_not_use_the_effect_writers():
-    """bank.py writes its truth models itself: no import of the effect library, no call of its
-    writers (``apply``, ``compile_with``, ``Effect.write``) -- read from the syntax tree."""
-    assert writer_uses(BANK_PY.read_text()) == []
+@pytest.mark.parametrize("module", TRUTH_SIDE)
+def test_truth_side_does_not_use_the_effect_writers(module):
+    """The truth side writes its truth models itself: no import of the effect library, no call
+    of its writers (``apply``, ``compile_with``, ``Effect.write``) -- read from the syntax tree."""
+    assert writer_uses(_source(module)) == []
 
 
 @pytest.mark.parametrize("src, expected", [
-    # the old bank's lines: the import and the call through the alias
+    # the import and the call through the alias
     ("from . import effects as fx\nspec = fx.apply(base, changes)\n",
      ["line 1: imports effects", "line 2: .apply"]),
     # a writer imported by name and called directly
@@ -87,7 +96,7 @@ def test_bank_does_not_use_the_effect_writers():
     ("spec.joint('yaw').damping[0] = 0.01\nspec.compile()\n", []),
 ])
 def test_the_syntax_check_would_catch_a_writer_call(src, expected):
-    """The check bank.py passes flags each way of reaching a writer (so it can fail)."""
+    """The check the truth side passes flags each way of reaching a writer (so it can fail)."""
     assert sorted(writer_uses(src)) == sorted(expected)
 
 
@@ -166,25 +175,31 @@ def library_modules(reached) -> list[str]:
     return [m for m in reached if m == EFFECTS or m.startswith(EFFECTS + ".")]
 
 
-def test_bank_reaches_no_effect_library_through_other_modules():
-    """bank.py's imports, followed through the project's packages (omni_sim, identification,
-    omni_app), never reach the effect library (the package ``omni_sim/discrepancy/effects/``, any
-    of its modules).
+@pytest.mark.parametrize("module", TRUTH_SIDE)
+def test_truth_side_reaches_no_effect_library_through_other_modules(module):
+    """Each truth-side module's imports, followed through the project's packages (omni_sim,
+    identification, omni_app), never reach the effect library (the package
+    ``omni_sim/discrepancy/effects/``, any of its modules), nor any module of the discrepancy
+    package outside the truth side.
 
-    What it reaches today: ``identification.dataset`` (the ``Run`` it returns), ``omni_sim.model``
-    and ``omni_sim.experiments`` (the nominal scene's path, the device's closed loop that makes
-    the data) and what those import (``omni_sim.device``, ``identification.errors``,
-    ``identification.paper``, ``identification.csvformat``, ``omni_sim._resources``): none of them
-    writes a model with the library.  Not followed: ``omni_sim/__init__`` and
+    What ``hidden`` reaches today: ``truth_models`` and ``experiment_set``,
+    ``identification.dataset`` (the ``Run`` it returns), ``omni_sim.model`` and
+    ``omni_sim.experiments`` (the nominal scene's path, the device's closed loop that makes the
+    data) and what those import (``omni_sim.device``, ``identification.errors``,
+    ``identification.paper``, ``identification.csvformat``, ``omni_sim._resources``): none of
+    them writes a model with the library.  Not followed: ``omni_sim/__init__`` and
     ``omni_sim/discrepancy/__init__`` (the latter re-exports the library), which Python runs
-    before bank.py without binding a name in it; a ``from . import X`` of bank.py that binds a
+    before these modules without binding a name in them; a ``from . import X`` that binds a
     name of that ``__init__`` (e.g. ``LIBRARY``) is followed and reaches the library."""
-    reached = reachable(BANK_PY.read_text(), "omni_sim.discrepancy.bank")
+    reached = reachable(_source(module), module)
     library = library_modules(reached)
     assert not library, " -> ".join(reached[library[0]])
-    assert not [m for m in reached if m.startswith("omni_sim.discrepancy")], sorted(reached)
-    # the walk does follow bank.py's imports (a walk that found nothing would pass trivially)
-    assert {"identification.dataset", "omni_sim.experiments", "omni_sim.device"} <= set(reached)
+    others = [m for m in reached if m.startswith("omni_sim.discrepancy") and m not in TRUTH_SIDE]
+    assert not others, [" -> ".join(reached[m]) for m in others]
+    if module == "omni_sim.discrepancy.hidden":
+        # the walk does follow the imports (a walk that found nothing would pass trivially)
+        assert {"identification.dataset", "omni_sim.experiments", "omni_sim.device",
+                "omni_sim.discrepancy.truth_models", "omni_sim.discrepancy.experiment_set"} <= set(reached)
 
 
 @pytest.mark.parametrize("src", [
@@ -196,8 +211,9 @@ def test_bank_reaches_no_effect_library_through_other_modules():
     "import importlib\nm = importlib.import_module('omni_sim.discrepancy.workflow')\n",
 ])
 def test_the_import_check_follows_other_modules(src):
-    """A bank.py that imports (at any depth) a module that imports the library fails the walk."""
-    assert library_modules(reachable(src, "omni_sim.discrepancy.bank"))
+    """A truth-side module that imports (at any depth) a module that imports the library fails
+    the walk."""
+    assert library_modules(reachable(src, "omni_sim.discrepancy.hidden"))
 
 
 def test_the_import_check_follows_a_chain(tmp_path):
@@ -276,7 +292,7 @@ def compiled_values(name: str, m: mujoco.MjModel, nominal: mujoco.MjModel) -> li
     # cogging (amplitude, periods, phase) to biasprm[0:3] (layout checked in tests/test_effects_library.py)
     extra = list(range(nominal.nactuator, m.nactuator))  # actuators the truth added
     if name == "cogging":
-        found = [i for i in extra if m.actuator_biasprm[i, 1] == bank.COGGING_PERIODS_PER_TURN]
+        found = [i for i in extra if m.actuator_biasprm[i, 1] == truth_models.COGGING_PERIODS_PER_TURN]
         assert len(found) == 1 and found[0] >= m.nu  # passive: no control
         return [m.actuator_biasprm[found[0], 0], m.actuator_biasprm[found[0], 2]]
     if name == "presliding_friction":
@@ -287,7 +303,7 @@ def compiled_values(name: str, m: mujoco.MjModel, nominal: mujoco.MjModel) -> li
     if name == "stribeck_friction":
         found = [i for i in extra if m.actuator_dynprm[i, 5] > 0]
         assert len(found) == 1 and found[0] >= m.nu
-        assert tuple(m.actuator_dynprm[found[0], 5:7]) == bank.STRIBECK_SIGMA
+        assert tuple(m.actuator_dynprm[found[0], 5:7]) == truth_models.STRIBECK_SIGMA
         return list(m.actuator_biasprm[found[0], 3:6])
     if name in ("drive_compliance", "backlash"):
         t = _cable(m)
@@ -328,25 +344,25 @@ def _cable(m):
     raise AssertionError("no cable tendon yaw - yaw_output")
 
 
-LIBRARY_CASES = [c for c in bank.CASES if c.effects and not c.outside]
+LIBRARY_CASES = [c for c in hidden.CASES if c.effects and not c.outside]
 
 
 @pytest.mark.parametrize("case_name", [c.name for c in LIBRARY_CASES])
 def test_truth_models_hold_the_stated_values(case_name, nominal):
-    hidden = bank.case(case_name)
-    m = bank.truth_spec(hidden).compile()
-    for name, values in hidden.effects:
+    case = hidden.case(case_name)
+    m = hidden.truth_spec(case).compile()
+    for name, values in case.effects:
         np.testing.assert_allclose(compiled_values(name, m, nominal), values, rtol=1e-12, atol=1e-15,
                                    err_msg=f"{case_name}: {name}")
 
 
 def test_outside_effects_hold_the_stated_values(nominal):
-    m = bank.truth_spec(bank.case("gain_slope")).compile()
+    m = hidden.truth_spec(hidden.case("gain_slope")).compile()
     a = m.actuator("yaw_motor").id
     assert m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_AFFINE
     # gain = 1 + gainprm[1] * length with length = gear * theta: slope per rad = gainprm[1] * gear
     assert m.actuator_gainprm[a, 1] * m.actuator_gear[a, 0] == pytest.approx(0.5, rel=1e-12)
-    m = bank.truth_spec(bank.case("end_stop")).compile()
+    m = hidden.truth_spec(hidden.case("end_stop")).compile()
     j = m.joint("yaw").id
     assert m.jnt_range[j, 1] == 0.17 and m.jnt_range[j, 0] == nominal.jnt_range[j, 0]
     assert m.jnt_solref[j, 0] == 0.01
@@ -356,15 +372,15 @@ def test_bank_covers_the_library():
     """Every library effect has a single-effect case, a truth writer and a coverage range; the
     bank holds the null cases (with and without noise), pairs, a triple and >= 2 effects
     outside the library."""
-    singles = {c.effects[0][0] for c in bank.CASES if len(c.effects) == 1 and not c.outside}
+    singles = {c.effects[0][0] for c in hidden.CASES if len(c.effects) == 1 and not c.outside}
     assert set(fx.NAMES) <= singles
-    assert set(fx.NAMES) <= set(bank.TRUTH) and set(fx.NAMES) <= set(bank.RANGES)
-    assert {c.name for c in bank.CASES if c.expect == ("none",)} >= {"none", "none_exact"}
-    assert bank.case("none_exact").exact and not bank.case("none").exact
-    assert any(len(c.effects) == 2 for c in bank.CASES) and any(len(c.effects) == 3 for c in bank.CASES)
-    outside = {o[0] for c in bank.CASES for o in c.outside}
+    assert set(fx.NAMES) <= set(truth_models.TRUTH) and set(fx.NAMES) <= set(bank.RANGES)
+    assert {c.name for c in hidden.CASES if c.expect == ("none",)} >= {"none", "none_exact"}
+    assert hidden.case("none_exact").exact and not hidden.case("none").exact
+    assert any(len(c.effects) == 2 for c in hidden.CASES) and any(len(c.effects) == 3 for c in hidden.CASES)
+    outside = {o[0] for c in hidden.CASES for o in c.outside}
     assert len(outside) >= 2 and not outside & set(fx.NAMES)
-    for c in bank.CASES:
+    for c in hidden.CASES:
         assert c.note, c.name
         if c.outside:
             assert c.gap_lives, c.name
@@ -402,10 +418,10 @@ def effect_state(name: str, m: mujoco.MjModel) -> tuple:
         f = m.actuator("yaw_friction").id
         return (*m.actuator_dynprm[f], *m.actuator_biasprm[f])
     if name == "cogging":  # every actuator with a cogging term of the bank's period count
-        return tuple(v for i in range(m.nactuator) if m.actuator_biasprm[i, 1] == bank.COGGING_PERIODS_PER_TURN
+        return tuple(v for i in range(m.nactuator) if m.actuator_biasprm[i, 1] == truth_models.COGGING_PERIODS_PER_TURN
                      for v in (i, *m.actuator_biasprm[i, :3]))
     if name == "stribeck_friction":  # every actuator with the bank's stiff Stribeck bristle
-        return tuple(v for i in range(m.nactuator) if tuple(m.actuator_dynprm[i, 5:7]) == bank.STRIBECK_SIGMA
+        return tuple(v for i in range(m.nactuator) if tuple(m.actuator_dynprm[i, 5:7]) == truth_models.STRIBECK_SIGMA
                      for v in (i, *m.actuator_dynprm[i, 5:7], *m.actuator_biasprm[i, 3:6]))
     if name in ("drive_compliance", "backlash"):
         if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "yaw_output") < 0:
@@ -415,7 +431,7 @@ def effect_state(name: str, m: mujoco.MjModel) -> tuple:
             return (m.tendon_limited[t], *m.tendon_range[t], *m.tendon_solref_lim[t], *m.tendon_solimp_lim[t])
         return (m.tendon_stiffness[t], m.tendon_damping[t], *m.body_inertia[m.body("truth_rotor").id])
     if name == "arm_mass":
-        return tuple(v for b in bank.ARM_LINKS for v in (m.body_mass[m.body(b).id], *m.body_inertia[m.body(b).id]))
+        return tuple(v for b in truth_models.ARM_LINKS for v in (m.body_mass[m.body(b).id], *m.body_inertia[m.body(b).id]))
     raise KeyError(name)
 
 
@@ -451,24 +467,24 @@ def test_truth_changes_the_physics(nominal):
     8 effects the nominal model lacks: the element is absent or at its default in the nominal
     model and present in the truth), and in no field another effect writes (a writer that
     touched a second field would show)."""
-    base = {n: effect_state(n, nominal) for n in bank.TRUTH}
+    base = {n: effect_state(n, nominal) for n in truth_models.TRUTH}
     for n, lacks in NOMINAL_LACKS.items():
         assert lacks(base[n]), (n, base[n])
     assert set(base) == set(fx.NAMES)
     for c in LIBRARY_CASES:
-        m = bank.truth_spec(c).compile()
-        hidden = {n for n, _ in c.effects}
+        m = hidden.truth_spec(c).compile()
+        hidden_names = {n for n, _ in c.effects}
         for n, v0 in base.items():
             v = effect_state(n, m)
-            if n in hidden:
+            if n in hidden_names:
                 assert not _same(v, v0), f"{c.name}: {n} left as in the nominal model"
                 if n in NOMINAL_LACKS:
                     assert not NOMINAL_LACKS[n](v), f"{c.name}: {n} absent from the truth"
-            elif not hidden & SHARED.get(n, set()):
+            elif not hidden_names & SHARED.get(n, set()):
                 assert _same(v, v0), f"{c.name} changed {n}: {v0} -> {v}"
 
 
-# --- bank.assess on hand-made reports (fast) ----------------------------------------------
+# --- hidden.assess on hand-made reports (fast) ----------------------------------------------
 def _effect(name, params, half, confidence="high"):
     return {"name": name, "parameters": dict(params), "confidence": confidence,
             "uncertainty": {p: h for p, h in zip(dict(params), half)}}
@@ -478,84 +494,84 @@ def _report(*effects, shrink=100.0, unexplained=False):
     return {"effects": list(effects), "shrink_factor": shrink, "unexplained": unexplained}
 
 
-TILT = bank.case("gravity_tilt")  # truth (0.035, -0.02)
+TILT = hidden.case("gravity_tilt")  # truth (0.035, -0.02)
 GOOD_TILT = _effect("gravity_tilt", {"tilt_x_rad": 0.0351, "tilt_y_rad": -0.0199}, (2e-4, 2e-4))
 
 
 def test_assess_passes_a_good_report():
-    assert bank.assess(TILT, _report(GOOD_TILT)) == (True, "ok")
-    assert bank.assess(TILT, _report(GOOD_TILT, shrink=math.inf))[0]  # gap left exactly 0
+    assert hidden.assess(TILT, _report(GOOD_TILT)) == (True, "ok")
+    assert hidden.assess(TILT, _report(GOOD_TILT, shrink=math.inf))[0]  # gap left exactly 0
 
 
 def test_assess_wants_high_confidence():
-    ok, why = bank.assess(TILT, _report({**GOOD_TILT, "confidence": "low"}))
+    ok, why = hidden.assess(TILT, _report({**GOOD_TILT, "confidence": "low"}))
     assert not ok and "gravity_tilt (low)" in why
-    ok, why = bank.assess(TILT, _report({k: v for k, v in GOOD_TILT.items() if k != "confidence"}))
+    ok, why = hidden.assess(TILT, _report({k: v for k, v in GOOD_TILT.items() if k != "confidence"}))
     assert not ok and "high confidence" in why
 
 
 @pytest.mark.parametrize("bad", [math.inf, math.nan, None])
 def test_assess_fails_a_half_width_that_is_not_finite(bad):
-    ok, why = bank.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": 0.9, "tilt_y_rad": -0.0199},
+    ok, why = hidden.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": 0.9, "tilt_y_rad": -0.0199},
                                                 (bad, 2e-4))))
     assert not ok and why.startswith("tilt_x_rad: half-width") and "not finite" in why
     # even with the fitted value on the truth: an infinite interval shows nothing
-    ok, _ = bank.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": 0.035, "tilt_y_rad": -0.02},
+    ok, _ = hidden.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": 0.035, "tilt_y_rad": -0.02},
                                               (2e-4, bad))))
     assert not ok
 
 
 def test_assess_fails_a_fitted_value_that_is_not_finite():
-    ok, why = bank.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": math.nan, "tilt_y_rad": -0.02},
+    ok, why = hidden.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": math.nan, "tilt_y_rad": -0.02},
                                                 (2e-4, 2e-4))))
     assert not ok and why == "tilt_x_rad: fitted nan"
 
 
 def test_assess_fails_parameter_lists_of_another_length():
     short = _effect("gravity_tilt", {"tilt_x_rad": 0.035}, (2e-4,))  # zip would check one and pass
-    ok, why = bank.assess(TILT, _report(short))
+    ok, why = hidden.assess(TILT, _report(short))
     assert not ok and why == "gravity_tilt: 1 parameters reported (tilt_x_rad), the truth holds 2"
     long = _effect("gravity_tilt", {"a": 0.035, "b": -0.02, "c": 7.0}, (2e-4, 2e-4, 1e-9))
-    ok, why = bank.assess(TILT, _report(long))
+    ok, why = hidden.assess(TILT, _report(long))
     assert not ok and "3 parameters reported" in why
 
 
 def test_assess_outside_the_interval_and_small_shrink():
-    ok, why = bank.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": 0.036, "tilt_y_rad": -0.02},
+    ok, why = hidden.assess(TILT, _report(_effect("gravity_tilt", {"tilt_x_rad": 0.036, "tilt_y_rad": -0.02},
                                                 (2e-4, 2e-4))))
     assert not ok and why.startswith("tilt_x_rad: 0.036 vs truth 0.035")
-    assert bank.assess(TILT, _report(GOOD_TILT, shrink=2.9)) == (False, "gap shrank only x2.9")
-    assert not bank.assess(TILT, _report(GOOD_TILT, shrink=math.nan))[0]
-    ok, why = bank.assess(TILT, _report(GOOD_TILT, _effect("armature", {"a": 1e-4}, (1e-6,))))
+    assert hidden.assess(TILT, _report(GOOD_TILT, shrink=2.9)) == (False, "gap shrank only x2.9")
+    assert not hidden.assess(TILT, _report(GOOD_TILT, shrink=math.nan))[0]
+    ok, why = hidden.assess(TILT, _report(GOOD_TILT, _effect("armature", {"a": 1e-4}, (1e-6,))))
     assert not ok and why.startswith("named ['gravity_tilt', 'armature']")
 
 
 def test_assess_null_cases():
     none = {"name": "none", "parameters": {}, "uncertainty": {}}
-    assert bank.assess(bank.case("none"), _report(none, shrink=1.0)) == (True, "none")
-    assert not bank.assess(bank.case("none"), _report(GOOD_TILT))[0]
+    assert hidden.assess(hidden.case("none"), _report(none, shrink=1.0)) == (True, "none")
+    assert not hidden.assess(hidden.case("none"), _report(GOOD_TILT))[0]
 
 
-END_STOP = bank.case("end_stop")  # expect: none, torque_saturation, joint_stiffness
+END_STOP = hidden.case("end_stop")  # expect: none, torque_saturation, joint_stiffness
 
 
 def test_assess_outside_effects_are_checked_against_expect():
     none = {"name": "none", "parameters": {}, "uncertainty": {}}
-    assert bank.assess(END_STOP, _report(none, shrink=1.0, unexplained=True)) == (True, "unexplained (none)")
+    assert hidden.assess(END_STOP, _report(none, shrink=1.0, unexplained=True)) == (True, "unexplained (none)")
     stand_in = _effect("joint_stiffness", {"k": 0.1}, (0.5,), confidence="low")
-    assert bank.assess(END_STOP, _report(stand_in, unexplained=True)) == (True, "nearest candidate, low confidence")
+    assert hidden.assess(END_STOP, _report(stand_in, unexplained=True)) == (True, "nearest candidate, low confidence")
     # a name outside the case's expect list fails even with low confidence
     stray = _effect("presliding_friction", {"s0": 0.66}, (0.62,), confidence="low")
-    ok, why = bank.assess(END_STOP, _report(stray, unexplained=True))
+    ok, why = hidden.assess(END_STOP, _report(stray, unexplained=True))
     assert not ok and why.startswith("named ['presliding_friction'], not among the acceptable")
     # an acceptable stand-in with high confidence fails, whatever the unexplained flag says
     sure = _effect("joint_stiffness", {"k": 0.1}, (0.5,), confidence="high")
-    ok, why = bank.assess(END_STOP, _report(sure, unexplained=True))
+    ok, why = hidden.assess(END_STOP, _report(sure, unexplained=True))
     assert not ok and why.startswith("confidently misnamed")
-    ok, _ = bank.assess(END_STOP, _report(stand_in, {**sure, "name": "torque_saturation"}))
+    ok, _ = hidden.assess(END_STOP, _report(stand_in, {**sure, "name": "torque_saturation"}))
     assert not ok
     # gain_slope's list is its own: joint_stiffness is not acceptable there
-    assert not bank.assess(bank.case("gain_slope"), _report(stand_in, unexplained=True))[0]
+    assert not hidden.assess(hidden.case("gain_slope"), _report(stand_in, unexplained=True))[0]
 
 
 # --- the whole bank (slow) -----------------------------------------------------------------
@@ -572,12 +588,12 @@ KNOWN_FAILURES = {
 @pytest.mark.bank
 @pytest.mark.parametrize("case_name", [
     pytest.param(c.name, marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[c.name]))
-    if c.name in KNOWN_FAILURES else c.name for c in bank.CASES])
+    if c.name in KNOWN_FAILURES else c.name for c in hidden.CASES])
 def test_bank(case_name):
     from omni_sim.discrepancy.workflow import run_discrepancy
-    hidden = bank.case(case_name)
-    rep = run_discrepancy(bank.generate(hidden), None).report
-    ok, why = bank.assess(hidden, rep)
+    case = hidden.case(case_name)
+    rep = run_discrepancy(hidden.generate(case), None).report
+    ok, why = hidden.assess(case, rep)
     assert ok, (why, rep["effects"])
 
 
@@ -680,7 +696,7 @@ def test_docs_coverage_figures_are_the_json():
     worst = min(res["per_effect"], key=lambda r: r["coverage"])
     assert (f"The lowest is {worst['effect']} on {worst['condition']} data, {worst['covered']} of "
             f"{worst['parameters_checked']} ({_pct(worst['coverage'])} %)") in sec
-    ratio = [abs(bank.error(p, f, t)) / h for d in res["draws"] if d["condition"] == "noisy" and d["covered"]
+    ratio = [abs(hidden.error(p, f, t)) / h for d in res["draws"] if d["condition"] == "noisy" and d["covered"]
              for p, f, t, h in zip(d["parameters"], d["fitted"], d["truth"], d["half_width"])]
     assert f"percentile of |error| / half-width is {np.percentile(ratio, 95):.2f}" in sec
 
@@ -695,10 +711,10 @@ def test_docs_bank_table_is_the_json():
     the bank section links the table's current location and no stale one."""
     script = _script("discrepancy_bank")
     data = json.loads((ROOT / "docs" / "discrepancy" / "bank.json").read_text())
-    assert list(data["cases"]) == [c.name for c in bank.CASES]  # every case, in the bank's order
+    assert list(data["cases"]) == [c.name for c in hidden.CASES]  # every case, in the bank's order
     for name, c in data["cases"].items():
         if "report" in c:
-            assert bank.assess(bank.case(name), c["report"]) == (c["pass"], c["why"]), name
+            assert hidden.assess(hidden.case(name), c["report"]) == (c["pass"], c["why"]), name
     sec = _section("## The hidden-effect bank: what it proves", "## Uncertainty that holds")
     block = sec[sec.index(BANK_TABLE_START) + len(BANK_TABLE_START):sec.index(BANK_TABLE_END)]
     assert block.strip("\n") == script.readme_table(data).strip("\n")

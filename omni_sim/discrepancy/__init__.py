@@ -1,12 +1,22 @@
 """Find where a model and measurements disagree, name the missing effect, add it, show the gap
 shrink (``omni discrepancy``; the command, its report and the demo live in :mod:`omni_app.discrepancy`).
 
-Modules: :mod:`.replay` (closed-loop replay of measured runs, batched), :mod:`.localise` (maps
-of the gap, and where it lives in words), :mod:`.effects` (the named candidate library, MJCF
-changes written into a :class:`~omni_sim.model.Target`), :mod:`.fit` (simulation-error fits),
-:mod:`.select` (prescreen, held-out scoring, pairs, acceptance), :mod:`.uncertainty` (standard
-errors and the 95 % interval), :mod:`.workflow` (all of it), :mod:`.bank` (hidden-effect truth
-models written independently of the library, for the demo, the tests and the coverage study).
+Modules:
+
+* the MuJoCo side: :mod:`.replay` (closed-loop replay of measured runs, batched),
+  :mod:`.effects` (the named candidate library, MJCF changes written into a
+  :class:`~omni_sim.model.Target`; a package, one module per family);
+* the statistics, which import no MuJoCo (they get models from an
+  :class:`~.effects.ModelBuilder` and simulations from a :class:`~.replay.Replayer`):
+  :mod:`.runs` (a run prepared for replay), :mod:`.localise` (maps of the gap, and where it
+  lives in words), :mod:`.fit` (simulation-error fits), :mod:`.select` (prescreen, held-out
+  scoring, pairs, acceptance), :mod:`.uncertainty` (standard errors and the 95 % interval);
+* :mod:`.workflow`: all of it, step by step;
+* hidden effects, written independently of the library: :mod:`.truth_models` (the truth
+  writers), :mod:`.hidden` (the cases, their data, the pass criteria; used by the demo,
+  ``omni bench`` and ``omni sweep``), :mod:`.experiment_set` (the compact experiment set and
+  its measurement noise) and :mod:`.bank` (what only the validation uses: the coverage
+  study's ranges; imported by no module of the application).
 """
 
 from .effects import LIBRARY, NAMES

@@ -49,7 +49,7 @@ functions that read and write effects.
 
 "Noise floor" in the families' notes: the gap of the nominal replay to data from the nominal
 model with the encoder's quantisation and 1e-4 rad noise (1.6e-4 rad over
-``bank.bank_experiments()``).
+``experiment_set.experiments()``).
 """
 
 from __future__ import annotations
