@@ -197,6 +197,121 @@ def test_method_layer_loads_without_simulator_or_plotting():
     assert proc.returncode == 0, proc.stderr
 
 
+# -- the discrepancy package ---------------------------------------------------------------------
+DISCREPANCY = "omni_sim.discrepancy"
+#: Its layers (module names inside the package; ``effects`` stands for the package and its modules).
+DISCREPANCY_LAYERS = {
+    "runs": ("runs",),  # a run prepared for replay: plain data
+    "statistics": ("localise", "fit", "select", "uncertainty"),
+    "simulation": ("replay", "effects"),  # MuJoCo: the replay and the effect library
+    "workflow": ("workflow",),  # joins statistics and simulation
+    "truth": ("truth_models", "hidden", "experiment_set", "bank"),  # hidden effects, the bank
+}
+#: The layers each layer may import inside the package (the package's ``__init__`` is exempt).
+DISCREPANCY_ALLOWED = {
+    "runs": {"runs"},
+    "statistics": {"runs", "statistics"},
+    "simulation": {"runs", "simulation"},
+    "workflow": {"runs", "statistics", "simulation", "workflow"},
+    "truth": {"truth"},
+}
+#: The statistics: no MuJoCo, directly or through the modules they import.
+STATISTICS = [f"{DISCREPANCY}.{m}" for m in DISCREPANCY_LAYERS["runs"] + DISCREPANCY_LAYERS["statistics"]]
+#: The validation fixture no module of the packages may import, directly or through others.
+BANK = f"{DISCREPANCY}.bank"
+
+
+def reach(module: str, graph: dict[str, set[str]]) -> dict[str, list[str]]:
+    """Every module ``module`` imports, directly or through others, with the chain of imports
+    that reaches it (the packages' ``__init__`` that Python runs first is not followed unless
+    imported by name)."""
+    seen = {module: [module]}
+    todo = [module]
+    while todo:
+        m = todo.pop()
+        for n in sorted(graph[m]):
+            if n not in seen:
+                seen[n] = seen[m] + [n]
+                todo.append(n)
+    del seen[module]
+    return seen
+
+
+def discrepancy_layer(module: str) -> str | None:
+    """The layer of a module of the discrepancy package (None: the package's ``__init__`` or
+    not a module of the package)."""
+    if not module.startswith(DISCREPANCY + "."):
+        return None
+    name = module[len(DISCREPANCY) + 1:].split(".")[0]
+    return next((layer for layer, names in DISCREPANCY_LAYERS.items() if name in names), None)
+
+
+def layer_violations(graph: dict[str, set[str]]) -> list[str]:
+    """Imports inside the discrepancy package that go against :data:`DISCREPANCY_ALLOWED`."""
+    bad = []
+    for m in sorted(graph):
+        layer = discrepancy_layer(m)
+        if layer is None:
+            continue
+        for n in sorted(graph[m]):
+            other = discrepancy_layer(n)
+            if n.startswith(DISCREPANCY) and other not in DISCREPANCY_ALLOWED[layer]:
+                bad.append(f"{m} ({layer}) imports {n} ({other})")
+    return bad
+
+
+def test_layer_check_finds_a_wrong_direction():
+    g = {f"{DISCREPANCY}.fit": {f"{DISCREPANCY}.replay", f"{DISCREPANCY}.runs"},
+         f"{DISCREPANCY}.replay": {f"{DISCREPANCY}.runs"}, f"{DISCREPANCY}.runs": set(),
+         f"{DISCREPANCY}.hidden": {f"{DISCREPANCY}.effects.friction"}, f"{DISCREPANCY}.effects.friction": set()}
+    assert layer_violations(g) == [f"{DISCREPANCY}.fit (statistics) imports {DISCREPANCY}.replay (simulation)",
+                                   f"{DISCREPANCY}.hidden (truth) imports {DISCREPANCY}.effects.friction (simulation)"]
+    assert reach(f"{DISCREPANCY}.fit", g) == {f"{DISCREPANCY}.replay": [f"{DISCREPANCY}.fit", f"{DISCREPANCY}.replay"],
+                                              f"{DISCREPANCY}.runs": [f"{DISCREPANCY}.fit", f"{DISCREPANCY}.runs"]}
+
+
+def test_discrepancy_layers():
+    """Inside the discrepancy package the statistics import only each other and the runs, the
+    simulation side (replay, effect library) only itself and the runs, the workflow both, and
+    the truth side (truth models, hidden cases, experiment set, bank) only itself; every module
+    of the package has a layer."""
+    graph = import_graph()
+    unplaced = [m for m in MODULES if m.startswith(DISCREPANCY + ".") and discrepancy_layer(m) is None]
+    assert not unplaced, f"modules without a layer: {unplaced}"
+    bad = layer_violations(graph)
+    assert not bad, bad
+
+
+@pytest.mark.parametrize("module", STATISTICS)
+def test_statistics_import_no_mujoco(module):
+    """The statistics (fit, select, uncertainty, localise and the runs they take) import no
+    MuJoCo, directly or through any module of the packages they import: models come from the
+    caller's ``ModelBuilder``, simulations from its ``Replayer``."""
+    chains = {module: [module], **reach(module, import_graph())}
+    bad = [" -> ".join(chain) + f" (line {line}: {name})" for m, chain in chains.items()
+           for name, line in imports_of(m) if name.split(".")[0] == "mujoco"]
+    assert not bad, bad
+
+
+def test_statistics_walk_follows_their_imports():
+    """The walk of :func:`test_statistics_import_no_mujoco` sees what the statistics import
+    (a walk that found nothing would pass trivially)."""
+    assert {f"{DISCREPANCY}.fit", f"{DISCREPANCY}.select", f"{DISCREPANCY}.runs"} <= set(
+        reach(f"{DISCREPANCY}.uncertainty", import_graph()))
+
+
+def test_no_runtime_import_of_the_bank():
+    """No module of the packages imports the bank (a validation fixture: scripts and tests use
+    it), directly or through others, at the top or inside a function."""
+    graph = import_graph()
+    bad = [" -> ".join([m] + reach(m, graph)[BANK][1:]) for m in sorted(MODULES)
+           if m != BANK and BANK in reach(m, graph)]
+    assert not bad, bad
+    # the walk follows imports inside functions: the sweep's discrepancy pipeline imports the
+    # hidden cases lazily
+    assert f"{DISCREPANCY}.hidden" in reach("omni_app.sweep", graph)
+
+
 #: Process-global machinery the packages do without: forking a process that may
 #: have threads (``os.fork``, ``get_context("fork")``), moving objects out of the collector's
 #: reach (``gc.freeze``), import hooks (``sys.meta_path``).
