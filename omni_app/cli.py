@@ -65,8 +65,8 @@ def _add_generate(sub) -> None:
     p = sub.add_parser("generate", help="run experiments on the virtual Omni and write a dataset")
     p.add_argument("--campaign", default="paper", metavar="{paper,sine,step,FILE.toml}",
                    help="paper (Table 1 sines + Table 2 squares; the file omni_sim/campaigns/paper.toml), "
-                        "sine or step (its halves), or a campaign file of your own (format: README, "
-                        "'Campaign files'); default: paper")
+                        "sine or step (its halves), or a campaign file of your own (format: "
+                        "docs/campaigns.md); default: paper")
     p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
     _friction_option(p)
     p.add_argument("--out", default="dataset", help="output folder (default: ./dataset)")
