@@ -40,10 +40,13 @@ def figures(outcome, folder: Path) -> list[str]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rep = outcome.report
+    return [_figure_runs(plt, outcome, folder), _figure_localisation(plt, outcome.report, folder),
+            _figure_candidates(plt, outcome.report, folder)]
+
+
+def _figure_runs(plt, outcome, folder: Path) -> str:
+    """The three worst runs before: measured, model before and after, and the residuals."""
     runs, tb, ta = outcome.runs, outcome.theta_before, outcome.theta_after
-    names = []
-    # 1. worst runs
     order = np.argsort([-np.sqrt(np.mean((th - r.theta) ** 2)) for r, th in zip(runs, tb)])[:3]
     fig, axes = plt.subplots(len(order), 2, figsize=(11, 2.6 * len(order)), squeeze=False)
     for row, j in enumerate(order):
@@ -64,11 +67,12 @@ def figures(outcome, folder: Path) -> list[str]:
             ax.legend(fontsize=7)
     axes[-1, 0].set_xlabel("t [s]")
     axes[-1, 1].set_xlabel("t [s]")
-    fig.tight_layout()
-    fig.savefig(folder / "fig_runs.png", dpi=110)
-    plt.close(fig)
-    names.append("fig_runs.png")
-    # 2. localisation maps
+    return _save(plt, fig, folder, "fig_runs.png")
+
+
+def _figure_localisation(plt, rep: dict, folder: Path) -> str:
+    """The localisation maps before and after: by regime, by time window, the sines' gain and
+    phase error."""
     lb, la = rep["localisation"]["before"], rep["localisation"]["after"]
     fig, axes = plt.subplots(2, 2, figsize=(12, 8))
     keys = list(lb["regimes"]["bins"])
@@ -88,45 +92,50 @@ def figures(outcome, folder: Path) -> list[str]:
     ax.set_ylabel("RMS gap [rad]")
     ax.set_title("by time window")
     ax.legend(fontsize=7)
-    fr_b, fr_a = lb["frequency_response"], la["frequency_response"]
-    ax = axes[1, 0]
-    if fr_b:
-        f = np.array([d["frequency_hz"] for d in fr_b])
-        amps = sorted({d["amplitude_rad"] for d in fr_b})
-        for i, a in enumerate(amps):
-            sel = [d["amplitude_rad"] == a for d in fr_b]
-            mk = "os^dv"[i % 5]
-            ax.plot(f[sel], [d["gain_measured"] for d, s in zip(fr_b, sel) if s], "k" + mk, ms=5,
-                    label=f"measured A={a:g}")
-            ax.plot(f[sel], [d["gain_model"] for d, s in zip(fr_b, sel) if s], "C3" + mk, ms=4, mfc="none",
-                    label=f"before A={a:g}")
-            ax.plot(f[sel], [d["gain_model"] for d, s in zip(fr_a, sel) if s], "C0" + mk, ms=3,
-                    label=f"after A={a:g}")
-        ax.set_xlabel("frequency [Hz]")
-        ax.set_ylabel("|theta/r| at the fundamental [-]")
-        ax.set_title("frequency response (gain)")
-        ax.legend(fontsize=6, ncol=2)
-        ax = axes[1, 1]
-        for i, a in enumerate(amps):
-            sel = [d["amplitude_rad"] == a for d in fr_b]
-            mk = "os^dv"[i % 5]
-            ax.plot(f[sel], [d["phase_error_deg"] for d, s in zip(fr_b, sel) if s], "C3" + mk, ms=4,
-                    label=f"before A={a:g}")
-            ax.plot(f[sel], [d["phase_error_deg"] for d, s in zip(fr_a, sel) if s], "C0" + mk, ms=4,
-                    label=f"after A={a:g}")
-        ax.axhline(0, color="0.6", lw=0.8)
-        ax.set_xlabel("frequency [Hz]")
-        ax.set_ylabel("phase model - measured [deg]")
-        ax.set_title("phase error of the fundamental")
-        ax.legend(fontsize=6)
+    if lb["frequency_response"]:
+        _plot_frequency_response(axes[1, 0], axes[1, 1], lb["frequency_response"], la["frequency_response"])
     else:
         axes[1, 0].text(0.5, 0.5, "no sine runs", ha="center")
         axes[1, 1].axis("off")
-    fig.tight_layout()
-    fig.savefig(folder / "fig_localisation.png", dpi=110)
-    plt.close(fig)
-    names.append("fig_localisation.png")
-    # 3. candidates: one panel per round, held-out share of the gap each removes
+    return _save(plt, fig, folder, "fig_localisation.png")
+
+
+def _plot_frequency_response(ax_gain, ax_phase, fr_b: list[dict], fr_a: list[dict]) -> None:
+    """Gain (measured, model before, after) and phase error (before, after) of the sines'
+    fundamental, one marker per amplitude."""
+    f = np.array([d["frequency_hz"] for d in fr_b])
+    amps = sorted({d["amplitude_rad"] for d in fr_b})
+    ax = ax_gain
+    for i, a in enumerate(amps):
+        sel = [d["amplitude_rad"] == a for d in fr_b]
+        mk = "os^dv"[i % 5]
+        ax.plot(f[sel], [d["gain_measured"] for d, s in zip(fr_b, sel) if s], "k" + mk, ms=5,
+                label=f"measured A={a:g}")
+        ax.plot(f[sel], [d["gain_model"] for d, s in zip(fr_b, sel) if s], "C3" + mk, ms=4, mfc="none",
+                label=f"before A={a:g}")
+        ax.plot(f[sel], [d["gain_model"] for d, s in zip(fr_a, sel) if s], "C0" + mk, ms=3,
+                label=f"after A={a:g}")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("|theta/r| at the fundamental [-]")
+    ax.set_title("frequency response (gain)")
+    ax.legend(fontsize=6, ncol=2)
+    ax = ax_phase
+    for i, a in enumerate(amps):
+        sel = [d["amplitude_rad"] == a for d in fr_b]
+        mk = "os^dv"[i % 5]
+        ax.plot(f[sel], [d["phase_error_deg"] for d, s in zip(fr_b, sel) if s], "C3" + mk, ms=4,
+                label=f"before A={a:g}")
+        ax.plot(f[sel], [d["phase_error_deg"] for d, s in zip(fr_a, sel) if s], "C0" + mk, ms=4,
+                label=f"after A={a:g}")
+    ax.axhline(0, color="0.6", lw=0.8)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("phase model - measured [deg]")
+    ax.set_title("phase error of the fundamental")
+    ax.legend(fontsize=6)
+
+
+def _figure_candidates(plt, rep: dict, folder: Path) -> str:
+    """One panel per round: the held-out share of the gap each candidate removes."""
     nr = max(1, len(rep["candidates"]))
     fig, axes = plt.subplots(1, nr, figsize=(4.2 * nr, 0.28 * max(len(r) for r in rep["candidates"] or [[0]]) + 1.4),
                              squeeze=False)
@@ -142,18 +151,37 @@ def figures(outcome, folder: Path) -> list[str]:
         ax.set_xlim(-0.5, 1.0)
         ax.set_xlabel("held-out share of the gap removed", fontsize=8)
         ax.set_title(f"round {i + 1}", fontsize=9)
+    return _save(plt, fig, folder, "fig_candidates.png")
+
+
+def _save(plt, fig, folder: Path, name: str) -> str:
     fig.tight_layout()
-    fig.savefig(folder / "fig_candidates.png", dpi=110)
+    fig.savefig(folder / name, dpi=110)
     plt.close(fig)
-    names.append("fig_candidates.png")
-    return names
+    return name
 
 
 def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", intro: str = "") -> str:
+    """``report.md``: the named effects and the gap, where it lives, the candidates of each
+    round, where the model was worst before and after, the figures, the timings."""
     rep = outcome.report
     L = [f"# {title}", ""]
     if intro:
         L += [intro, ""]
+    L += _md_named(rep) + _md_where(rep) + _md_candidates(rep) + _md_worst(rep)
+    for f in figs:
+        L += [f"![{f}]({f})", ""]
+    t = rep["timings"]
+    L += ["## Timings", "", f"total {t['total_s']:.1f} s; naming {t['naming_s']:.1f} s; "
+          f"{t['physics_steps']:,} physics steps ({t['steps_per_s'] / 1e3:.0f} k steps/s).", ""]
+    L += ["The patched model is `model.xml` (nominal + named effects at their all-runs fit). "
+          "`report.json` holds every number of this page.", ""]
+    return "\n".join(L)
+
+
+def _md_named(rep: dict) -> list[str]:
+    """The named effects, the gap before and after, the effects' table, ties, an unexplained gap."""
+    L = []
     eff = rep["effects"]
     if eff[0]["name"] == "none":
         best = (f" (best candidate {eff[0]['best_candidate']} removes {eff[0]['best_share']:.0%} of "
@@ -188,6 +216,12 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
         L += ["**Part of the gap is not explained by the library** (the remaining error stays well "
               "above the noise floor): the named effect is the nearest candidate, not necessarily the "
               "physical cause.", ""]
+    return L
+
+
+def _md_where(rep: dict) -> list[str]:
+    """Where the gap lives before, in words; the nearest candidates of an unexplained gap."""
+    L = []
     where = rep.get("where", [])
     if where:
         L += ["## Where the gap lives (before)", ""]
@@ -201,7 +235,12 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
     if near and rep["unexplained"]:
         L += ["Nearest library candidates (**low confidence**: they do not explain the gap): "
               + ", ".join(f"{c['name']} (removes {c['share']:.0%})" for c in near) + ".", ""]
-    L += ["## Candidates (held-out, k-fold over runs)", ""]
+    return L
+
+
+def _md_candidates(rep: dict) -> list[str]:
+    """Every round's candidates: held-out gap, share removed, how the folds were fitted."""
+    L = ["## Candidates (held-out, k-fold over runs)", ""]
     for i, rnd in enumerate(rep["candidates"]):
         L += [f"Round {i + 1} (start gap {_fmt(rep['rounds'][i]['gap_start_rad'])} rad):", "",
               "| candidate | held-out gap [rad] | share removed | folds | parameters |", "|---|---|---|---|---|"]
@@ -213,9 +252,15 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
                 continue
             L.append(f"| {c['name']} | {_fmt(c['heldout_gap_rad'])} | {c['share']:+.2f} | {c['method']} | {ps} |")
         L.append("")
+    return L
+
+
+def _md_worst(rep: dict) -> list[str]:
+    """Where the model was worst before, and the same places after; the command lag; the worst
+    runs."""
     lb, la = rep["localisation"]["before"], rep["localisation"]["after"]
-    L += ["## Where the model was worst, before and after", "",
-          "| where | before [rad] | after [rad] |", "|---|---|---|"]
+    L = ["## Where the model was worst, before and after", "",
+         "| where | before [rad] | after [rad] |", "|---|---|---|"]
     for w in lb["worst"]:
         where = w["where"]
         after = _lookup(la, where)
@@ -225,14 +270,7 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
     L += ["", f"Residual vs command: best correlation {cl['correlation']:+.2f} at lag "
           f"{cl['lag_s'] * 1000:+.0f} ms (at zero lag {cl['correlation_at_zero']:+.2f}).", ""]
     L += ["Worst runs before: " + ", ".join(f"{d['run']} ({_fmt(d['rms_rad'])})" for d in lb["per_run"][:5]), ""]
-    for f in figs:
-        L += [f"![{f}]({f})", ""]
-    t = rep["timings"]
-    L += ["## Timings", "", f"total {t['total_s']:.1f} s; naming {t['naming_s']:.1f} s; "
-          f"{t['physics_steps']:,} physics steps ({t['steps_per_s'] / 1e3:.0f} k steps/s).", ""]
-    L += ["The patched model is `model.xml` (nominal + named effects at their all-runs fit). "
-          "`report.json` holds every number of this page.", ""]
-    return "\n".join(L)
+    return L
 
 
 def _lookup(loc, where: str):

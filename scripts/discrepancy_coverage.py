@@ -164,7 +164,7 @@ def figure(summary: dict, draws: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def main(argv=None) -> int:
+def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                  epilog="Ranges of the random magnitudes: omni_sim/discrepancy/bank.py RANGES.")
     ap.add_argument("--effects", nargs="*", default=None,
@@ -182,7 +182,11 @@ def main(argv=None) -> int:
     ap.add_argument("--merge", nargs="*", default=[],
                     help="coverage.json files of other runs (e.g. one per condition run in "
                          "parallel) whose draws are added before the summary")
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
     try:
         effects = args.effects or list(bank.RANGES)
         bad = [e for e in effects if e not in bank.RANGES]
@@ -190,49 +194,70 @@ def main(argv=None) -> int:
             raise UserError(f"--effects: no range for {', '.join(bad)} (known: {', '.join(bank.RANGES)})")
         if args.n < 1:
             raise UserError("--n must be at least 1")
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        jpath = out / "coverage.json"
+        settings = {"n": args.n, "seed": args.seed, "experiments": args.experiments,
+                    "ranges": {e: bank.RANGES[e] for e in effects}, "range_centre": bank.RANGE_CENTRE,
+                    "noise_rad": experiment_set.NOISE_RAD, "candidates": "the true effect only"}
+        draws = _earlier_draws(jpath, args, settings, effects)
+        for f in args.merge:
+            draws += _other_draws(f, settings, draws)
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    jpath = out / "coverage.json"
-    settings = {"n": args.n, "seed": args.seed, "experiments": args.experiments,
-                "ranges": {e: bank.RANGES[e] for e in effects}, "range_centre": bank.RANGE_CENTRE,
-                "noise_rad": experiment_set.NOISE_RAD, "candidates": "the true effect only"}
-    draws: list[dict] = []
-    if jpath.exists():
-        old = json.loads(jpath.read_text())
-        had = old.get("settings", {})
-        if args.summarise_only:  # summarise what is there, as it was made
-            settings.update({k: had[k] for k in ("seed", "experiments") if k in had})
-        elif (had.get("seed"), had.get("experiments")) != (args.seed, args.experiments):
-            # its draws cannot be resumed with other settings, and are not silently dropped
-            print(f"error: {jpath} holds draws made with --seed {had.get('seed')} --experiments "
-                  f"{had.get('experiments')}; run with those, or with another --out",
-                  file=sys.stderr)
-            return 2
-        draws = [d for d in old.get("draws", []) if d["effect"] in effects]
-    for f in args.merge:
-        try:
-            other = json.loads(Path(f).read_text())
-        except (OSError, ValueError) as exc:
-            print(f"error: --merge {f}: {exc}", file=sys.stderr)
-            return 2
-        theirs = other.get("settings", {})
-        if (theirs.get("seed"), theirs.get("experiments")) != (settings["seed"], settings["experiments"]):
-            # draws made with another experiment set are not the same study: not merged under
-            # this run's settings (a merge that did so once labelled small-set draws "bank")
-            print(f"error: --merge {f} holds draws made with --seed {theirs.get('seed')} --experiments "
-                  f"{theirs.get('experiments')}; this run has --seed {settings['seed']} --experiments "
-                  f"{settings['experiments']}", file=sys.stderr)
-            return 2
-        have = {(d["effect"], d["condition"], d["seed"]) for d in draws}
-        draws += [d for d in other.get("draws", []) if (d["effect"], d["condition"], d["seed"]) not in have]
+    t_all = time.perf_counter()
     done = {(d["effect"], d["condition"], d["seed"]) for d in draws}
-    exps = _experiments(args.experiments)
-    # magnitudes: one generator per effect (the same draws whatever else is studied); the plan
-    # goes round the effects (draw 1 of every effect, then draw 2, ...), so a study stopped
-    # early still covers every effect
+    _run(_plan(args, effects, done), draws, settings, jpath, _experiments(args.experiments), args.jobs)
+    summary = summarise(draws)
+    res = dict(settings=settings, draws=draws, **summary)
+    jpath.write_text(json.dumps(res, indent=1) + "\n")
+    figure(summary, draws, out / "coverage.png")
+    _print_summary(summary)
+    print(f"wrote {jpath} and {out / 'coverage.png'} ({time.perf_counter() - t_all:.0f} s)")
+    ok = all(o["coverage"] >= TARGET for o in summary["overall"].values())
+    return 0 if ok else 1
+
+
+def _earlier_draws(jpath: Path, args, settings: dict, effects: list[str]) -> list[dict]:
+    """The draws an existing ``coverage.json`` holds for ``effects`` (resumed or summarised);
+    with ``--summarise-only`` its seed and experiment set become ``settings``'."""
+    if not jpath.exists():
+        return []
+    old = json.loads(jpath.read_text())
+    had = old.get("settings", {})
+    if args.summarise_only:  # summarise what is there, as it was made
+        settings.update({k: had[k] for k in ("seed", "experiments") if k in had})
+    elif (had.get("seed"), had.get("experiments")) != (args.seed, args.experiments):
+        # its draws cannot be resumed with other settings, and are not silently dropped
+        raise UserError(f"{jpath} holds draws made with --seed {had.get('seed')} --experiments "
+                        f"{had.get('experiments')}; run with those, or with another --out")
+    return [d for d in old.get("draws", []) if d["effect"] in effects]
+
+
+def _other_draws(path: str, settings: dict, draws: list[dict]) -> list[dict]:
+    """The draws of another run's ``coverage.json`` (``--merge``) not already in ``draws``."""
+    try:
+        other = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise UserError(f"--merge {path}: {exc}") from None
+    theirs = other.get("settings", {})
+    if (theirs.get("seed"), theirs.get("experiments")) != (settings["seed"], settings["experiments"]):
+        # draws made with another experiment set are not the same study: merged, they would be
+        # labelled with this run's settings
+        raise UserError(f"--merge {path} holds draws made with --seed {theirs.get('seed')} --experiments "
+                        f"{theirs.get('experiments')}; this run has --seed {settings['seed']} --experiments "
+                        f"{settings['experiments']}")
+    have = {(d["effect"], d["condition"], d["seed"]) for d in draws}
+    return [d for d in other.get("draws", []) if (d["effect"], d["condition"], d["seed"]) not in have]
+
+
+def _plan(args, effects: list[str], done: set) -> list[tuple]:
+    """The draws still to make, ``(effect, values, condition, seed)``.
+
+    Magnitudes: one generator per effect (the same draws whatever else is studied); the plan
+    goes round the effects (draw 1 of every effect, then draw 2, ...), so a study stopped early
+    still covers every effect."""
     values = {}
     for eff in effects:
         rng = np.random.default_rng([args.seed, sum(map(ord, eff))])
@@ -244,14 +269,19 @@ def main(argv=None) -> int:
                 seed = args.seed * 100_000 + i
                 if (eff, cond, seed) not in done:
                     plan.append((eff, values[eff][i], cond, seed))
+    return plan
+
+
+def _run(plan: list[tuple], draws: list[dict], settings: dict, jpath: Path, exps, jobs: int) -> None:
+    """Make the planned draws, appending to ``draws``; ``jpath`` is rewritten after each (a
+    stopped study keeps what it did)."""
     try:
         from tqdm import tqdm
         bar = tqdm(total=len(plan), desc="coverage", unit="fit") if plan else None
     except ImportError:  # pragma: no cover
         bar = None
-    t_all = time.perf_counter()
     for k, (eff, values, cond, seed) in enumerate(plan):
-        d = one_draw(eff, values, cond, seed, exps, args.jobs)
+        d = one_draw(eff, values, cond, seed, exps, jobs)
         draws.append(d)
         res = dict(settings=settings, draws=draws, **summarise(draws))
         tmp = jpath.with_suffix(".tmp")
@@ -264,10 +294,9 @@ def main(argv=None) -> int:
             print(f"[{k + 1}/{len(plan)}] {eff} {cond} covered={d['covered']} {d['seconds']:.0f} s", flush=True)
     if bar is not None:
         bar.close()
-    summary = summarise(draws)
-    res = dict(settings=settings, draws=draws, **summary)
-    jpath.write_text(json.dumps(res, indent=1) + "\n")
-    figure(summary, draws, out / "coverage.png")
+
+
+def _print_summary(summary: dict) -> None:
     for r in summary["per_effect"]:
         print(f"{r['effect']:18s} {r['condition']:6s} coverage {r['coverage']:.0%} "
               f"({r['covered']}/{r['parameters_checked']}, not named {r['not_named']}) "
@@ -276,9 +305,6 @@ def main(argv=None) -> int:
         print(f"overall {cond}: {o['coverage']:.1%} ({o['covered']}/{o['parameters_checked']}), "
               f"Wilson 95 % [{o['coverage_wilson95'][0]:.2f}, {o['coverage_wilson95'][1]:.2f}], "
               f"median half-width/truth {o['median_rel_half_width']:.2e}")
-    print(f"wrote {jpath} and {out / 'coverage.png'} ({time.perf_counter() - t_all:.0f} s)")
-    ok = all(o["coverage"] >= TARGET for o in summary["overall"].values())
-    return 0 if ok else 1
 
 
 if __name__ == "__main__":

@@ -231,75 +231,98 @@ def describe(loc: dict, noise_rad: float = 0.0) -> list[dict]:
     overall = loc.get("overall_rms_rad", float("nan"))
     if not (overall > 0) or overall <= 2 * noise_rad:
         return out
-    b = loc["regimes"]["bins"]
-
-    def rms(key):
-        v = b.get(key, {})
-        return v.get("rms_rad") if v.get("n", 0) > 50 else None
-
-    def add(where, a, ref, text):
+    # (where, RMS there, RMS of the complement, text with {r} for the ratio)
+    comparisons = (_regime_comparisons(loc["regimes"]["bins"]) + _frequency_comparisons(loc)
+                   + _amplitude_comparisons(loc) + _record_comparisons(loc))
+    for where, a, ref, text in comparisons:
         r = _ratio(a, ref)
         if math.isfinite(r) and r >= CONCENTRATION:
             out.append({"where": where, "ratio": r, "text": text.format(r=r)})
-
-    slow, low, fast = rms("speed: near zero"), rms("speed: low"), rms("speed: high")
-    moving = max([x for x in (low, fast) if x is not None], default=None)
-    add("low speed", slow, moving,
-        "at low speed: near standstill the error is {r:.1f}x that of the moving samples "
-        "(friction, stiction, pre-sliding, backlash)")
-    add("high speed", fast, max([x for x in (slow, low) if x is not None], default=None),
-        "at high speed: {r:.1f}x the error of the slow samples (damping, back-EMF, drag)")
-    add("reversals", rms("motion: around reversals"), rms("motion: away from reversals"),
-        "around velocity reversals: {r:.1f}x the error away from them (dry friction, pre-sliding, "
-        "backlash, cable compliance)")
-    add("position band", rms("position: |theta| outer quarter"), rms("position: |theta| inner three quarters"),
-        "in a position band: the outer quarter of |theta| has {r:.1f}x the error of the rest "
-        "(a spring, gravity, an end stop, a position-dependent torque)")
-    pos = {k[len("position: ["):]: v["rms_rad"] for k, v in b.items()
-           if k.startswith("position: [") and v.get("n", 0) > 50}
-    if pos:
-        k = max(pos, key=pos.get)
-        others = [v for kk, v in pos.items() if kk != k]
-        add(f"positions [{k}", pos[k], float(np.sqrt(np.mean(np.square(others)))) if others else None,
-            "at positions [" + k + ": {r:.1f}x the error of the other quartiles")
-    add("command near its limit", rms("command: near its limit"), rms("command: below"),
-        "when the command is near its limit: {r:.1f}x the error below it (saturation, a torque limit)")
-    pf = loc.get("per_frequency", {})
-    if len(pf) >= 2:
-        f = max(pf, key=pf.get)
-        others = [v for k, v in pf.items() if k != f]
-        fr = [row for row in loc.get("frequency_response", []) if f"{row['frequency_hz']:g}" == f]
-        detail = ""
-        if fr:
-            g = float(np.mean([row["gain_error_db"] for row in fr]))
-            ph = float(np.mean([row["phase_error_deg"] for row in fr]))
-            detail = f" (model gain {g:+.1f} dB, phase {ph:+.1f} deg there)"
-        add(f"frequency {f} Hz", pf[f], float(np.sqrt(np.mean(np.square(others)))),
-            f"in the sines at {f} Hz: {{r:.1f}}x the error of the other frequencies{detail}")
-    pa = loc.get("per_amplitude", {})
-    if len(pa) >= 2:
-        amps = sorted(pa, key=float)
-        small, large = pa[amps[0]], pa[amps[-1]]
-        add("small amplitudes", small, large,
-            f"at the smallest amplitude ({amps[0]} rad): {{r:.1f}}x the error at {amps[-1]} rad "
-            "(effects that weaken with amplitude: dry friction, backlash, cogging)")
-        add("large amplitudes", large, small,
-            f"at the largest amplitude ({amps[-1]} rad): {{r:.1f}}x the error at {amps[0]} rad "
-            "(saturation, springs, end stops)")
-    tw = loc.get("time_windows", [])
-    if len(tw) >= 2:
-        rest = float(np.sqrt(np.mean([w["rms_rad"] ** 2 for w in tw[1:]])))
-        add("start of the runs", tw[0]["rms_rad"], rest,
-            "in the first {w:.1f} s of the runs: {{r:.1f}}x the error later (start transient, "
-            "initial state)".format(w=tw[0]["t_end_s"]))
-    pk = loc.get("per_kind", {})
-    if "step" in pk and "sine" in pk:
-        add("steps", pk["step"], pk["sine"], "in the step responses: {r:.1f}x the error of the sines")
-        add("sines", pk["sine"], pk["step"], "in the sines: {r:.1f}x the error of the step responses")
     cl = loc.get("command_lag", {})
     if abs(cl.get("correlation", 0.0)) >= 0.5 and abs(cl.get("lag_s", 0.0)) > 0:
         out.append({"where": "follows the command", "ratio": float("nan"),
                     "text": f"the residual follows the command {cl['lag_s'] * 1000:+.0f} ms later "
                             f"(correlation {cl['correlation']:+.2f}): a loop delay or drive lag"})
     out.sort(key=lambda d: -(d["ratio"] if math.isfinite(d["ratio"]) else 0.0))
+    return out
+
+
+def _regime_comparisons(bins: dict) -> list[tuple]:
+    """Speed, reversals, position and command regimes against their complements."""
+    def rms(key):
+        v = bins.get(key, {})
+        return v.get("rms_rad") if v.get("n", 0) > 50 else None
+
+    out = []
+    slow, low, fast = rms("speed: near zero"), rms("speed: low"), rms("speed: high")
+    moving = max([x for x in (low, fast) if x is not None], default=None)
+    out.append(("low speed", slow, moving,
+                "at low speed: near standstill the error is {r:.1f}x that of the moving samples "
+                "(friction, stiction, pre-sliding, backlash)"))
+    out.append(("high speed", fast, max([x for x in (slow, low) if x is not None], default=None),
+                "at high speed: {r:.1f}x the error of the slow samples (damping, back-EMF, drag)"))
+    out.append(("reversals", rms("motion: around reversals"), rms("motion: away from reversals"),
+                "around velocity reversals: {r:.1f}x the error away from them (dry friction, pre-sliding, "
+                "backlash, cable compliance)"))
+    out.append(("position band", rms("position: |theta| outer quarter"),
+                rms("position: |theta| inner three quarters"),
+                "in a position band: the outer quarter of |theta| has {r:.1f}x the error of the rest "
+                "(a spring, gravity, an end stop, a position-dependent torque)"))
+    pos = {k[len("position: ["):]: v["rms_rad"] for k, v in bins.items()
+           if k.startswith("position: [") and v.get("n", 0) > 50}
+    if pos:
+        k = max(pos, key=pos.get)
+        others = [v for kk, v in pos.items() if kk != k]
+        out.append((f"positions [{k}", pos[k], float(np.sqrt(np.mean(np.square(others)))) if others else None,
+                    "at positions [" + k + ": {r:.1f}x the error of the other quartiles"))
+    out.append(("command near its limit", rms("command: near its limit"), rms("command: below"),
+                "when the command is near its limit: {r:.1f}x the error below it (saturation, a torque limit)"))
+    return out
+
+
+def _frequency_comparisons(loc: dict) -> list[tuple]:
+    """The sine frequency with the largest error against the other frequencies."""
+    pf = loc.get("per_frequency", {})
+    if len(pf) < 2:
+        return []
+    f = max(pf, key=pf.get)
+    others = [v for k, v in pf.items() if k != f]
+    fr = [row for row in loc.get("frequency_response", []) if f"{row['frequency_hz']:g}" == f]
+    detail = ""
+    if fr:
+        g = float(np.mean([row["gain_error_db"] for row in fr]))
+        ph = float(np.mean([row["phase_error_deg"] for row in fr]))
+        detail = f" (model gain {g:+.1f} dB, phase {ph:+.1f} deg there)"
+    return [(f"frequency {f} Hz", pf[f], float(np.sqrt(np.mean(np.square(others)))),
+             f"in the sines at {f} Hz: {{r:.1f}}x the error of the other frequencies{detail}")]
+
+
+def _amplitude_comparisons(loc: dict) -> list[tuple]:
+    """The smallest amplitude against the largest, and the other way round."""
+    pa = loc.get("per_amplitude", {})
+    if len(pa) < 2:
+        return []
+    amps = sorted(pa, key=float)
+    small, large = pa[amps[0]], pa[amps[-1]]
+    return [("small amplitudes", small, large,
+             f"at the smallest amplitude ({amps[0]} rad): {{r:.1f}}x the error at {amps[-1]} rad "
+             "(effects that weaken with amplitude: dry friction, backlash, cogging)"),
+            ("large amplitudes", large, small,
+             f"at the largest amplitude ({amps[-1]} rad): {{r:.1f}}x the error at {amps[0]} rad "
+             "(saturation, springs, end stops)")]
+
+
+def _record_comparisons(loc: dict) -> list[tuple]:
+    """The start of the runs against the rest; steps against sines and the other way round."""
+    out = []
+    tw = loc.get("time_windows", [])
+    if len(tw) >= 2:
+        rest = float(np.sqrt(np.mean([w["rms_rad"] ** 2 for w in tw[1:]])))
+        out.append(("start of the runs", tw[0]["rms_rad"], rest,
+                    "in the first {w:.1f} s of the runs: {{r:.1f}}x the error later (start transient, "
+                    "initial state)".format(w=tw[0]["t_end_s"])))
+    pk = loc.get("per_kind", {})
+    if "step" in pk and "sine" in pk:
+        out.append(("steps", pk["step"], pk["sine"], "in the step responses: {r:.1f}x the error of the sines"))
+        out.append(("sines", pk["sine"], pk["step"], "in the sines: {r:.1f}x the error of the step responses"))
     return out
