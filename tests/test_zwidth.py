@@ -76,3 +76,18 @@ def test_cli_user_errors(tmp_path, argv):
                         str(tmp_path / "o")], capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.startswith("error:") and "Traceback" not in r.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_coulomb_friction_acts_as_damping_fc_over_v():
+    """Coulomb friction Fc under the probe's square-wave velocity +-V dissipates Fc V per unit
+    time, as a damping Fc / V: the B = 0 boundary moves to 2 (b + Fc / V) / T (within 10 %)."""
+    dev, tlim = map_device(friction="coulomb")
+    b, T = physical_damping(dev), dev.control_period_s
+    fc, V = dev.friction()["frictionloss"], 1.0
+    assert fc > 0
+    expected = 2 * (b + fc / V) / T
+    K = np.linspace(0.5 * expected, 1.5 * expected, 11)
+    res = passivity_map(dev, K, [0.0], tlim, probe_speed=V)  # 1 s: the slow probe needs it
+    kb = boundary(K, res["index"])[0]
+    assert abs(kb / expected - 1) < 0.10, (kb, expected)
+    assert kb > 1.2 * colgate_limit(b, 0.0, T)  # clearly beyond the viscous-only bound
