@@ -73,8 +73,7 @@ def physical_damping(device) -> float:
     return float(device.model.dof_damping[device.ix.yaw_dof])
 
 
-def map_device(path=None, friction=None, ideal=False, control_period_s=1e-3, substeps=SUBSTEPS,
-               quantize=None):
+def map_device(path=None, friction=None, ideal=False, control_period_s=1e-3, substeps=SUBSTEPS):
     """The device of a map: the model with its physics step refined and the drive's ctrlrange
     opened (the wall's own clip is applied in :func:`passivity_map`).  Returns
     ``(device, torque_limit)``."""
@@ -265,8 +264,10 @@ def zwidth_command(args) -> int:
     res = passivity_map(dev, K, B, torque_limit=tlim, quantize=quantize, delay=args.delay,
                         probe_speed=args.probe_speed, nthread=args.jobs)
     elapsed = time.perf_counter() - t0
+    from omni_sim.model import model_path
+
     family = "ideal" if args.ideal else dev.friction_family(
-        None if args.model else __import__("omni_sim.model", fromlist=["x"]).model_path(None, args.friction))
+        None if args.model else model_path(None, args.friction))
     doc = {
         "stiffness": K, "damping": B,
         "passive": res["passive"].tolist(),
