@@ -129,12 +129,7 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
     # position a triangle with its corners at samples; the first impulse is half (the velocity
     # alternates about zero)
     J = 2.0 * probe_speed * device.inertia(*device.equilibrium(*gamma_set_deg))
-    imp = np.zeros((P, n))
-    for i, m in enumerate(periods):
-        ks = np.arange(0, n, m)
-        imp[i, ks] = J / h * np.where(np.arange(ks.size) % 2 == 0, 1.0, -1.0)
-        imp[i, 0] *= 0.5
-    imp_row = np.repeat(imp, KK.size, axis=0)  # (rows, n): the probe's torque in the first step
+    imp_row = np.repeat(_probe_impulses(periods, n, J / h), KK.size, axis=0)  # (rows, n)
     bphys = float(device.model.dof_damping[device.ix.yaw_dof])
     eng = Engine([device] * n_rows, [theta0] * n_rows, [gamma_set_deg] * n_rows, nthread=nthread)
     try:
@@ -160,12 +155,8 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
             # the wall's torque and the push held, the probe's impulse in the first step
             eng._ctrl[:, :, act] = ((tau + push) / kt)[:, None]
             eng._ctrl[:, 0, act] += imp_row[:, k] / kt
-            eng.pool.rollout(eng._models, eng._datas, eng.x, eng._ctrl, nstep=sub,
-                             skip_checks=True, state=eng._state, sensordata=eng._sens,
-                             chunk_size=eng._chunk)
             v0 = eng.x[:, qv].copy()
-            vs = eng._state[:, :, qv]
-            eng.x = eng._state[:, -1, :].copy()
+            vs = _advance_substeps(eng, sub)[:, :, qv]
             th1 = eng.x[:, qa]
             if k >= k0:
                 # the work of a force held over a physics step is F h (v_j + v_j+1) / 2 in
@@ -192,6 +183,28 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
     if record:
         out["trace"] = rec
     return out
+
+
+def _probe_impulses(periods, n: int, torque: float) -> np.ndarray:
+    """The probes' torques [N*m] in the first physics step of each of ``n`` servo periods, one
+    row per probe: ``+-torque`` alternating every ``m`` periods, the first one halved (so the
+    velocity alternates about zero)."""
+    imp = np.zeros((len(periods), n))
+    for i, m in enumerate(periods):
+        ks = np.arange(0, n, m)
+        imp[i, ks] = torque * np.where(np.arange(ks.size) % 2 == 0, 1.0, -1.0)
+        imp[i, 0] *= 0.5
+    return imp
+
+
+def _advance_substeps(eng, sub: int) -> np.ndarray:
+    """:meth:`Engine._advance` with the command already written per physics step into
+    ``eng._ctrl``: one rollout of every row; returns the states after each step (rows, sub,
+    nstate) and moves the rows to the last."""
+    eng.pool.rollout(eng._models, eng._datas, eng.x, eng._ctrl, nstep=sub, skip_checks=True,
+                     state=eng._state, sensordata=eng._sens, chunk_size=eng._chunk)
+    eng.x = eng._state[:, -1, :].copy()
+    return eng._state
 
 
 def colgate_limit(b: float, B, T: float) -> np.ndarray:
