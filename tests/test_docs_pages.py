@@ -1,7 +1,7 @@
 """The documentation a newcomer reads: a README of a screen or two that lists every command of
 ``omni --help`` and links the docs/ pages; pages whose links and code paths exist; and text
 that describes the code, not how it came to be (no "sess"+"ion" or "issue N" in the README,
-docs/, the packages, the tests, the examples or the model and data notes)."""
+docs/, the packages, the tests, the scripts, the examples or the model and data notes)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ README = ROOT / "README.md"
 MAX_README_LINES = 200
 #: The pages the README's documentation table links (docs/*.md) and the changelog.
 PAGES = ("results", "model", "calibration", "friction-families", "discrepancy", "sweeps",
-         "performance", "paper-errata", "gymnasium", "campaigns", "architecture")
+         "performance", "paper-errata", "gymnasium", "haptics", "campaigns", "architecture")
 #: Words that tell how the code came to be instead of what it is (split so that this file
 #: does not match itself).
 HISTORY = re.compile("sess" + r"ion|issue\s+\d", re.IGNORECASE)
@@ -28,7 +28,7 @@ ALLOWED = re.compile("start_new_" + "sess" + "ion=True")
 #: Where the history words are looked for: (folder or file, glob).
 SCANNED = (("README.md", None), ("docs", "**/*"), ("omni_sim", "**/*.py"), ("omni_sim", "**/*.toml"),
            ("omni_app", "**/*.py"), ("identification", "**/*.py"), ("identification/data", "*.md"),
-           ("tests", "**/*.py"), ("examples", "**/*"), ("models/README.md", None))
+           ("tests", "**/*.py"), ("scripts", "*.py"), ("examples", "**/*"), ("models/README.md", None))
 #: Repository paths named in backticks in the README and docs/*.md (checked to exist): a file
 #: (with a suffix) or a folder (ending in ``/``) under one of the project's top-level folders.
 CODE_PATH = re.compile(r"`((?:omni_sim|omni_app|identification|scripts|tests|models|docs|examples)"
