@@ -103,7 +103,7 @@ def bank_markdown(data: dict) -> str:
         + (f", {min(load):.2f}-{max(load):.2f} at the end of each case (mean {sum(load) / len(load):.2f})"
            if load else "") + f" (nice {meta['nice']})."
         + (f" {meta['note']}" if meta.get("note") else "") + " Every case's full report is in "
-        f"`{meta['json']}` beside this file (the README's bank table is made from it: "
+        f"`{meta['json']}` beside this file (the bank table of docs/discrepancy.md is made from it: "
         "`python scripts/discrepancy_bank.py --table`).", "",
         "Each truth model is the virtual Omni (`models/scene.xml`) with effects written by "
         "`omni_sim/discrepancy/truth_models.py` with MuJoCo's own features, independently of the "

@@ -200,7 +200,7 @@ def _finite(x) -> bool:
 
 
 def assess(hidden: HiddenCase, report: dict) -> tuple[bool, str]:
-    """Did the workflow pass this case?  (the bank's criteria; README, "The hidden-effect bank")
+    """Did the workflow pass this case?  (the bank's criteria; docs/discrepancy.md, the hidden-effect bank)
 
     * library effects: exactly the hidden effects named (``hidden.expect``, nothing else), each
       with ``confidence == "high"``; each named effect reports as many parameters as the truth
