@@ -12,7 +12,7 @@ Figures (issue targets in brackets, 2-core machine):
 * ``reproduce``: ``omni reproduce --out TMP`` as a user runs it, in a child process (wall
   time with imports, writing and figures, the fastest of the repeats as for the raw rollout,
   each run listed; ``real_time_factor`` [>= 50]; ``ratio_to_raw_rollout``: that wall time / the
-  raw rollout time of the campaign's physics steps [<= 5]; ``peak_rss_mb`` of the child);
+  raw rollout time of the campaign's physics steps [<= 6]; ``peak_rss_mb`` of the child);
 * ``vector_env``: steps/s of ``gym.make_vec("omni_sim/OmniYaw-v0", num_envs=256,
   vectorization_mode="vector_entry_point")`` under P-controller actions, and its ratio to the
   raw rollout steps/s;
