@@ -443,7 +443,8 @@ def tables(src: dict | None = None) -> dict[str, str]:
 # -- figures quoted in the prose and in the hand-written tables ----------------------------------
 def claims(src: dict | None = None) -> dict[str, list[str]]:
     """Phrases of the pages that carry a figure from the sources, rendered from them: page
-    (a key of :data:`PAGES`) -> its phrases."""
+    (a key of :data:`PAGES`) -> its phrases.  (Long on purpose: a flat list, one entry per
+    quoted figure, read beside the page it checks.)"""
     src = src or load_sources()
     s, comp, bench = src["summary"], src["comparison"], src["bench"]
     st = s["step"]
