@@ -42,7 +42,8 @@ def _model_label(model_path) -> str:
 
 def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
                   campaign="paper") -> dict:
-    """Run every stage in memory; returns everything the writers need.
+    """Run every stage in memory (:func:`simulate_campaign`, then :func:`analyse`); returns
+    everything the writers need.
 
     ``model``: an already compiled (possibly modified) model to run instead of the file
     ``model_path`` (e.g. the friction study's scaled models); ``campaign``: the campaign to
@@ -53,6 +54,13 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     UserError
         The model or campaign is bad, or identification failed (no inertia or alpha model).
     """
+    return analyse(simulate_campaign(model_path, jobs, progress, model, campaign))
+
+
+def simulate_campaign(model_path=None, jobs=None, progress=False, model=None,
+                      campaign="paper") -> dict:
+    """The first stage: the campaign's runs on the model (arguments: :func:`run_reproduce`);
+    returns the stages' shared state (``runs``, ``device``, the progress ``bar``, ...)."""
     from tqdm import tqdm
 
     from .accel import install
@@ -67,6 +75,17 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     exps = ex.campaign(campaign)
     runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, device=device)
     bar.update(1)
+    run_meta = {"model": ("in-memory model" if in_memory else _model_label(model_path)),
+                "model_sha256": "in-memory model" if in_memory else ex.model_digest(model_path),
+                "friction": runs[0].meta["friction"]}
+    return {"model": model, "device": device, "runs": runs, "bar": bar, "t0": t0, "run_meta": run_meta}
+
+
+def analyse(res: dict) -> dict:
+    """The other stages on :func:`simulate_campaign`'s runs: identify, validate both models,
+    compare with the ground truth; adds ``ident``, ``params``, ``scores``, ``predictions`` and
+    ``linear_truth`` to ``res`` and returns it."""
+    bar, runs, device = res["bar"], res["runs"], res["device"]
     bar.set_description("identifying")
     ident = identify_runs(runs)
     if ident.inertia is None or ident.alpha_model is None:
@@ -83,14 +102,19 @@ def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
     lin = truth.linear_truth(device, ident)
     bar.update(1)
     sim_time = sum(len(r.t) for r in runs) * ex.CONTROL_PERIOD_S
-    wall = time.perf_counter() - t0
-    scores["summary"]["run"] = {
-        "simulated_time_s": sim_time, "wall_s_before_writing": wall,
-        "model": ("in-memory model" if in_memory else _model_label(model_path)),
-        "model_sha256": "in-memory model" if in_memory else ex.model_digest(model_path),
-        "friction": runs[0].meta["friction"]}
-    return {"model": model, "runs": runs, "ident": ident, "params": params_dict, "scores": scores,
-            "predictions": predictions, "linear_truth": lin, "bar": bar}
+    scores["summary"]["run"] = {"simulated_time_s": sim_time,
+                                "wall_s_before_writing": time.perf_counter() - res["t0"],
+                                **res["run_meta"]}
+    res.update(ident=ident, params=params_dict, scores=scores, predictions=predictions,
+               linear_truth=lin)
+    return res
+
+
+def write_dataset(folder: Path, runs) -> None:
+    """The campaign's runs into the (new) ``folder``."""
+    folder.mkdir()
+    for run in runs:
+        write_run(folder, run)
 
 
 def draw_figures(folder: Path, res: dict) -> None:
@@ -100,42 +124,45 @@ def draw_figures(folder: Path, res: dict) -> None:
     write_identify_figures(res["ident"], folder / "identify")
 
 
-def figure_pool():
-    """One worker process for :func:`draw_figures`, started now (it imports matplotlib while
-    the caller simulates and identifies): a ``concurrent.futures`` pool with the ``spawn``
-    start method (safe with threads, the same on every platform).  A spawned worker imports the
-    caller's main script, so only ``omni reproduce`` (a guarded main) uses it; drawing there
-    while this process writes the CSV files took ``omni reproduce`` from 5.2-5.3 s to 4.0 s
-    on an idle 2-core machine (A/B, 5-6 pairs); with the other core busy it gains nothing."""
+def worker_pool():
+    """Two worker processes that draw the figures and write the dataset while this process
+    goes on (:func:`reproduce_command`), started now (one imports matplotlib while the command
+    simulates): a ``concurrent.futures`` pool with the ``spawn`` start method (safe with
+    threads, the same on every platform).  A spawned worker imports the caller's main script,
+    so only ``omni reproduce`` (a guarded main) uses it.  Measured on an idle 2-core machine
+    (A/B, 5-6 pairs of whole commands): drawing in a worker while this process writes the CSV
+    files took the command from 5.2-5.3 s to 4.0 s; with the other core busy it gains
+    nothing."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    pool = ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"))
-    pool.submit(F._plt)  # start the worker and import matplotlib there
+    pool = ProcessPoolExecutor(max_workers=2, mp_context=mp.get_context("spawn"))
+    pool.submit(F._plt)  # start a worker and import matplotlib there
     return pool
 
 
-def write_reproduce(folder: Path, res: dict, t0: float, pool=None) -> None:
+def write_reproduce(folder: Path, res: dict, t0: float, pool=None, dataset=None) -> None:
     """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
     params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
-    (perf_counter), for the real-time factor.  ``pool`` (:func:`figure_pool`): the figures are
-    drawn there while this process writes the CSV files (the two largest jobs of the writing,
-    ~2 s of CPU each); None: here."""
+    (perf_counter), for the real-time factor.  ``pool`` (:func:`worker_pool`): the figures are
+    drawn there while this process writes the predictions (None: here); ``dataset``: the
+    future of the dataset already being written there (:func:`write_dataset`; None: written
+    here)."""
     (folder / "identify").mkdir()
     figures = None
     if pool is not None:
         figures = pool.submit(draw_figures, folder,
                               {k: res[k] for k in ("runs", "ident", "scores", "predictions")})
-    (folder / "dataset").mkdir()
-    for run in res["runs"]:
-        write_run(folder / "dataset", run)
+    if dataset is None:
+        write_dataset(folder / "dataset", res["runs"])
     write_predictions(folder, res["runs"], res["predictions"])
     (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
     write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
     if figures is None:
         draw_figures(folder, res)
-    else:
-        figures.result()  # the worker's error, if any, is raised here
+    for job in (dataset, figures):
+        if job is not None:
+            job.result()  # a worker's error, if any, is raised here
     summary = res["scores"]["summary"]
     summary["run"]["wall_s_total"] = time.perf_counter() - t0
     summary["run"]["real_time_factor"] = summary["run"]["simulated_time_s"] / summary["run"]["wall_s_total"]
@@ -191,11 +218,14 @@ def reproduce_command(args) -> int:
     model_path = None if (args.model is None and friction is None) else om.model_path(args.model, friction)
     _check_out(out, args.force)
     t0 = time.perf_counter()
-    with figure_pool() as pool, _one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp:
-        res = run_reproduce(model_path, args.jobs, progress=sys.stderr.isatty())
+    # the pool is left first: its jobs end before a failure removes the temporary folder
+    with _one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp, worker_pool() as pool:
+        res = simulate_campaign(model_path, args.jobs, progress=sys.stderr.isatty())
+        dataset = pool.submit(write_dataset, tmp / "dataset", res["runs"])  # while it analyses
+        res = analyse(res)
         bar = res["bar"]
         bar.set_description("writing report and figures")
-        write_reproduce(tmp, res, t0, pool)
+        write_reproduce(tmp, res, t0, pool, dataset)
     bar.update(1)
     bar.close()
     _print_summary(res)
