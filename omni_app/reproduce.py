@@ -119,8 +119,7 @@ def write_dataset(folder: Path, runs) -> None:
 
 def draw_figures(folder: Path, res: dict) -> None:
     """The reproduction's figures (the paper's and the identification's) into ``folder``."""
-    for fn in F.FIGURES:
-        fn(folder, res)
+    F.write_figures(folder, res)
     write_identify_figures(res["ident"], folder / "identify")
 
 
@@ -151,8 +150,11 @@ def write_reproduce(folder: Path, res: dict, t0: float, pool=None, dataset=None)
     (folder / "identify").mkdir()
     figures = None
     if pool is not None:
-        figures = pool.submit(draw_figures, folder,
-                              {k: res[k] for k in ("runs", "ident", "scores", "predictions")})
+        shown = F.TIME_FIGURE_RUNS  # the only runs and predictions the figures draw
+        figures = pool.submit(draw_figures, folder, {
+            "ident": res["ident"], "scores": res["scores"],
+            "runs": [r for r in res["runs"] if r.name in shown],
+            "predictions": {n: p for n, p in res["predictions"].items() if n in shown}})
     if dataset is None:
         write_dataset(folder / "dataset", res["runs"])
     write_predictions(folder, res["runs"], res["predictions"])
