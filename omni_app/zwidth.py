@@ -42,7 +42,6 @@ import math
 import time
 from pathlib import Path
 
-import mujoco
 import numpy as np
 
 from identification.errors import UserError
@@ -81,8 +80,8 @@ def map_device(path=None, friction=None, ideal=False, control_period_s=1e-3, sub
     from omni_sim.device import Device
 
     model = om.load_model(path, friction)
-    act = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, "yaw_motor")
     dev0 = Device(model, control_period_s)
+    act = dev0.ix.yaw_act
     torque_limit = dev0.voltage_limit * dev0.torque_constant
     model = copy.deepcopy(model)
     model.opt.timestep = control_period_s / substeps
@@ -130,7 +129,7 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
     # alternates about zero)
     J = 2.0 * probe_speed * device.inertia(*device.equilibrium(*gamma_set_deg))
     imp_row = np.repeat(_probe_impulses(periods, n, J / h), KK.size, axis=0)  # (rows, n)
-    bphys = float(device.model.dof_damping[device.ix.yaw_dof])
+    bphys = physical_damping(device)
     eng = Engine([device] * n_rows, [theta0] * n_rows, [gamma_set_deg] * n_rows, nthread=nthread)
     try:
         y_prev = read(np.full(n_rows, theta0), 0.0)
@@ -138,26 +137,23 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
         W = np.zeros(n_rows)
         S = np.zeros(n_rows)
         bad = np.zeros(n_rows, dtype=bool)
-        qa = eng._qadr[0]
-        act = device.ix.yaw_act
-        qv = 1 + device.model.nq + device.ix.yaw_dof
         if record:
             rec = {"theta": np.empty((n_rows, n)), "tau_wall": np.empty((n_rows, n))}
         for k in range(n):
-            th = eng.x[:, qa].copy()
+            th = eng.yaw()
             y = read(th, 0.0)
             tau = wall_torque(y, y_prev, wall, k_row, b_row, T, torque_limit)
             y_prev = y
             if delay:
                 queue.append(tau)
                 tau = queue.pop(0)
-            # the engine's own batch step (Engine._advance) with a command per physics step:
-            # the wall's torque and the push held, the probe's impulse in the first step
-            eng._ctrl[:, :, act] = ((tau + push) / kt)[:, None]
-            eng._ctrl[:, 0, act] += imp_row[:, k] / kt
-            v0 = eng.x[:, qv].copy()
-            vs = _advance_substeps(eng, sub)[:, :, qv]
-            th1 = eng.x[:, qa]
+            # a command per physics step: the wall's torque and the push held, the probe's
+            # impulse in the first step
+            cmd = np.repeat(((tau + push) / kt)[:, None], sub, axis=1)
+            cmd[:, 0] += imp_row[:, k] / kt
+            v0 = eng.yaw_velocity()
+            vs = eng.apply_per_step(cmd)
+            th1 = eng.yaw()
             if k >= k0:
                 # the work of a force held over a physics step is F h (v_j + v_j+1) / 2 in
                 # MuJoCo's semi-implicit Euler (its exact kinetic-energy balance); the push is
@@ -195,16 +191,6 @@ def _probe_impulses(periods, n: int, torque: float) -> np.ndarray:
         imp[i, ks] = torque * np.where(np.arange(ks.size) % 2 == 0, 1.0, -1.0)
         imp[i, 0] *= 0.5
     return imp
-
-
-def _advance_substeps(eng, sub: int) -> np.ndarray:
-    """:meth:`Engine._advance` with the command already written per physics step into
-    ``eng._ctrl``: one rollout of every row; returns the states after each step (rows, sub,
-    nstate) and moves the rows to the last."""
-    eng.pool.rollout(eng._models, eng._datas, eng.x, eng._ctrl, nstep=sub, skip_checks=True,
-                     state=eng._state, sensordata=eng._sens, chunk_size=eng._chunk)
-    eng.x = eng._state[:, -1, :].copy()
-    return eng._state
 
 
 def colgate_limit(b: float, B, T: float) -> np.ndarray:

@@ -553,9 +553,22 @@ class Engine:
         self._advance(v)
         return v
 
+    def apply_per_step(self, v) -> np.ndarray:
+        """As :meth:`apply` for a batch, with a command for every physics step of the control
+        period: ``v`` (B, substeps) [V], clipped to each drive.  Returns the yaw velocity
+        [rad/s] after each physics step, shape (B, substeps) (e.g. to integrate the power of
+        a force held over each step)."""
+        if self._data is not None:
+            raise ValueError("apply_per_step steps a batch engine (two rows or more)")
+        v = np.asarray(v, dtype=float).reshape(self.B, self.substeps)
+        self._advance(np.clip(v, -self.vmax[:, None], self.vmax[:, None]))
+        d0 = self.devices[0]
+        return self._state[:, :, 1 + d0.model.nq + d0.ix.yaw_dof].copy()
+
     def _advance(self, v: np.ndarray) -> None:
-        """A batch's :meth:`apply` after the clip: ``v`` (B,) already within each drive's limit."""
-        self._ctrl[:, :, self._yaw_act] = v[:, None]
+        """A batch's :meth:`apply` after the clip: ``v`` (B,) or (B, substeps) already within
+        each drive's limit (one command for the period, or one per physics step)."""
+        self._ctrl[:, :, self._yaw_act] = v[:, None] if v.ndim == 1 else v
         self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
                           skip_checks=True, state=self._state, sensordata=self._sens,
                           chunk_size=self._chunk)

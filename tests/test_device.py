@@ -187,3 +187,22 @@ def test_env_scalar_action_is_a_value_error():
     for bad in (0.1, np.float32(0.1), np.zeros(2), np.zeros((1, 1))):
         with pytest.raises(ValueError, match="shape"):
             env.step(bad)
+
+
+def test_apply_per_step_is_apply_with_the_command_held(device):
+    """A batch's command per physics step, the same in every step, is :meth:`Engine.apply`
+    (the same rollout, bit for bit); the velocities it returns end at the row's state."""
+    m = om.load_model()
+    m.opt.timestep = 2.5e-4  # 4 physics steps per control period
+    dev = Device(m)
+    starts = ([0.01, -0.02], [(45, 90), (25, 115)])
+    v = np.array([0.3, -2.0])  # the second beyond the drive's limit: clipped either way
+    with dev.engine(*starts, nthread=1) as a, dev.engine(*starts, nthread=1) as b:
+        for _ in range(20):
+            a.apply(v)
+            vs = b.apply_per_step(np.repeat(v[:, None], dev.substeps, axis=1))
+            np.testing.assert_array_equal(a.x, b.x)
+            np.testing.assert_array_equal(vs[:, -1], b.yaw_velocity())
+    assert vs.shape == (2, 4) and np.ptp(a.yaw()) > 0
+    with pytest.raises(ValueError, match="batch"):
+        Engine([dev], [0.0], [(45, 90)]).apply_per_step(np.zeros((1, 4)))
