@@ -275,7 +275,7 @@ class OmniYawEnv(gym.Env):
         if not math.isfinite(self.voltage_limit):
             raise InvalidOptionError("the model's yaw_motor needs a ctrlrange (the drive's "
                                      "voltage limit) to bound the action space")
-        yaw_j = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, "yaw")
+        yaw_j = self.device.joint_id
         self._yaw_range = (tuple(float(x) for x in self.model.jnt_range[yaw_j])
                            if self.model.jnt_limited[yaw_j] else (-math.pi, math.pi))
         self._device0 = Device(copy.deepcopy(self.model), self.device.control_period_s)  # friction levels of the model file
