@@ -1,0 +1,354 @@
+"""A pendulum on a geared servo whose gearbox friction grows with the torque it transmits: the
+truth of the hidden-effect bank's geared-servo case, and its "measured" runs as a host logs a
+real servo.
+
+Written independently of the effect library (:mod:`omni_sim.discrepancy.effects`) and of the
+device's closed-loop engine (:mod:`omni_sim.device`): a plain loop over physics steps with
+``mujoco.mj_step`` on a private copy of the nominal model ``models/servo_pendulum.xml`` (joint
+``pivot``, actuator ``servo``, control in volts).
+
+The hidden law (load-dependent gearbox friction)
+------------------------------------------------
+At every physics step (timestep = the servo's 1 ms loop period): ``w`` = the hinge velocity
+before the step; ``tau`` = the torque the motor transmits, ``gear * actuator_force`` of the
+servo's actuator as computed in the previous step (0 before the first step); the hinge's
+Coulomb friction for this step is::
+
+    frictionloss = max(0, Fc + mu * |tau|),   mu = mu_drive if tau * w > 0 else mu_back
+
+(``mu_drive``: the motor drives the load; ``mu_back``: the load back-drives the motor, or at
+rest), ``Fc`` the nominal model's own ``frictionloss`` of the hinge.  It is written into the
+private model's ``dof_frictionloss`` before each ``mj_step``.  With both coefficients 0 the loop
+is the nominal model's, bit for bit (``tests/test_servo_truth.py``).
+
+Magnitudes (the case's values, :data:`MU_DRIVE`, :data:`MU_BACK`): a driving gearbox passes
+``eta_f * tau`` to the load and loses ``(1 - eta_f) * tau``, so ``mu_drive = 1 - eta_f``; a
+back-driven one loses ``T - eta_b * T`` of the load torque ``T`` while the motor holds
+``tau = eta_b * T``, so ``mu_back = 1/eta_b - 1``.
+
+The experiment and its log
+--------------------------
+The servo closes its own P loop at 1 kHz in volts, ``u = clip(kp (goal - y), -12, 12)`` on its
+encoder reading ``y`` (4096 counts/rev after white noise :data:`NOISE_RAD`), and drives 0 V
+while its torque is disabled.  The host talks to it at 200 Hz with timing jitter: at each of its
+log times it writes the goal (and the torque enable) and reads the position; the servo holds
+the last goal (and enable) written until the next write, so at the loop tick at time ``k dt``
+it uses the values of the last log time ``t_j <= k dt``.  A log row holds ``t_j``, the goal
+``r`` written then, the position ``theta`` read then, the command ``v`` the servo was applying
+at ``t_j`` (that of the last tick ``<= t_j``) and ``enabled``.  The position read at ``t_j`` is
+the encoder's reading (a fresh noise sample, rounded to a count) of the truth's angle at that
+instant, the 1 kHz trajectory interpolated linearly between the ticks around ``t_j`` (what the
+replay compares against: its own 1 kHz trajectory interpolated at the logged times).  The
+timestamps are the true instants of the reads (no clock error).  Every run starts at rest
+hanging straight down (``theta = 0``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from identification.dataset import Run
+
+from .. import model as om
+
+#: The nominal model (the bank case's ``--model``) and its controlled joint and actuator.
+MODEL_FILE = "servo_pendulum.xml"
+JOINT, ACTUATOR = "pivot", "servo"
+#: The hidden load-dependent friction's coefficients [-] (absolute; the nominal model has 0):
+#: forward efficiency eta_f = 0.85 of a 4-5 stage spur gearbox (0.96-0.97 per mesh, textbook
+#: spur-gear figure, over ~350:1) -> mu_drive = 1 - 0.85 = 0.15; back-driving efficiency
+#: eta_b = 0.69 -> mu_back = 1/0.69 - 1 = 0.45.  eta_b is an ESTIMATE: back-driving a small
+#: servo's gearbox loses markedly more than driving it (../shared notes "Geared servos": the
+#: friction is larger when the load back-drives the motor, up to self-locking), while the
+#: textbook mesh-friction relation eta_b = 2 - 1/eta per mesh would give ~0.83; 0.69 stands for
+#: the larger back-drive losses (bearing preload, the motor's brushes and cogging seen through
+#: the gear) reported for such servos, not a measured figure.
+MU_DRIVE = 0.15
+MU_BACK = 0.45
+#: The servo's loop period [s] (1 kHz: the usual rate of a servo's internal loop, ../shared
+#: notes "Geared servos"); the model's timestep is the same.
+CONTROL_PERIOD_S = 1e-3
+#: The host's log period [s] (200 Hz: the top of the 50-200 Hz hosts log at, same notes).
+LOG_PERIOD_S = 5e-3
+#: Host timing jitter: N(0, 0.4 ms) on every log time, clipped to +-1.5 ms (a USB-serial
+#: round trip on a non-real-time OS, estimate); the first time is 0.
+JITTER_S = 0.4e-3
+JITTER_CLIP_S = 1.5e-3
+#: Probability that a log frame is missed (the next one then comes ~2 periods later, never
+#: more than 2 periods after the previous one): a few per run (estimate).
+MISSED_FRAME_P = 0.01
+#: The servo's P gain [V/rad]: full supply at 0.3 rad of error (a stiff position servo, servo
+#: stiffness kp * gear = 12 N*m/rad, ten times the pendulum's gravity stiffness; estimate of a
+#: hobby servo's default proportional band of ~15-20 deg).
+KP = 40.0
+#: The P loop's saturation [V]: the 12 V supply (duty 100 %), = the model's ctrlrange.
+COMMAND_LIMIT = 12.0
+#: Magnetic encoder: 4096 counts/rev (12-bit, as on Dynamixel X / Feetech STS servos).
+ENCODER_COUNTS = 4096
+ENCODER_STEP_RAD = 2 * math.pi / ENCODER_COUNTS
+#: White noise [rad] added before rounding, ~1/4 count (the bank's Omni encoder noise is 1/4 of
+#: its count too; estimate).
+NOISE_RAD = 0.4e-3
+#: Run length [s]: 5 s, 1000 log rows at 200 Hz.
+DURATION_S = 5.0
+
+
+def model_path() -> Path:
+    """The nominal model's file (shipped in the data package ``omni_sim.models``)."""
+    return om.MODELS_DIR / MODEL_FILE
+
+
+def target() -> om.Target:
+    """The controlled joint and actuator (``--joint pivot --actuator servo``)."""
+    return om.Target(JOINT, ACTUATOR)
+
+
+# -- the truth: one closed-loop run, a step at a time -----------------------------------------
+@dataclass
+class Trajectory:
+    """One closed-loop run of the truth at its 1 kHz ticks.
+
+    Attributes
+    ----------
+    t : ndarray (n + 1,) [s]
+        Tick times ``k dt``; the state arrays hold the state at each (the last: after the last
+        step).
+    theta, omega : ndarray (n + 1,) [rad, rad/s]
+        True hinge angle and velocity.
+    y : ndarray (n,) [rad]
+        What the servo's loop read at each tick.
+    u : ndarray (n,) [V]
+        The command of each tick (held for its step).
+    frictionloss : ndarray (n,) [N*m]
+        The hinge's Coulomb friction of each step (the law above).
+    tau : ndarray (n,) [N*m]
+        The torque the motor transmitted in each step (``gear * actuator_force``).
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    omega: np.ndarray
+    y: np.ndarray
+    u: np.ndarray
+    frictionloss: np.ndarray
+    tau: np.ndarray
+
+
+def read_encoder(theta, noise, step_rad):
+    """The encoder's reading: ``theta + noise`` rounded to ``step_rad`` (0: not rounded)."""
+    y = np.asarray(theta, dtype=float) + noise
+    return np.round(y / step_rad) * step_rad + 0.0 if step_rad > 0 else y
+
+
+def held_index(t_log: np.ndarray, t_tick: np.ndarray) -> np.ndarray:
+    """For each tick time, the index of the last log time at or before it (what the servo
+    holds then); ticks before the first log time get 0."""
+    return np.maximum(np.searchsorted(t_log, t_tick, side="right") - 1, 0)
+
+
+def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BACK,
+             kp: float = KP, command_limit: float = COMMAND_LIMIT, noise=None,
+             step_rad: float = ENCODER_STEP_RAD, theta0: float = 0.0, path=None,
+             friction_law: bool = True) -> Trajectory:
+    """Run the truth's servo loop from rest at ``theta0`` until the last log time.
+
+    Parameters
+    ----------
+    t_log, r_log, enabled_log : array (N,)
+        The host's writes: times [s] (strictly increasing, the first <= 0 + its tick), goals
+        [rad], torque enable (0/1).
+    mu_drive, mu_back : float [-]
+        The load-dependent friction's coefficients (0, 0: the nominal model).
+    kp, command_limit : float
+        The P law ``clip(kp (goal - y), +-command_limit)`` [V/rad, V].
+    noise : array (n,), optional [rad]
+        Encoder noise of each tick (default none).
+    step_rad : float
+        Encoder count (0: no rounding).
+    path : path, optional
+        The model file (default :func:`model_path`); compiled afresh (a private copy).
+    friction_law : bool
+        False: never write ``dof_frictionloss`` (the plain nominal loop, for comparison).
+    """
+    m = mujoco.MjModel.from_xml_path(str(path or model_path()))
+    d = mujoco.MjData(m)
+    jid, aid = m.joint(JOINT).id, m.actuator(ACTUATOR).id
+    dof, qadr = int(m.jnt_dofadr[jid]), int(m.jnt_qposadr[jid])
+    gear = float(m.actuator_gear[aid, 0])
+    fc = float(m.dof_frictionloss[dof])
+    dt = float(m.opt.timestep)
+    t_log = np.asarray(t_log, float)
+    n = int(math.floor(t_log[-1] / dt + 1e-9)) + 1  # ticks up to and past the last log time
+    t = np.arange(n + 1) * dt
+    hold = held_index(t_log, t[:n])
+    goal = np.asarray(r_log, float)[hold]
+    on = np.asarray(enabled_log, float)[hold] != 0
+    noise = np.zeros(n) if noise is None else np.asarray(noise, float)
+    theta, omega = np.empty(n + 1), np.empty(n + 1)
+    y, u, fl, taus = (np.empty(n) for _ in range(4))
+    d.qpos[qadr] = theta0
+    mujoco.mj_forward(m, d)
+    theta[0], omega[0] = d.qpos[qadr], d.qvel[dof]
+    tau = 0.0
+    for k in range(n):
+        y[k] = read_encoder(theta[k], noise[k], step_rad)
+        u[k] = min(max(kp * (goal[k] - y[k]), -command_limit), command_limit) if on[k] else 0.0
+        if friction_law:
+            w = d.qvel[dof]
+            mu = mu_drive if tau * w > 0 else mu_back
+            m.dof_frictionloss[dof] = max(0.0, fc + mu * abs(tau))
+        fl[k] = m.dof_frictionloss[dof]
+        d.ctrl[aid] = u[k]
+        mujoco.mj_step(m, d)
+        tau = gear * float(d.actuator_force[aid])
+        taus[k] = tau
+        theta[k + 1], omega[k + 1] = d.qpos[qadr], d.qvel[dof]
+    if not np.all(np.isfinite(theta)):
+        raise RuntimeError("servo truth diverged (non-finite angle)")
+    return Trajectory(t, theta, omega, y, u, fl, taus)
+
+
+def at_log_times(traj: Trajectory, t_log) -> tuple[np.ndarray, np.ndarray]:
+    """The truth's angle at the log times (linear between the ticks around each) and the
+    command in force then (that of the last tick at or before it)."""
+    t_log = np.asarray(t_log, float)
+    theta = np.interp(t_log, traj.t, traj.theta)
+    k = np.minimum(held_index(traj.t[:-1], t_log), len(traj.u) - 1)
+    return theta, traj.u[k]
+
+
+# -- the host's log times and the experiments -------------------------------------------------
+def _rng(seed: int, name: str, what: str) -> np.random.Generator:
+    """One random stream per (seed, run, purpose): a run's data do not depend on the others."""
+    digest = hashlib.sha256(f"{seed}:{name}:{what}".encode()).digest()
+    return np.random.default_rng(int.from_bytes(digest[:8], "little"))
+
+
+def log_times(duration_s: float, rng: np.random.Generator, period_s: float = LOG_PERIOD_S,
+              jitter_s: float = JITTER_S, clip_s: float = JITTER_CLIP_S,
+              missed_p: float = MISSED_FRAME_P) -> np.ndarray:
+    """The host's log times over ``[0, duration_s]``: every ``period_s`` plus clipped Gaussian
+    jitter, the first at 0; a frame is missed with probability ``missed_p`` (never two in a
+    row, nor the first or last), and no gap exceeds two periods."""
+    n = int(round(duration_s / period_s)) + 1
+    t = np.arange(n) * period_s + np.clip(rng.normal(0.0, jitter_s, n), -clip_s, clip_s)
+    t[0] = 0.0
+    keep = np.ones(n, bool)
+    miss = rng.random(n) < missed_p
+    for j in range(1, n - 1):
+        if miss[j] and keep[j - 1]:
+            keep[j] = False
+    t = t[keep]
+    for j in range(1, len(t)):  # a missed frame: at most two periods between reads
+        t[j] = min(t[j], t[j - 1] + 2 * period_s)
+    assert np.all(np.diff(t) > 0)
+    return t
+
+
+def _ramp(t, rise_s: float = 1.0):
+    """0 -> 1 over ``rise_s`` (half a cosine), then 1."""
+    x = np.clip(np.asarray(t, float) / rise_s, 0.0, 1.0)
+    return 0.5 * (1 - np.cos(np.pi * x))
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One run's design: the goal as a function of time, the torque-off span, its metadata."""
+
+    name: str
+    kind: str  # "sine" | "step" | "other" (the dataset contract's kinds)
+    frequency_hz: float
+    amplitude_rad: float
+    offset_rad: float = 0.0
+    shape: str = "sine"  # sine | square | slow | lift_drop
+    off_s: tuple = ()  # (start, end) of the torque-off span [s]
+    duration_s: float = DURATION_S
+
+    def goal(self, t):
+        t = np.asarray(t, float)
+        a, f, o = self.amplitude_rad, self.frequency_hz, self.offset_rad
+        if self.shape == "sine":  # about an offset reached in the first second
+            return o * _ramp(t) + a * np.sin(2 * np.pi * f * t)
+        if self.shape == "square":  # o + a, o - a, ... from the start
+            return np.where((t * f) % 1.0 < 0.5, o + a, o - a)
+        if self.shape == "slow":  # 0 -> a -> 0 once, 1 - cos, over 1/f
+            return a * 0.5 * (1 - np.cos(2 * np.pi * f * np.minimum(t, 1 / f)))
+        if self.shape == "lift_drop":  # lift to a in 1 s, hold (through the torque-off span)
+            return a * _ramp(t)
+        raise ValueError(self.shape)
+
+    def enabled(self, t):
+        t = np.asarray(t, float)
+        if not self.off_s:
+            return np.ones_like(t)
+        return np.where((t >= self.off_s[0]) & (t < self.off_s[1]), 0.0, 1.0)
+
+
+#: The runs (12 x 5 s).  The closed loop's resonance with the nominal numbers: stiffness
+#: kp*gear + m*g*l = 12 + 1.18 N*m/rad, inertia 2.07e-2 kg*m^2 -> ~4 Hz, damping ratio ~0.35.
+#: Sines about the hanging pose (gravity load changes sign with theta), about +0.6 and -0.9
+#: rad (the gravity load of one sign throughout: the motor drives the load up and is
+#: back-driven on the way down), square waves (saturated moves, then holding against gravity),
+#: slow up-and-down moves to +1.2 / -1.0 rad, and "lift and drop" runs: lifted in 1 s, torque
+#: off for 1.5 s (0 V: the pendulum falls, braked by the back-EMF), torque on again (the servo
+#: lifts it back).
+EXPERIMENTS: tuple[Experiment, ...] = (
+    Experiment("sine_o000_a030_f05", "sine", 0.5, 0.30),
+    Experiment("sine_o000_a030_f15", "sine", 1.5, 0.30),
+    Experiment("sine_o000_a010_f30", "sine", 3.0, 0.10),
+    Experiment("sine_o060_a030_f05", "sine", 0.5, 0.30, 0.6),
+    Experiment("sine_o060_a010_f20", "sine", 2.0, 0.10, 0.6),
+    Experiment("sine_om090_a020_f10", "sine", 1.0, 0.20, -0.9),
+    Experiment("square_o025_a025", "step", 0.5, 0.25, 0.25, "square"),
+    Experiment("square_o060_a030", "step", 0.5, 0.30, 0.6, "square"),
+    Experiment("slow_up_a120", "other", 0.2, 1.20, shape="slow"),
+    Experiment("slow_up_am100", "other", 0.25, -1.00, shape="slow"),
+    Experiment("lift_drop_a060", "other", 0.0, 0.60, shape="lift_drop", off_s=(2.0, 3.5)),
+    Experiment("lift_drop_a100", "other", 0.0, 1.00, shape="lift_drop", off_s=(2.0, 3.5)),
+)
+
+
+def measure(e: Experiment, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BACK,
+            seed: int = 1, exact: bool = False, path=None) -> Run:
+    """One run of the truth, logged as the host logs it (irregular times, goal held, encoder
+    counts and noise; ``exact``: neither noise nor rounding, on the loop or in the log)."""
+    t_log = log_times(e.duration_s, _rng(seed, e.name, "clock"))
+    r, en = e.goal(t_log), e.enabled(t_log)
+    n = int(math.floor(t_log[-1] / CONTROL_PERIOD_S + 1e-9)) + 1
+    noise_rad = 0.0 if exact else NOISE_RAD
+    step = 0.0 if exact else ENCODER_STEP_RAD
+    loop_noise = _rng(seed, e.name, "loop").normal(0.0, noise_rad, n) if noise_rad else None
+    traj = simulate(t_log, r, en, mu_drive=mu_drive, mu_back=mu_back, noise=loop_noise,
+                    step_rad=step, path=path)
+    theta_true, v = at_log_times(traj, t_log)
+    log_noise = _rng(seed, e.name, "log").normal(0.0, noise_rad, len(t_log)) if noise_rad else 0.0
+    theta = read_encoder(theta_true, log_noise, step)
+    meta = {"kind": e.kind, "kp": KP, "command_limit": COMMAND_LIMIT,
+            "frequency_hz": e.frequency_hz, "amplitude_rad": e.amplitude_rad,
+            "offset_rad": e.offset_rad, "control_period_s": CONTROL_PERIOD_S,
+            "log_period_s": LOG_PERIOD_S, "theta0_rad": 0.0,
+            "encoder_quantized": not exact, "encoder_step_rad": step, "encoder_noise_rad": noise_rad,
+            "units": {"r": "rad", "theta": "rad", "v": "V (motor voltage command)", "kp": "V/rad",
+                      "command_limit": "V", "enabled": "torque enable (0: 0 V)"},
+            "device": "pendulum on a geared servo (models/servo_pendulum.xml + load-dependent "
+                      "gearbox friction, omni_sim/discrepancy/servo_truth.py)"}
+    return Run(e.name, t_log, r, theta, v, meta, {"enabled": en})
+
+
+def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK)),), seed: int = 1, exact: bool = False,
+             experiments=EXPERIMENTS) -> list[Run]:
+    """The "measured" runs of the truth with the hidden ``effects`` (only ``load_friction``
+    (mu_drive, mu_back) is simulated here; none: the nominal model)."""
+    effects = dict(effects)
+    unknown = set(effects) - {"load_friction"}
+    if unknown:
+        raise ValueError(f"the servo truth simulates only load_friction, not {sorted(unknown)}")
+    mu_drive, mu_back = effects.get("load_friction", (0.0, 0.0))
+    return [measure(e, mu_drive=mu_drive, mu_back=mu_back, seed=seed, exact=exact)
+            for e in experiments]
