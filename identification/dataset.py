@@ -1,15 +1,35 @@
 """The dataset contract: a folder of runs, each ``NAME.csv`` + ``NAME.json``.
 
-CSV: one header line, one row per uniformly spaced sample; required columns ``t`` [s],
-``r`` [rad] (yaw reference), ``theta`` [rad] (measured yaw), ``v`` [V] (command voltage);
-more columns are allowed and kept.
+CSV: one header line, one row per sample; required columns ``t`` [s], ``r`` [rad] (yaw
+reference), ``theta`` [rad] (measured yaw), ``v`` [V] (command voltage); more columns are
+allowed and kept.  An optional column ``enabled`` (0/1) says whether the actuator was on: while
+0 the drive's command is zero (torque off: free swing, lift-and-drop, free decay).
+
+Sampling: ``t`` strictly increasing.  Simulated data are uniformly sampled; a real log may have
+any sample period and irregular timestamps (a host that polls its servo at 50-200 Hz with
+jitter).  What each command does with them:
+
+* ``omni discrepancy`` compares at the logged times (:func:`read_dataset` with
+  ``uniform=False``): the replay runs the device's loop at its own control period (metadata
+  ``control_period_s``, default the median sample period) with the reference and the
+  ``enabled`` switch held between log samples, as a servo holds its goal, and reads the model's
+  angle at each logged time;
+* ``omni identify``/``omni validate`` fit sines and step responses on a uniform grid: an
+  irregular run is resampled onto the grid of its median period by linear interpolation of
+  every column (:func:`resample_uniform`, ``enabled`` held, not interpolated).
+
+A run whose longest gap exceeds :data:`MAX_GAP_PERIODS` median periods is refused: what the
+reference and the switch did inside it is not known.  :func:`timing` reports a run's period,
+jitter and longest gap.
 
 JSON: ``kind`` ("sine" | "step" | "other"), ``gamma1_deg``, ``gamma2_deg`` (actual arm
 angles [deg]), ``kp`` [V/rad], ``frequency_hz`` [Hz], ``amplitude_rad`` [rad]; optional
-``gamma1_set_deg``, ``gamma2_set_deg``; anything else is kept.  A single-joint device
-without the Omni's arm (``omni discrepancy --joint``) has no pose: its runs are read with
-``require_pose=False``, which makes ``gamma1_deg``/``gamma2_deg`` optional (finite if given),
-and may carry ``command_limit`` (the P law's saturation).
+``gamma1_set_deg``, ``gamma2_set_deg``; ``command_limit`` (the P law's saturation, in the
+actuator's control units); ``control_period_s`` [s] (the device's own loop period, e.g. 0.001
+for a servo that closes its loop at 1 kHz and is logged at 200 Hz; default: the sample
+period); anything else is kept.  A single-joint device without the Omni's arm
+(``omni discrepancy --joint``) has no pose: its runs are read with ``require_pose=False``,
+which makes ``gamma1_deg``/``gamma2_deg`` optional (finite if given).
 
 This module is numpy-only so that data from a real Omni never needs the simulator.
 """
@@ -39,6 +59,14 @@ KINDS = ("sine", "step", "other")
 #: Relative tolerance on the sample spacing for "uniformly sampled" [-].  Text round trip of
 #: times written with 9 decimals gives spacing errors of ~1e-9 s, far below this.
 UNIFORM_RTOL = 1e-3
+#: Longest gap between two samples a run may have, in median sample periods [-].  Inside a
+#: gap the reference and the ``enabled`` switch are held at their last logged values (as a
+#: servo holds its goal); a host that lost ten samples in a row may have sent goals that are
+#: not in the log, so the replay would guess.  Real logs of a polled servo have gaps of 2-3
+#: periods (the Feetech logs of examples/real_servo: at most 2.5).
+MAX_GAP_PERIODS = 10.0
+#: The optional on/off column.
+ENABLED_COLUMN = "enabled"
 
 
 @dataclass
@@ -90,9 +118,61 @@ class Run:
         return float(self.meta["amplitude_rad"])
 
     @property
+    def uniform(self) -> bool:
+        """Whether the samples are evenly spaced (within :data:`UNIFORM_RTOL`)."""
+        return _is_uniform(self.t)
+
+    @property
     def dt(self) -> float:
-        """Sample period [s]."""
-        return float(self.t[1] - self.t[0])
+        """Sample period [s]: the first spacing of a uniform run, the median of an irregular one."""
+        if self.uniform:
+            return float(self.t[1] - self.t[0])
+        return float(np.median(np.diff(self.t)))
+
+    @property
+    def enabled(self) -> np.ndarray | None:
+        """The ``enabled`` column (True: actuator on), or None if the run has none."""
+        e = self.extra.get(ENABLED_COLUMN)
+        return None if e is None else np.asarray(e) > 0.5
+
+
+def _is_uniform(t: np.ndarray) -> bool:
+    dt = np.diff(t)
+    return bool(np.max(np.abs(dt - dt.mean())) <= UNIFORM_RTOL * dt.mean())
+
+
+def timing(run: Run) -> dict:
+    """How a run was sampled: ``period_s`` (median spacing), ``jitter_s`` (standard deviation
+    of the spacing), ``max_gap_s`` (longest spacing), ``uniform`` (bool), ``samples``."""
+    dt = np.diff(run.t)
+    return {"period_s": float(np.median(dt)), "jitter_s": float(np.std(dt)),
+            "max_gap_s": float(np.max(dt)), "uniform": run.uniform, "samples": int(len(run.t))}
+
+
+def resample_uniform(run: Run) -> Run:
+    """``run`` on a uniform grid: its own samples if uniform, else the grid ``t0 + k T`` (T the
+    median period, up to the last sample) with every column interpolated linearly and
+    ``enabled`` held from the last sample at or before each grid time.  Metadata gains
+    ``resampled_from`` (the original timing, :func:`timing`)."""
+    if run.uniform:
+        return run
+    info = timing(run)
+    period = info["period_s"]
+    n = int(math.floor((run.t[-1] - run.t[0]) / period * (1 + 1e-12))) + 1
+    t = run.t[0] + period * np.arange(n)
+
+    def lin(x):
+        return np.interp(t, run.t, x)
+
+    extra = {}
+    for k, x in run.extra.items():
+        if k == ENABLED_COLUMN:
+            i = np.searchsorted(run.t, t, side="right") - 1
+            extra[k] = np.asarray(x)[np.clip(i, 0, len(x) - 1)]
+        else:
+            extra[k] = lin(x)
+    meta = dict(run.meta, resampled_from=info)
+    return Run(run.name, t, lin(run.r), lin(run.theta), lin(run.v), meta, extra)
 
 
 
@@ -119,16 +199,20 @@ def _fail(path: Path, problem: str) -> UserError:
     return UserError(f"{path}: {problem}")
 
 
-def read_run(csv_path: str | os.PathLike, require_pose: bool = True) -> Run:
+def read_run(csv_path: str | os.PathLike, require_pose: bool = True, uniform: bool = True) -> Run:
     """Read and validate one run from its CSV path (the JSON beside it is read too).
 
     ``require_pose`` False: ``gamma1_deg``/``gamma2_deg`` may be absent (a device without the
-    Omni's arm); if present they must still be finite numbers.
+    Omni's arm); if present they must still be finite numbers.  ``uniform`` True: an irregular
+    run is resampled onto a uniform grid (:func:`resample_uniform`); False: kept at its logged
+    times.
 
     Raises
     ------
     UserError
-        Missing files, missing columns or keys, non-finite samples, non-uniform sampling,
+        Missing files, missing columns or keys, non-finite samples, time not strictly
+        increasing, a gap longer than :data:`MAX_GAP_PERIODS` periods, an ``enabled`` column
+        with values other than 0/1, a ``control_period_s`` that is not a positive number,
         unknown ``kind``, fewer than 2 samples.
     """
     csv_path = Path(csv_path)
@@ -153,6 +237,11 @@ def read_run(csv_path: str | os.PathLike, require_pose: bool = True) -> Run:
         val = meta[k]
         if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
             raise _fail(json_path, f"{k} must be a finite number, got {val!r}")
+    if "control_period_s" in meta:
+        val = meta["control_period_s"]
+        if (isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val)
+                or not 0 < val <= 1.0):
+            raise _fail(json_path, f"control_period_s must be a number of seconds in (0, 1], got {val!r}")
     try:
         with open(csv_path) as fh:
             header = fh.readline().strip().split(",")
@@ -174,15 +263,27 @@ def read_run(csv_path: str | os.PathLike, require_pose: bool = True) -> Run:
     t = cols["t"]
     dt = np.diff(t)
     if np.any(dt <= 0):
-        raise _fail(csv_path, "time column t is not strictly increasing")
-    if np.max(np.abs(dt - dt.mean())) > UNIFORM_RTOL * dt.mean():
-        raise _fail(csv_path, "non-uniform sampling (the contract requires a constant time step)")
+        k = int(np.argmax(dt <= 0)) + 1
+        raise _fail(csv_path, f"time column t is not strictly increasing (sample {k})")
+    period = float(np.median(dt))
+    if dt.max() > MAX_GAP_PERIODS * period:
+        k = int(np.argmax(dt))
+        raise _fail(csv_path, f"a gap of {dt[k]:.4g} s after t = {t[k]:.6g} s is longer than "
+                              f"{MAX_GAP_PERIODS:g} sample periods ({period:.4g} s): what the "
+                              "reference did inside it is not known; split the run there")
+    if ENABLED_COLUMN in cols and not np.all((cols[ENABLED_COLUMN] == 0) | (cols[ENABLED_COLUMN] == 1)):
+        k = int(np.argmax((cols[ENABLED_COLUMN] != 0) & (cols[ENABLED_COLUMN] != 1)))
+        raise _fail(csv_path, f"column 'enabled' must hold 0 or 1, got {cols[ENABLED_COLUMN][k]!r} "
+                              f"at sample {k}")
     extra = {h: cols[h] for h in header if h not in REQUIRED_COLUMNS}
-    return Run(csv_path.stem, t, cols["r"], cols["theta"], cols["v"], meta, extra)
+    run = Run(csv_path.stem, t, cols["r"], cols["theta"], cols["v"], meta, extra)
+    return resample_uniform(run) if uniform else run
 
 
-def read_dataset(folder: str | os.PathLike, require_pose: bool = True) -> list[Run]:
-    """Read every run in ``folder`` (sorted by name); ``require_pose``: see :func:`read_run`.
+def read_dataset(folder: str | os.PathLike, require_pose: bool = True,
+                 uniform: bool = True) -> list[Run]:
+    """Read every run in ``folder`` (sorted by name); ``require_pose``, ``uniform``: see
+    :func:`read_run`.
 
     Raises
     ------
@@ -195,7 +296,7 @@ def read_dataset(folder: str | os.PathLike, require_pose: bool = True) -> list[R
     paths = sorted(folder.glob("*.csv"))
     if not paths:
         raise UserError(f"{folder}: no runs (NAME.csv + NAME.json) in this folder")
-    return [read_run(p, require_pose) for p in paths]
+    return [read_run(p, require_pose, uniform) for p in paths]
 
 
 @contextmanager

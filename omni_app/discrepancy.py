@@ -58,7 +58,7 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     if out.is_dir() and any(out.iterdir()) and not args.force:
         raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
     # the pose keys are checked against the model (needed only with the Omni's arm)
-    runs = read_dataset(args.measured, require_pose=False)
+    runs = read_dataset(args.measured, require_pose=False, uniform=False)  # compared at the logged times
     outcome = run_discrepancy(runs, model, log=_log, target=target)
     with atomic_output_dir(out, force=args.force) as tmp:
         rp.write(outcome, tmp)

@@ -576,7 +576,8 @@ class Engine:
 
 
 def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,
-               quantum_rad=0.0, record_arm: bool = False, command_limit=None) -> dict:
+               quantum_rad=0.0, record_arm: bool = False, command_limit=None,
+               enabled: np.ndarray | None = None) -> dict:
     """The paper's experiment: the clipped P law closed around the encoder, for every row.
 
     Parameters
@@ -596,6 +597,9 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
         The P law's own saturation (a run's metadata ``command_limit``); default: each drive's
         limit (``ctrlrange``).  The drive still clips what it receives to its ``ctrlrange``, so
         the applied command is clipped at the smaller of the two.
+    enabled : ndarray of bool, shape (B, n), optional
+        Whether the actuator is on at each period: while False the command is 0 (torque off:
+        the joint swings free of the P law).  Default: always on.
 
     Returns
     -------
@@ -614,12 +618,13 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     vmax = engine.vmax
     if command_limit is not None:
         vmax = np.minimum(vmax, np.broadcast_to(np.asarray(command_limit, dtype=float), (B,)))
+    on = None if enabled is None else np.broadcast_to(np.asarray(enabled, dtype=bool), (B, n))
     if engine.data is None:  # a batch: the same steps as below, without the per-call overheads
         _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v,
-                      (q1, q2) if record_arm else None, vmax)
+                      (q1, q2) if record_arm else None, vmax, on)
     else:
         _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v,
-                        (q1, q2) if record_arm else None, vmax)
+                        (q1, q2) if record_arm else None, vmax, on)
     if not np.all(np.isfinite(theta)):
         raise RuntimeError("simulation diverged (non-finite yaw angle)")
     out = {"theta": theta, "v": v}
@@ -628,7 +633,7 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     return out
 
 
-def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm, vmax) -> None:
+def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm, vmax, on) -> None:
     n = r.shape[1]
     read = encoder_reader(quantum_rad)
     for k in range(n):
@@ -639,10 +644,11 @@ def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm, vma
             th = engine.yaw()
         y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
         theta[:, k] = y
-        v[:, k] = engine.apply(p_law(kp, r[:, k], y, vmax))
+        u = p_law(kp, r[:, k], y, vmax)
+        v[:, k] = engine.apply(u if on is None or on[0, k] else np.zeros_like(u))
 
 
-def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm, vmax) -> None:
+def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm, vmax, on) -> None:
     """:func:`run_p_loop` on a batch engine: the same encoder and P law, reading the state and
     advancing the batch directly (no per-period copies; :meth:`Engine.apply`'s second clip
     would leave the clipped command as it is)."""
@@ -663,5 +669,7 @@ def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm, vmax) -> Non
         y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
         theta[:, k] = y
         u = p_law(kp, r[:, k], y, vmax)
+        if on is not None:
+            u = np.where(on[:, k], u, 0.0)
         v[:, k] = u
         engine._advance(u)

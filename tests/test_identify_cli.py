@@ -126,7 +126,8 @@ def test_identify_single_pose_hand_written(tmp_path, capsys):
     (lambda d: _drop_column(d / "sine_2hz.csv"), ["sine_2hz.csv", "missing column"]),
     (lambda d: _drop_key(d / "sine_5hz.json", "kp"), ["sine_5hz.json", "kp"]),
     (lambda d: _truncate(d / "sine_2hz.csv", 2500), ["sine_2hz", "1 whole steady-state cycle"]),
-    (lambda d: _jitter(d / "sine_3hz.csv"), ["sine_3hz.csv", "non-uniform"]),
+    (lambda d: _gap(d / "sine_3hz.csv"), ["sine_3hz.csv", "gap of", "sample periods"]),
+    (lambda d: _swap_times(d / "sine_3hz.csv"), ["sine_3hz.csv", "not strictly increasing"]),
     (lambda d: [(d / f"sine_{f}hz.{e}").unlink() for f in (3, 5) for e in ("csv", "json")],
      ["1 distinct sine frequency", "sine_2hz"]),
 ])
@@ -174,6 +175,35 @@ def _jitter(path):
     parts[0] = f"{float(parts[0]) + 0.0005:.4f}"
     lines[100] = ",".join(parts)
     path.write_text("\n".join(lines) + "\n")
+
+
+def _gap(path):
+    """Samples 100-129 lost: a 31-period gap (longer than the 10 periods a run may bridge)."""
+    lines = _lines(path)
+    path.write_text("\n".join(lines[:100] + lines[130:]) + "\n")
+
+
+def _swap_times(path):
+    lines = _lines(path)
+    lines[100], lines[101] = lines[101], lines[100]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_identify_resamples_a_jittered_log(tmp_path, capsys):
+    """A sample moved by half a period is a jittered log: it is resampled onto the uniform grid
+    (linear interpolation), and the identified coefficients are those of the clean data within
+    0.1 % (one sample of 3000 in one run of three changes by a fraction of its step)."""
+    clean, jittered = tmp_path / "clean", tmp_path / "jittered"
+    _hand_written_dataset(clean)
+    _hand_written_dataset(jittered)
+    _jitter(jittered / "sine_3hz.csv")
+    got = {}
+    for data in (clean, jittered):
+        code, _, err = _cli(["identify", str(data), "--out", str(tmp_path / f"out_{data.name}")], capsys)
+        assert code == 0, err
+        got[data.name] = json.loads((tmp_path / f"out_{data.name}" / "params.json").read_text())["poses"][0]
+    for key in ("C_linear", "beta_linear"):
+        assert got["jittered"][key] == pytest.approx(got["clean"][key], rel=1e-3)
 
 
 def test_fit_inertia_cli_on_table3(tmp_path, capsys):

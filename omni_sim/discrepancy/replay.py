@@ -5,7 +5,13 @@ Each measured run is replayed as the device ran it (the project's time conventio
 ``gamma2_set_deg``; the actual angles if set points are absent) and the arm starts at the
 model's equilibrium for them; the yaw starts at rest at the measured ``theta[0]``; at every
 control period the model's yaw angle ``theta_k`` is read, ``v_k = kp (r_k - theta_k)`` clipped
-to the drive's ``ctrlrange`` is written to ``yaw_motor`` and held for the period.
+to the drive's ``ctrlrange`` is written to ``yaw_motor`` and held for the period (zero while
+the run's ``enabled`` column is 0: torque off).
+
+The control period is the device's own (run metadata ``control_period_s``, default the sample
+period), independent of the log's: a servo logged at 200 Hz that closes its loop at 1 kHz is
+replayed at 1 kHz, the reference held between log samples, and compared at the logged times
+(:class:`~omni_sim.discrepancy.runs.ReplayRun`: the control grid, irregular timestamps).
 
 A user's single-joint device (a :class:`~omni_sim.model.Target`: its hinge and actuator) is
 replayed the same way: without the Omni's arm a run needs no pose; its P law saturates at the
@@ -35,12 +41,41 @@ from identification.dataset import Run
 from identification.errors import UserError
 
 from .. import model as om
-from ..device import Device, Engine, run_p_loop
+from ..device import Device, Engine, run_p_loop, substeps_of
 from .runs import ReplayRun
 
-#: Fewest samples a run needs to be replayed and localised (0.2 s at 1 kHz: one step edge's
-#: transient at the Omni's ~3.4 Hz resonance).
-MIN_SAMPLES = 200
+#: Shortest run that can be replayed and localised [s]: one step edge's transient at the
+#: Omni's ~3.4 Hz resonance.
+MIN_DURATION_S = 0.2
+#: Fewest logged samples a run needs (a 50 Hz log of 0.2 s has 10).
+MIN_SAMPLES = 10
+#: Relative tolerance within which runs share one control period [-] (text round trip).
+PERIOD_RTOL = 1e-6
+
+
+def control_period_of(runs: list[Run], source: str = "measured data") -> float:
+    """The control period [s] of a set of runs: each run's metadata ``control_period_s``, else
+    its median sample period; one period for all runs (they are replayed in one batch).
+
+    Raises
+    ------
+    UserError
+        The runs do not share one control period.
+    """
+    if not runs:
+        raise UserError(f"{source}: no runs")
+    periods = {}
+    for run in runs:
+        c = run.meta.get("control_period_s")
+        periods[run.name] = float(c) if c is not None else float(np.median(np.diff(run.t)))
+    first = next(iter(periods.values()))
+    odd = {k: v for k, v in periods.items() if abs(v - first) > PERIOD_RTOL * first}
+    if odd:
+        name, val = next(iter(odd.items()))
+        raise UserError(f"{source}: runs have different control periods ({runs[0].name!r}: {first:g} s, "
+                        f"{name!r}: {val:g} s); give each run's metadata the device's loop period "
+                        "control_period_s, or replay them separately")
+    return first
 #: Samples of replayed trajectories a :class:`Replayer` keeps (8 bytes each), so a (model, run)
 #: pair replayed again (a grid point that is also the fit's start, a fit's end point scored
 #: again) is not simulated twice.
@@ -56,32 +91,33 @@ def prepare_runs(runs: list[Run], device: Device, source: str = "measured data")
     Omni's arm needs each run's pose (``gamma1_set_deg``/``gamma2_set_deg`` or
     ``gamma1_deg``/``gamma2_deg``); without the arm a pose is not needed (any given is ignored).
     An optional ``command_limit`` (positive; the P law's saturation) is checked and kept in
-    the run's ``meta``.
+    the run's ``meta``.  The runs' control period (:func:`control_period_of`) must be a whole
+    multiple of the model's timestep; the device's own period is not used (the runs say theirs).
 
     Raises
     ------
     UserError
-        A run is too short, has no usable ``kp``, a sample period that is not a whole multiple
+        A run is too short, has no usable ``kp``, a control period that is not a whole multiple
         of the model's timestep, a pose outside the model's joint ranges (or none where the
         model has the arm), or a ``command_limit`` that is not a positive number.
     """
-    if not runs:
-        raise UserError(f"{source}: no runs")
+    period = control_period_of(runs, source)
     model, has_arm = device.model, device.ix.has_arm
+    try:
+        substeps_of(model, period)
+    except UserError as exc:
+        raise UserError(f"{source}: {exc} (metadata control_period_s, default the sample period)") from None
     out = []
     for run in runs:
         where = f"{source}: run {run.name!r}"
-        if len(run.t) < MIN_SAMPLES:
-            raise UserError(f"{where} has {len(run.t)} samples; at least {MIN_SAMPLES} are needed "
-                            "to localise anything")
+        if len(run.t) < MIN_SAMPLES or run.t[-1] - run.t[0] < MIN_DURATION_S:
+            raise UserError(f"{where} has {len(run.t)} samples over {run.t[-1] - run.t[0]:.3g} s; at "
+                            f"least {MIN_SAMPLES} samples over {MIN_DURATION_S:g} s are needed to "
+                            "localise anything")
         kp = run.meta.get("kp")
         if isinstance(kp, bool) or not isinstance(kp, (int, float)) or not (kp > 0 and math.isfinite(kp)):
             raise UserError(f"{where}: kp must be a positive number, got {kp!r}")
-        dt = float(np.mean(np.diff(run.t)))
-        ratio = dt / model.opt.timestep
-        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) != 1:
-            raise UserError(f"{where}: sample period {dt:g} s must equal the model's timestep "
-                            f"{model.opt.timestep:g} s (the replay steps once per control period)")
+        dt = float(run.dt)
         meta = dict(run.meta)
         lim = meta.get("command_limit")
         if lim is not None:
@@ -106,7 +142,8 @@ def prepare_runs(runs: list[Run], device: Device, source: str = "measured data")
         out.append(ReplayRun(run.name, run.kind, np.asarray(run.t, float), np.asarray(run.r, float),
                              np.asarray(run.theta, float), np.asarray(run.v, float), dt, float(kp),
                              pose, float(run.meta.get("frequency_hz", 0.0)),
-                             float(run.meta.get("amplitude_rad", 0.0)), meta))
+                             float(run.meta.get("amplitude_rad", 0.0)), meta, period,
+                             None if run.enabled is None else np.asarray(run.enabled, bool)))
     return out
 
 
@@ -119,13 +156,18 @@ class Replayer:
         Threads of the rollout pool (default: all cores).
     target : omni_sim.model.Target, optional
         The controlled joint and actuator of the devices built (default None: the Omni).
+    control_period_s : float [s], optional
+        The devices' loop period (default: the Omni's 1 ms); the runs replayed must have it
+        (:attr:`ReplayRun.period`, set by :func:`prepare_runs`).
 
     Use as a context manager, or call :meth:`close` to stop the thread pool.
     """
 
-    def __init__(self, nthread: int | None = None, target: om.Target | None = None):
+    def __init__(self, nthread: int | None = None, target: om.Target | None = None,
+                 control_period_s: float | None = None):
         self.nthread = max(1, nthread or os.cpu_count() or 1)
         self.target = target
+        self.control_period_s = control_period_s
         # one thread: rollouts run on the calling thread (Rollout(nthread=0)), not handed to a
         # one-thread pool at every control period; the trajectories are the same
         self._pool = rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0)
@@ -160,7 +202,10 @@ class Replayer:
         key = id(model)
         if key not in self._devices:
             # [device, model (kept alive with its id), content digest (made when first needed)]
-            self._devices[key] = [Device(model, target=self.target), model, None]
+            period = self.control_period_s
+            dev = (Device(model, target=self.target) if period is None
+                   else Device(model, period, target=self.target))
+            self._devices[key] = [dev, model, None]
         else:
             self._devices.move_to_end(key)
         # the least recently used devices go (each keeps its compiled model alive): a fit
@@ -181,12 +226,15 @@ class Replayer:
 
     def _run_key(self, run: ReplayRun) -> tuple:
         """What the replay of ``run`` depends on: start angle, set points, kp, the P law's
-        saturation, reference."""
+        saturation, the reference and switch on the control grid."""
         e = self._runs.get(id(run))
         if e is None or e[1] is not run or len(run.r) != e[2]:
-            r = np.ascontiguousarray(run.r, dtype=float)
+            r, on = run.grid_inputs()
+            h = hashlib.blake2b(np.ascontiguousarray(r, dtype=float), digest_size=20)
+            if on is not None:
+                h.update(np.ascontiguousarray(on, dtype=np.uint8))
             key = (float(run.theta[0]), tuple(float(g) for g in run.gamma_set_deg), float(run.kp),
-                   run.command_limit, len(r), hashlib.blake2b(r, digest_size=20).digest())
+                   run.command_limit, len(r), on is not None, h.digest())
             e = self._runs[id(run)] = (key, run, len(run.r))  # the run kept alive with its id
         return e[0]
 
@@ -213,20 +261,23 @@ class Replayer:
             (it is what the device would log).  Used to propagate the measurement process
             through the closed loop (:func:`omni_sim.discrepancy.uncertainty.measurement_effect`).
 
+            Noise arrays are on the control grid (``runs[j].steps`` samples).
+
         Returns
         -------
         list of ndarray
-            ``theta`` [rad] of each pair, sampled like the run (``theta[0]`` = measured start).
+            ``theta`` [rad] of each pair at the run's logged times (``theta[0]`` = measured
+            start).
         """
         if pairs is None:
             pairs = [(i, j) for i in range(len(models)) for j in range(len(runs))]
         if not pairs:
             return []
-        lengths = [runs[j].n for _, j in pairs]
+        lengths = [runs[j].steps for _, j in pairs]
         nmax = max(lengths)
         if measurement is not None:  # a simulated measurement process: never reused
             theta = self._simulate(models, runs, pairs, nmax, measurement)
-            return [theta[b, : n] for b, n in enumerate(lengths)]
+            return [runs[j].at_logged_times(theta[b]) for b, (_, j) in enumerate(pairs)]
         # every pair is simulated for nmax samples (a shorter run's reference holds its last
         # value, as in one batch of all pairs); a trajectory kept from an earlier batch of at
         # least nmax samples is the same trajectory, and a pair repeated in this batch is
@@ -254,7 +305,7 @@ class Replayer:
                 self._traj_samples += nmax
             while self._traj_samples > CACHE_SAMPLES and len(self._traj) > 1:
                 self._traj_samples -= len(self._traj.popitem(last=False)[1])
-        return [fresh[key][:n].copy() for key, n in zip(keys, lengths)]
+        return [runs[j].at_logged_times(fresh[key]) for key, (_, j) in zip(keys, pairs)]
 
     def batch_signature(self, model: mujoco.MjModel) -> tuple:
         """What models must share to be stepped in one batch: the device engine's conditions
@@ -282,11 +333,15 @@ class Replayer:
         """One batch of ``pairs`` through the device engine for ``nmax`` samples, shape (B, nmax)."""
         B = len(pairs)
         rmat = np.empty((B, nmax))
+        on = None
         kp = np.empty(B)
         limit = np.empty(B)
         for b, (_, j) in enumerate(pairs):
-            rmat[b, : runs[j].n] = runs[j].r
-            rmat[b, runs[j].n:] = runs[j].r[-1]
+            rmat[b], onb = runs[j].grid_inputs(nmax)
+            if onb is not None:
+                if on is None:
+                    on = np.ones((B, nmax), bool)
+                on[b] = onb
             kp[b] = runs[j].kp
             limit[b] = runs[j].command_limit
         noise, qstep = None, 0.0
@@ -296,7 +351,12 @@ class Replayer:
                 nb = measurement[0][b]
                 noise[b, : len(nb)] = nb[:nmax]
             qstep = np.asarray(measurement[1], dtype=float)
-        engine = Engine([self.device(models[i]) for i, _ in pairs],
+        devices = [self.device(models[i]) for i, _ in pairs]
+        for (_, j), dev in zip(pairs, devices):
+            if abs(runs[j].period - dev.dt) > 1e-6 * dev.dt:
+                raise ValueError(f"run {runs[j].name!r} has control period {runs[j].period:g} s, the "
+                                 f"replayer's devices {dev.dt:g} s (Replayer(control_period_s=...))")
+        engine = Engine(devices,
                         [float(runs[j].theta[0]) for _, j in pairs],
                         [runs[j].gamma_set_deg for _, j in pairs],
                         nthread=self.nthread, pool=self._pool)
@@ -309,7 +369,8 @@ class Replayer:
         mujoco.set_mju_user_warning(self._warned)
         try:
             theta = run_p_loop(engine, rmat, kp, noise, qstep,
-                               command_limit=None if np.all(np.isinf(limit)) else limit)["theta"]
+                               command_limit=None if np.all(np.isinf(limit)) else limit,
+                               enabled=on)["theta"]
         except RuntimeError:
             raise RuntimeError("replay diverged (non-finite yaw angle)") from None
         finally:

@@ -167,7 +167,7 @@ def _synthetic_records(prob: Problem, s: Scored, runs: list[ReplayRun], rep, sig
     (noise ``sigma``, quantisation ``steps``) in its loop, would log them; draw-major."""
     nr = len(runs)
     pairs = [(0, j) for _ in range(draws) for j in range(nr)]
-    noise = [rng.normal(0.0, sigma, runs[j].n) for _, j in pairs]
+    noise = [rng.normal(0.0, sigma, runs[j].steps) for _, j in pairs]  # on the control grid
     # the true start differs from the measured first sample by the measurement error too
     starts = []
     for _, j in pairs:

@@ -36,7 +36,7 @@ from . import select as sel
 from . import uncertainty as un
 from .fit import gap
 from .localise import describe, localise
-from .replay import Replayer, prepare_runs
+from .replay import Replayer, control_period_of, prepare_runs
 from .runs import ReplayRun
 from .select import Scored
 
@@ -106,7 +106,13 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     """
     t_start = time.perf_counter()
     spec, model, path = _load_spec(model_path, target)
-    replay_runs = prepare_runs(runs, Device(model, target=target))
+    period = control_period_of(runs)
+    try:
+        device = Device(model, period, target=target)
+    except UserError as exc:
+        raise UserError(f"measured data: {exc} (metadata control_period_s, default the sample "
+                        "period)") from None
+    replay_runs = prepare_runs(runs, device)
     effect_target = om.OMNI if target is None else target  # where the effects are written
     candidates = _usable_candidates(candidates, spec, effect_target, path)
     if len(replay_runs) < 2:
@@ -116,7 +122,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     builder = fx.ModelBuilder(spec, effect_target)
     log = log or (lambda s: None)
     timings = {}
-    with Replayer(jobs, target) as rep:
+    with Replayer(jobs, target, period) as rep:
         t0 = time.perf_counter()
         nominal = replay_nominal(model, replay_runs, fit_runs, rep)
         timings["replay_nominal_s"] = time.perf_counter() - t0
