@@ -13,6 +13,12 @@ device's closed-loop engine, the reference path) on the compact experiment set
 :data:`~omni_sim.discrepancy.experiment_set.NOISE_RAD` that the controller sees, as on the
 device; the case ``none_exact`` has neither.  The workflow sees only these runs and the nominal
 model.
+
+One case is not the Omni: ``load_friction`` (``truth="servo"``) is a pendulum on a geared servo
+(nominal model ``models/servo_pendulum.xml``, joint ``pivot``, actuator ``servo``: see
+:func:`nominal`) whose gearbox friction grows with the torque it transmits; its truth is a
+per-step simulation of its own and its runs are logged as a host logs a servo (irregular
+times at ~200 Hz, the goal held between writes, torque-off spans), :mod:`.servo_truth`.
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ from identification.dataset import Run
 
 from .. import experiments as ex
 from .. import model as om
-from . import experiment_set
+from . import experiment_set, servo_truth
 from .truth_models import OUTSIDE, TRUTH
 
 
@@ -52,6 +58,10 @@ class HiddenCase:
         Why this magnitude is realistic (provenance).
     gap_lives : str
         For outside effects: where their gap should show (runs, amplitudes, position band).
+    truth : str
+        ``"omni"``: the virtual Omni with the effects written by :mod:`.truth_models`, run
+        through the device's loop on the compact experiment set; ``"servo"``: the geared-servo
+        pendulum of :mod:`.servo_truth` (its own nominal model and target, :func:`nominal`).
     """
 
     name: str
@@ -61,6 +71,7 @@ class HiddenCase:
     exact: bool = False
     note: str = field(default="", compare=False)
     gap_lives: str = field(default="", compare=False)
+    truth: str = "omni"
 
 
 def _single(name: str, values: tuple, note: str) -> HiddenCase:
@@ -153,6 +164,14 @@ CASES: tuple[HiddenCase, ...] = (
                     "constant), e.g. the stylus cable pulled taut against the base",
                gap_lives="only the 0.2 rad square waves, while theta > 0.17 rad (a position band at "
                          "the positive end; the sines reach 0.15 rad and never touch it)"),
+    HiddenCase("load_friction", (("load_friction", (servo_truth.MU_DRIVE, servo_truth.MU_BACK)),),
+               expect=("load_friction",), truth="servo",
+               note="a pendulum (0.82 kg, m*g*l 1.18 N*m) on a 12 V geared servo (models/servo_pendulum.xml: "
+                    "0.30 N*m/V, back-EMF 0.36 N*m*s/rad, Fc 30 mN*m) whose gearbox friction grows with "
+                    "the torque it transmits: mu_drive 0.15 (forward efficiency 0.85 of a ~350:1 spur "
+                    "gearbox, 0.96-0.97 per mesh) and mu_back 0.45 (back-driving efficiency 0.69, an "
+                    "estimate: back-driving such servos loses markedly more, up to self-locking); 12 runs "
+                    "of 5 s logged at ~200 Hz with jitter, 4096-count encoder (servo_truth.py)"),
 )
 
 
@@ -164,8 +183,22 @@ def case(name: str) -> HiddenCase:
     raise KeyError(name)
 
 
+def nominal(hidden: HiddenCase) -> tuple:
+    """The nominal model the workflow is given for this case and its target: ``(None, None)``
+    for the Omni's cases (the built-in scene, ``yaw``/``yaw_motor``), the servo pendulum's file
+    and ``pivot``/``servo`` for a ``truth="servo"`` case."""
+    if hidden.truth == "servo":
+        return servo_truth.model_path(), servo_truth.target()
+    return None, None
+
+
 def truth_spec(hidden: HiddenCase, base: mujoco.MjSpec | None = None) -> mujoco.MjSpec:
-    """The nominal model with the case's hidden effects written into it (a copy of ``base``)."""
+    """The nominal model with the case's hidden effects written into it (a copy of ``base``).
+    Only for the Omni's cases (a ``truth="servo"`` case's effect is a law applied at every
+    step, not a model: ValueError)."""
+    if hidden.truth != "omni":
+        raise ValueError(f"case {hidden.name!r}: its truth is a simulation of its own "
+                         f"({hidden.truth}), not a model written on the Omni")
     spec = (base or mujoco.MjSpec.from_file(str(om.DEFAULT_SCENE))).copy()
     # the gear first: the armature's reflection and the torque limit are expressed through it
     order = sorted(hidden.effects, key=lambda e: e[0] != "torque_gain")
@@ -180,7 +213,14 @@ def generate(hidden: HiddenCase, exps: list[ex.Experiment] | None = None, seed: 
              noise_rad: float | None = None, jobs: int | None = None,
              exact: bool | None = None) -> list[Run]:
     """"Measured" runs of the case's truth model (device engine; quantised, noisy encoder unless
-    the case, or ``exact=True``, asks for exact data)."""
+    the case, or ``exact=True``, asks for exact data).  A ``truth="servo"`` case: the runs of
+    :func:`.servo_truth.generate` (``exps``: its experiments, default all; its own encoder,
+    so ``noise_rad`` must be None; ``jobs`` unused)."""
+    if hidden.truth == "servo":
+        if noise_rad is not None:
+            raise ValueError("the servo truth has its own encoder noise (servo_truth.NOISE_RAD)")
+        return servo_truth.generate(hidden.effects, seed=seed, exact=hidden.exact or bool(exact),
+                                    experiments=servo_truth.EXPERIMENTS if exps is None else exps)
     m = truth_spec(hidden).compile()
     exps = exps if exps is not None else experiment_set.experiments()
     st = experiment_set.measurement(hidden.exact or bool(exact), seed, noise_rad)
