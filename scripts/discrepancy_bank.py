@@ -12,11 +12,17 @@ case's full workflow report; it is rewritten after each case, so a stopped run k
 did.  A worked example with figures is written to docs/discrepancy_example/ (``--no-example``:
 not).
 
+A case with a truth of its own (``truth="servo"``: the geared-servo pendulum of
+:mod:`omni_sim.discrepancy.servo_truth`) is given its own nominal model and target
+(:func:`omni_sim.discrepancy.hidden.nominal`: ``models/servo_pendulum.xml``, ``pivot``/``servo``).
+``--merge`` runs the given cases and puts them into the existing JSON in the bank's order (the
+other cases kept as they are); each merged entry records its own commit and dates.
+
 ``--table`` prints the bank table of docs/discrepancy.md made from the JSON
 (``tests/test_discrepancy_bank.py`` checks that docs/discrepancy.md holds exactly that).
 
 Usage: python scripts/discrepancy_bank.py [--cases NAME ...] [--no-example] [--jobs N] [--out MD]
-                                         [--commit TEXT] [--note TEXT]
+                                         [--commit TEXT] [--note TEXT] [--merge]
        python scripts/discrepancy_bank.py --table [--json JSON]      (docs/discrepancy.md's table)
        python scripts/discrepancy_bank.py --markdown [--json JSON] [--out MD]   (MD from JSON)
 """
@@ -90,6 +96,29 @@ def bank_row(name: str, c: dict) -> str:
             f"{', '.join(e.get('confidence', '-') for e in rep['effects'])} | {_verdict(c)} | {c['seconds']:.0f} |")
 
 
+def _merged(cases: dict) -> str:
+    """The cases run apart from the bank's run (``--merge``): ``name (commit, date)`` each."""
+    return ", ".join(f"{n} (commit {c['commit']}, {c['started'][:10]})" for n, c in cases.items()
+                     if c.get("commit"))
+
+
+def _other_truths(cases: dict) -> str:
+    """Sentences on the cases whose truth is not the virtual Omni, and on the merged cases."""
+    text = ""
+    servo = [n for n, c in cases.items() if c.get("truth", "omni") == "servo"]
+    if servo:
+        text += (f" Not the Omni: {', '.join(servo)} is a pendulum on a geared servo (nominal model "
+                 "`models/servo_pendulum.xml`, `--joint pivot --actuator servo`) whose truth "
+                 "`omni_sim/discrepancy/servo_truth.py` simulates its hidden load-dependent gearbox "
+                 "friction step by step; 12 runs of 5 s logged as a host logs a servo (~200 Hz with "
+                 "jitter, the goal held between writes, torque-off spans, 4096-count encoder, servo loop "
+                 "1 kHz).")
+    merged = _merged(cases)
+    if merged:
+        text += f" Run separately and merged into this table (`--merge`): {merged}."
+    return text
+
+
 def bank_markdown(data: dict) -> str:
     """docs/discrepancy/bank.md from the JSON."""
     meta, cases = data["meta"], data["cases"]
@@ -115,7 +144,8 @@ def bank_markdown(data: dict) -> str:
         f"{meta['step_amplitudes_rad']} rad at poses {meta['poses_deg']} deg) through "
         "`omni_sim.experiments.simulate`'s reference loop, encoder quantised to 15000 counts/rev "
         f"plus {meta['noise_rad']:g} rad white noise that the controller sees (`none_exact`: "
-        "neither). The workflow sees only these runs and the nominal model.", "",
+        "neither). The workflow sees only these runs and the nominal model."
+        + _other_truths(cases), "",
         "Gaps are held-out RMS replay errors [rad]; ± is the reported 95 % uncertainty (Student-t "
         "factor of the k-fold jackknife times the root-sum-square of the jackknife's, the "
         "Jacobian's and the measurement process's standard errors and the optimiser's and the "
@@ -167,11 +197,13 @@ def readme_table(data: dict) -> str:
                     f"{_verdict(c)} | {c['seconds']:.0f} s |")
     meta, cases = data["meta"], data["cases"]
     load = [c["load_after"] for c in cases.values() if "load_after" in c]
+    merged = _merged(cases)
     rows += ["", f"{sum(c['pass'] for c in cases.values())} of {len(cases)} cases pass. One run at commit "
              f"{meta['commit']}, {meta['started'][:10]}: {sum(c['seconds'] for c in cases.values()):.0f} s "
              f"of wall time in all, one process (`--jobs {meta['jobs']}`, nice {meta['nice']}) on "
              f"{meta['cpus']} cores shared with other jobs"
-             + (f" (load average {min(load):.1f}-{max(load):.1f})" if load else "") + "."]
+             + (f" (load average {min(load):.1f}-{max(load):.1f})" if load else "") + "."
+             + (f" Run separately and merged (`--merge`): {merged}." if merged else "")]
     return "\n".join(rows) + "\n"
 
 
@@ -195,6 +227,8 @@ def main(argv=None) -> int:
     ap.add_argument("--table", action="store_true", help="print docs/discrepancy.md's bank table made from --json")
     ap.add_argument("--markdown", action="store_true", help="rewrite --out's table from --json (no run)")
     ap.add_argument("--json", default=str(DEFAULT_OUT.with_suffix(".json")))
+    ap.add_argument("--merge", action="store_true", help="run --cases and put them into --out's "
+                    "existing JSON (the other cases kept; each merged entry records its commit)")
     args = ap.parse_args(argv)
     if args.table:
         sys.stdout.write(readme_table(json.loads(Path(args.json).read_text())))
@@ -218,14 +252,23 @@ def main(argv=None) -> int:
             "poses_deg": ", ".join(str(p) for p in experiment_set.POSES), "noise_rad": experiment_set.NOISE_RAD,
             "note": args.note}
     data = {"meta": meta, "cases": {}}
+    if args.merge:
+        data = json.loads(out.with_suffix(".json").read_text())
     t_all = time.perf_counter()
     for c in cases:
         t0 = time.perf_counter()
+        model, target = hidden.nominal(c)
         entry = {"hidden": [list(e) for e in c.effects], "outside": [list(e) for e in c.outside],
-                 "expect": list(c.expect), "exact": c.exact, "note": c.note, "gap_lives": c.gap_lives}
+                 "expect": list(c.expect), "exact": c.exact, "note": c.note, "gap_lives": c.gap_lives,
+                 "truth": c.truth}
+        if model is not None:
+            entry.update(model=str(Path(model).relative_to(ROOT)) if Path(model).is_relative_to(ROOT)
+                         else str(model), target=[target.joint, target.actuator])
+        if args.merge:
+            entry.update(commit=meta["commit"], started=_now(), command=meta["command"])
         runs = hidden.generate(c, jobs=args.jobs)
         try:
-            rep = run_discrepancy(runs, None, jobs=args.jobs).report
+            rep = run_discrepancy(runs, model, jobs=args.jobs, target=target).report
         except Exception as exc:  # a crash of the workflow is a result of the bank, not its end
             entry.update({"pass": False, "why": f"workflow crashed: {type(exc).__name__}: {exc}"})
         else:
@@ -234,10 +277,14 @@ def main(argv=None) -> int:
         entry.update({"seconds": time.perf_counter() - t0, "finished": _now(),
                       "load_after": os.getloadavg()[0]})
         data["cases"][c.name] = entry
+        order = [k.name for k in hidden.CASES]  # the bank's order (a merged case in its place)
+        data["cases"] = dict(sorted(data["cases"].items(),
+                                    key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order)))
         _write(out, data)
         print(bank_row(c.name, entry), flush=True)
-    meta["finished"] = _now()
-    meta["total_s"] = time.perf_counter() - t_all
+    if not args.merge:  # a merge leaves the bank run's record as it was
+        meta["finished"] = _now()
+        meta["total_s"] = time.perf_counter() - t_all
     _write(out, data)
     if not args.no_example:
         from omni_app.discrepancy import demo
