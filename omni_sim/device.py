@@ -17,7 +17,10 @@ or a user's hinge):
   points (:meth:`Device.equilibrium`, cached);
 * the start state of a run: arm at that pose, yaw at rest at ``theta0``;
 * the encoder (:class:`Encoder`: quantisation, white noise, seeded per-run streams);
-* the clipped P law ``v = clip(kp (r - y), -V, V)`` of the paper's experiments.
+* the clipped P law ``v = clip(kp (r - y), -V, V)`` of the paper's experiments;
+* the drive's friction laws that no MJCF attribute can hold (:class:`DriveFriction`: friction
+  set by the torque the gearbox transmits, direction-dependent Coulomb friction), declared in
+  the model's ``<custom>`` numerics and applied by the engine at every control period.
 
 :class:`Engine` is the one closed loop every user of the device steps through: the generator's
 reference path (:func:`run_p_loop`, used by :func:`omni_sim.experiments.simulate`), the gymnasium
@@ -33,6 +36,7 @@ period; ``y_k`` is the yaw *measured* at ``t_k`` (before the controller acts), t
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import math
 import os
@@ -52,6 +56,87 @@ CONTROL_PERIOD_S = 1e-3
 ENCODER_STEP_RAD = 2 * math.pi / 15000
 #: The physics state the engine carries between control periods.
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+#: ``<custom><numeric name="load_friction" data="mu_drive mu_back"/>``: Coulomb friction that
+#: rises with the torque the gearbox transmits (:class:`DriveFriction`).
+LOAD_FRICTION = "load_friction"
+#: ``<custom><numeric name="friction_asymmetry" data="a"/>`` [N*m]: the joint's Coulomb level is
+#: ``frictionloss + a`` moving positive, ``frictionloss - a`` moving negative.
+FRICTION_ASYMMETRY = "friction_asymmetry"
+
+
+def _numeric(model: mujoco.MjModel, name: str) -> np.ndarray | None:
+    """The data of the model's ``<custom><numeric name=...>``, or None."""
+    i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+    if i < 0:
+        return None
+    a = int(model.numeric_adr[i])
+    return np.array(model.numeric_data[a: a + int(model.numeric_size[i])], float)
+
+
+@dataclass(frozen=True)
+class DriveFriction:
+    """The drive's friction laws applied by the engine (not expressible as MJCF attributes).
+
+    At the start of every control period the joint's Coulomb level (MuJoCo's
+    ``dof_frictionloss``, a true stick) is set to
+
+        F = max(0, Fc + a sign(w) + mu |tau|),  mu = mu_drive if tau w > 0 else mu_back,
+
+    with ``Fc`` the model's own ``frictionloss``, ``w`` the joint velocity, ``tau`` the torque
+    the motor transmits (``gear * actuator_force`` of the last physics step, from an
+    ``actuatorfrc`` sensor on the actuator; 0 before the first step), ``a``
+    (:data:`FRICTION_ASYMMETRY`) the direction-dependent part and ``mu_drive``, ``mu_back``
+    (:data:`LOAD_FRICTION`) the load-dependent coefficients: ``tau w > 0`` while the motor drives
+    the load, otherwise the load back-drives the motor (or the joint is at rest), where a
+    geared drive's friction is larger (a self-locking gearbox when ``mu_back >= 1``).  The
+    velocity at rest is MuJoCo's soft-constraint creep, whose sign is that of the net torque,
+    so a load that would back-drive a held servo meets ``mu_back``.
+    """
+
+    dof: int
+    base_nm: float
+    asymmetry_nm: float
+    mu_drive: float
+    mu_back: float
+    sensor_adr: int  # sensordata address of the transmitted-torque sensor, -1 if none
+    gear: float
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel, act: int, dof: int, source: str) -> "DriveFriction | None":
+        load = _numeric(model, LOAD_FRICTION)
+        asym = _numeric(model, FRICTION_ASYMMETRY)
+        if load is None and asym is None:
+            return None
+        if load is not None and (len(load) != 2 or not np.all(np.isfinite(load)) or np.any(load < 0)):
+            raise UserError(f"{source}: custom numeric {LOAD_FRICTION!r} must hold two coefficients "
+                            f">= 0 (mu_drive mu_back), got {load.tolist()}")
+        if asym is not None and (len(asym) != 1 or not np.isfinite(asym[0])):
+            raise UserError(f"{source}: custom numeric {FRICTION_ASYMMETRY!r} must hold one finite "
+                            f"level [N*m], got {asym.tolist()}")
+        adr = -1
+        if load is not None:
+            for i in range(model.nsensor):
+                if (model.sensor_type[i] == mujoco.mjtSensor.mjSENS_ACTUATORFRC
+                        and model.sensor_objid[i] == act):
+                    adr = int(model.sensor_adr[i])
+                    break
+            else:
+                name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, act)
+                raise UserError(f"{source}: {LOAD_FRICTION!r} needs the transmitted torque: add "
+                                f'<sensor><actuatorfrc actuator="{name}"/></sensor>')
+        mu = (0.0, 0.0) if load is None else (float(load[0]), float(load[1]))
+        return cls(dof, float(model.dof_frictionloss[dof]), 0.0 if asym is None else float(asym[0]),
+                   mu[0], mu[1], adr, float(model.actuator_gear[act, 0]))
+
+
+def _drive_levels(laws: list, w: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """:class:`DriveFriction` levels [N*m] of B rows: velocities ``w`` and actuator forces
+    ``force`` (B,)."""
+    base = np.array([f.base_nm for f in laws])
+    asym = np.array([f.asymmetry_nm for f in laws])
+    tau = force * np.array([f.gear for f in laws])
+    mu = np.where(tau * w > 0, [f.mu_drive for f in laws], [f.mu_back for f in laws])
+    return np.maximum(0.0, base + asym * np.sign(w) + mu * np.abs(tau))
 
 
 @dataclass(frozen=True)
@@ -193,7 +278,11 @@ class Device:
         ``ctrlrange`` of ``yaw_motor`` / the target's actuator (inf if unlimited): the drive's
         clip of every command.
     torque_constant : float [N*m/V]
-        Gear of ``yaw_motor`` / the target's actuator (the paper's beta_bar).
+        Torque per unit of control of ``yaw_motor`` / the target's actuator (the paper's
+        beta_bar): gear x gain of a ``motor``, gear x K/R of a ``dcmotor`` at rest.
+    drive_friction : DriveFriction or None
+        Friction laws the engine applies at every control period (the model's ``<custom>``
+        numerics :data:`LOAD_FRICTION`, :data:`FRICTION_ASYMMETRY`).
     joint_id : int
         The encoder joint (``yaw`` or the target's hinge).
     target : Target or None
@@ -212,11 +301,20 @@ class Device:
         act = self.ix.yaw_act
         self.voltage_limit = (float(min(-model.actuator_ctrlrange[act, 0], model.actuator_ctrlrange[act, 1]))
                               if model.actuator_ctrllimited[act] else math.inf)
-        self.torque_constant = float(model.actuator_gear[act, 0])
+        gear = float(model.actuator_gear[act, 0])
+        if model.actuator_gaintype[act] == mujoco.mjtGain.mjGAIN_DCMOTOR:
+            # a dcmotor's torque per volt is gear * K / R (gainprm[1] = K, gainprm[0] = R;
+            # docs/servo-actuators.md)
+            gear *= float(model.actuator_gainprm[act, 1] / model.actuator_gainprm[act, 0])
+        else:
+            gear *= float(model.actuator_gainprm[act, 0])  # a motor's gain is 1
+        self.torque_constant = gear
         self.joint_id = int(model.dof_jntid[self.ix.yaw_dof])
         arm = {self.ix.shoulder_qpos, self.ix.elbow_qpos}
         self.coupled = [(a, f) for a, f in coupled_hinges(model, self.joint_id) if a not in arm]
         self.nstate = mujoco.mj_stateSize(model, STATE_SPEC)
+        #: the drive's friction laws the engine applies (None: the model declares none)
+        self.drive_friction = DriveFriction.of(model, act, self.ix.yaw_dof, source)
         self._eq: dict[tuple[float, float], tuple[float, float]] = {}
         self._scratch: mujoco.MjData | None = None  # start_state's MjData (made on first use)
 
@@ -275,8 +373,6 @@ class Device:
     def without_friction(self) -> "Device":
         """A device on a copy of the model with no dry friction on the drive (viscous damping
         kept)."""
-        import copy
-
         dev = Device(copy.deepcopy(self.model), self.control_period_s, self.target)
         dev.scale_friction(0.0)
         return dev
@@ -459,8 +555,21 @@ class Engine:
         self._q = ((d0.ix.yaw_qpos, d0.ix.shoulder_qpos, d0.ix.elbow_qpos) if self.has_arm
                    else (d0.ix.yaw_qpos,))
         self._qadr = 1 + np.array(self._q)  # FULLPHYSICS state = [time, qpos, qvel, act, ...]
+        # the drive's friction laws (DriveFriction): each row steps its own copy of its model,
+        # whose frictionloss the engine sets at every control period
+        laws = [d.drive_friction for d in devices]
+        self._laws = None
+        if any(f is not None for f in laws):
+            if any(f is None for f in laws):
+                raise ValueError("the devices of one engine all have drive friction laws, or none")
+            self._laws = laws
+            self._dof = laws[0].dof
+            self._force = np.zeros(self.B)  # each row's actuator force of its last step
+            self._law_models = [copy.deepcopy(d.model) for d in devices]
         if self.B == 1:
+            m1 = self._law_models[0] if self._laws else d0.model
             self._data = d0.start_data(float(theta0_rad[0]), _pose(gamma_set_deg[0]), data)
+            self._m1 = m1
             self._vmax1 = float(self.vmax[0])
             self._own_pool = False
             self.pool = None
@@ -470,7 +579,7 @@ class Engine:
         self._ctrl = np.empty((self.B, self.substeps, d0.model.nu))
         for b, (dev, th0, gs) in enumerate(zip(devices, theta0_rad, gamma_set_deg)):
             self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
-        self._models = [d.model for d in devices]
+        self._models = self._law_models if self._laws else [d.model for d in devices]
         nthread = max(1, nthread or os.cpu_count() or 1)
         self._own_pool = pool is None
         # one thread: the calling thread steps the batch (no hand-off to a pool thread at
@@ -533,6 +642,8 @@ class Engine:
         """Start rows ``rows`` again from :meth:`Device.start_state` (the others go on)."""
         for b, th0, gs in zip(rows, theta0_rad, gamma_set_deg):
             dev = self.devices[b]
+            if self._laws:
+                self._force[b] = 0.0
             if self._data is not None:
                 dev.start_data(float(th0), _pose(gs), self._data)
             else:
@@ -544,10 +655,14 @@ class Engine:
         if self._data is not None:  # one row: plain floats and mj_step (the env's hot path)
             vk = float(v[0]) if np.ndim(v) else float(v)
             vk = min(max(vk, -self._vmax1), self._vmax1)
-            m, d = self.devices[0].model, self._data
+            m, d = self._m1, self._data
+            if self._laws:
+                self._set_friction()
             d.ctrl[self._yaw_act] = vk
             for _ in range(self.substeps):
                 mujoco.mj_step(m, d)
+            if self._laws:
+                self._force[0] = d.sensordata[self._laws[0].sensor_adr] if self._laws[0].sensor_adr >= 0 else 0.0
             return np.array([vk])
         v = np.clip(np.asarray(v, dtype=float).reshape(self.B), -self.vmax, self.vmax)
         self._advance(v)
@@ -569,10 +684,24 @@ class Engine:
         """A batch's :meth:`apply` after the clip: ``v`` (B,) or (B, substeps) already within
         each drive's limit (one command for the period, or one per physics step)."""
         self._ctrl[:, :, self._yaw_act] = v[:, None] if v.ndim == 1 else v
+        if self._laws:
+            self._set_friction()
         self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
                           skip_checks=True, state=self._state, sensordata=self._sens,
                           chunk_size=self._chunk)
         self.x = self._state[:, -1, :].copy()
+        if self._laws and self._laws[0].sensor_adr >= 0:
+            self._force = self._sens[:, -1, self._laws[0].sensor_adr].copy()
+
+    def _set_friction(self) -> None:
+        """Every row's :class:`DriveFriction` level for the coming control period, written into
+        the row's own model."""
+        levels = _drive_levels(self._laws, self.yaw_velocity(), self._force)
+        if self._data is not None:
+            self._m1.dof_frictionloss[self._dof] = levels[0]
+            return
+        for m, f in zip(self._law_models, levels):
+            m.dof_frictionloss[self._dof] = f
 
 
 def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,

@@ -328,7 +328,7 @@ def _plain_motor(model: mujoco.MjModel, act: int) -> bool:
 
 def fast_path_ok(device: Device, settings: Settings) -> bool:
     """True when the rollout fast path gives the same trajectory as the device's engine."""
-    return (device.substeps == 1 and settings.encoder.exact
+    return (device.substeps == 1 and settings.encoder.exact and device.drive_friction is None
             and _plain_motor(device.model, device.ix.yaw_act))
 
 

@@ -33,6 +33,10 @@ arm_mass           ``upper_arm``, ``forearm`` body masses       ``upper_arm_mass
                    (inertia scaled, CoM kept)                   ``forearm_mass_kg`` [kg]
 cogging            new passive ``dcmotor`` ``yaw_cogging``,     ``amplitude_nm`` [N*m],
                    torque a*sin(n*q_yaw + phase), n fixed       ``phase_rad`` [rad]
+load_friction      ``<custom>`` numeric ``load_friction`` (the  ``mu_drive``, ``mu_back`` [-]
+                   engine's law) + ``actuatorfrc`` sensor
+asymmetric_        ``<custom>`` numeric ``friction_asymmetry``  ``asymmetry_nm`` [N*m]
+friction           (the engine's law)
 =================  ==========================================  ===================================
 
 (``yaw``/``yaw_motor`` stand for the :class:`Target`'s joint and actuator; added elements are
@@ -42,7 +46,8 @@ actuators are appended after every actuator, so controlled ones keep control ind
 The families, one module each (their docstrings give each effect's magnitudes, bounds and
 sources): :mod:`.joint` (the joint's own attributes), :mod:`.actuator` (the drive),
 :mod:`.friction` (passive dcmotor elements: LuGre friction, cogging), :mod:`.two_mass` (rotor
-and cable), :mod:`.body` (gravity tilt, link masses); :mod:`.base` holds :class:`Param`,
+and cable), :mod:`.body` (gravity tilt, link masses), :mod:`.drive` (the engine's friction laws
+of geared drives); :mod:`.base` holds :class:`Param`,
 :class:`Effect` and the helpers they share, :mod:`.separation` the experiments that tell two
 candidates apart.  This module is the registry: :data:`LIBRARY` in its fixed order and the
 functions that read and write effects.
@@ -59,7 +64,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import actuator, body, friction, joint, two_mass
+from . import actuator, body, drive, friction, joint, two_mass
 from .base import OMNI, Effect, Param, Target
 from .body import ARM_BODIES
 from .friction import COGGING_PERIODS
@@ -87,6 +92,8 @@ LIBRARY: tuple[Effect, ...] = (
     two_mass.BACKLASH,
     body.ARM_MASS,
     friction.COGGING,
+    drive.LOAD_FRICTION_EFFECT,
+    drive.ASYMMETRIC_FRICTION,
 )
 
 NAMES = tuple(e.name for e in LIBRARY)

@@ -1,0 +1,104 @@
+"""Friction laws of geared drives, applied by the device's engine
+(:class:`omni_sim.device.DriveFriction`): no MJCF attribute makes a friction level follow the
+transmitted torque or the direction of motion, so the effects write the law's coefficients as
+``<custom><numeric>`` data that the device reads, and the engine sets the joint's
+``frictionloss`` from them at every control period.
+
+* ``load_friction``: Coulomb friction rising with the torque the gearbox transmits,
+  ``Fc + mu |tau|``, ``mu = mu_drive`` while the motor drives the load, ``mu_back`` while the
+  load back-drives the motor (a self-locking gearbox when ``mu_back >= 1``).  Magnitudes: a spur
+  gear mesh loses 1-3 % of the power it transmits (efficiency 0.97-0.99 per stage, standard
+  machine-design figures); a hobby or robot servo has 4-5 stages of small, lightly lubricated
+  plastic or brass gears, for an overall forward efficiency of roughly 0.6-0.9, i.e.
+  ``mu_drive`` 0.1-0.4 (estimate); back-driving a multi-stage reduction runs each mesh at a
+  lower efficiency (the friction moment adds to the load instead of the motor), so ``mu_back``
+  is larger, 0.2-1 (estimate; actuator-model work on Dynamixel and Feetech servos finds the
+  back-driven efficiency markedly lower than the forward one, ../shared/notes/facts.md).
+  Bounds 0-2 (2: firmly self-locking).  The nominal model holds 0 (no such law).
+* ``asymmetric_friction``: the joint's Coulomb level is ``frictionloss + a`` moving positive
+  and ``frictionloss - a`` moving negative (a cable pulling one way, a preloaded bearing, a
+  gravity-loaded gear train that meshes on different flanks).  Bounds +-0.3 N*m (the
+  ``coulomb_friction`` range); typical |a| a few to ~30 % of the Coulomb level (estimate).
+
+Both add an ``actuatorfrc`` sensor on the target actuator if the model has none (the engine's
+source of the transmitted torque).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from ...device import FRICTION_ASYMMETRY, LOAD_FRICTION
+from .base import OMNI, Effect, Param, Target, actuator_of
+
+
+def _numeric(spec: mujoco.MjSpec, name: str):
+    return spec.numeric(name)
+
+
+def _set_numeric(spec: mujoco.MjSpec, name: str, values) -> None:
+    n = spec.numeric(name)
+    if n is None:
+        spec.add_numeric(name=name, data=[float(v) for v in values])
+    else:
+        n.data = [float(v) for v in values]
+
+
+def _ensure_torque_sensor(spec: mujoco.MjSpec, target: Target) -> None:
+    """An ``actuatorfrc`` sensor on the target actuator (added once)."""
+    act = actuator_of(spec, target).name
+    for s in spec.sensors:
+        if s.type == mujoco.mjtSensor.mjSENS_ACTUATORFRC and s.objname == act:
+            return
+    name = f"{act}_transmitted"
+    k = 1
+    while spec.sensor(name) is not None:
+        k += 1
+        name = f"{act}_transmitted_{k}"
+    spec.add_sensor(name=name, type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                    objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=act)
+
+
+def _read_load(spec, target=OMNI):
+    n = _numeric(spec, LOAD_FRICTION)
+    return np.zeros(2) if n is None else np.array(list(n.data)[:2], float)
+
+
+def _write_load(spec, x, target=OMNI):
+    _set_numeric(spec, LOAD_FRICTION, x[:2])
+    _ensure_torque_sensor(spec, target)
+
+
+def _load_grid(x0):
+    # forward and back-driven coefficients over the estimated ranges (module docstring)
+    return np.array([[d, b] for d, b in ((0.0, 0.0), (0.1, 0.2), (0.1, 0.5), (0.2, 0.4), (0.2, 0.8),
+                                          (0.3, 0.3), (0.05, 1.0))])
+
+
+def _read_asym(spec, target=OMNI):
+    n = _numeric(spec, FRICTION_ASYMMETRY)
+    return np.zeros(1) if n is None else np.array(list(n.data)[:1], float)
+
+
+def _write_asym(spec, x, target=OMNI):
+    _set_numeric(spec, FRICTION_ASYMMETRY, x[:1])
+
+
+def _asym_grid(x0):
+    fc = 0.01  # a Coulomb-level scale: the Omni's 5-20 mN*m (models/README.md); the fit scales up
+    return np.array([[a] for a in (-3 * fc, -fc, 0.0, fc, 3 * fc)])
+
+
+LOAD_FRICTION_EFFECT = Effect(
+    "load_friction",
+    "gear friction rising with the transmitted torque, larger when the load back-drives the motor",
+    (Param("mu_drive", "-", 0.0, 2.0, 0.02),
+     Param("mu_back", "-", 0.0, 2.0, 0.02)),
+    _read_load, _write_load, _load_grid)
+
+ASYMMETRIC_FRICTION = Effect(
+    "asymmetric_friction",
+    "direction-dependent Coulomb friction: frictionloss + a moving positive, - a moving negative",
+    (Param("asymmetry_nm", "N*m", -0.3, 0.3, 0.003),),
+    _read_asym, _write_asym, _asym_grid)

@@ -1,0 +1,100 @@
+"""The drive's friction laws the engine applies (omni_sim.device.DriveFriction): friction set by
+the torque the gearbox transmits (``load_friction``) and direction-dependent Coulomb friction
+(``friction_asymmetry``), against closed-form steady states of a damped hinge."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from identification.errors import UserError
+from omni_sim import model as om
+from omni_sim.device import Device, Engine, run_p_loop
+
+TARGET = om.Target("hinge", "drive")
+FC, B = 0.05, 0.02  # Coulomb level [N*m], viscous damping [N*m*s/rad]
+
+
+def _model(load=None, asym=None, sensor=True, external=0.0, integrator="implicitfast"):
+    custom = ""
+    if load is not None:
+        custom += f'<numeric name="load_friction" data="{load[0]} {load[1]}"/>'
+    if asym is not None:
+        custom += f'<numeric name="friction_asymmetry" data="{asym}"/>'
+    sens = '<sensor><actuatorfrc actuator="drive"/></sensor>' if sensor else ""
+    ext = (f'<general name="load" joint="hinge" gainprm="0" biastype="affine" biasprm="{external} 0 0" '
+           'ctrllimited="false"/>') if external else ""
+    xml = f"""<mujoco><option timestep="0.001" gravity="0 0 0" integrator="{integrator}"/>
+    <worldbody><body><joint name="hinge" axis="0 0 1" damping="{B}" frictionloss="{FC}"/>
+    <inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/></body></worldbody>
+    <actuator><motor name="drive" joint="hinge" gear="2" ctrllimited="true" ctrlrange="-1 1"/>{ext}</actuator>
+    {sens}<custom>{custom}</custom></mujoco>"""
+    return mujoco.MjModel.from_xml_string(xml.replace("<custom></custom>", ""))
+
+
+def _steady_velocity(model, v, periods=12000):  # 24 time constants J/b = 0.5 s
+    eng = Engine([Device(model, 0.001, TARGET)], [0.0], [None])
+    for _ in range(periods):
+        eng.apply([v])
+    return float(eng.yaw_velocity()[0])
+
+
+@pytest.mark.parametrize("v", [0.4, -0.4])
+def test_load_friction_when_the_motor_drives(v):
+    """Motor torque tau = 2 v drives the joint: friction Fc + mu_drive |tau|, so the steady
+    velocity is (|tau| (1 - mu_drive) - Fc) / b, signed.  MuJoCo's frictionloss is a soft
+    constraint: steady sliding at 1e-6 relative (measured 1e-9 here)."""
+    tau = 2 * v
+    w = _steady_velocity(_model(load=(0.25, 0.6)), v)
+    want = np.sign(tau) * (abs(tau) * (1 - 0.25) - FC) / B
+    assert w == pytest.approx(want, rel=1e-6)
+    assert _steady_velocity(_model(), v) == pytest.approx(np.sign(tau) * (abs(tau) - FC) / B, rel=1e-6)
+
+
+def test_load_friction_when_the_load_back_drives():
+    """A constant external torque 0.9 N*m drives the joint against a motor holding back with
+    tau = -0.4 N*m: the load back-drives the motor, friction Fc + mu_back |tau|; steady
+    velocity (0.9 - 0.4 - Fc - mu_back 0.4) / b.  With mu_back = 2 the friction (0.85) plus
+    the motor (0.4) exceed the load: the gearbox self-locks, and the joint creeps as MuJoCo's
+    soft frictionloss creeps under a stuck load: as fast as a plain joint whose frictionloss is
+    that level (0.85 N*m), 100x slower than with mu_back = 0."""
+    w = _steady_velocity(_model(load=(0.25, 0.6), external=0.9), -0.2)
+    assert w == pytest.approx((0.9 - 0.4 - FC - 0.6 * 0.4) / B, rel=1e-6)
+    locked = _steady_velocity(_model(load=(0.25, 2.0), external=0.9), -0.2)
+    plain = _model(external=0.9)
+    plain.dof_frictionloss[0] = FC + 2.0 * 0.4
+    assert locked == pytest.approx(_steady_velocity(plain, -0.2), rel=1e-6)
+    assert 0 < locked < 0.01 * _steady_velocity(_model(load=(0.25, 0.0), external=0.9), -0.2)
+
+
+def test_asymmetric_coulomb_friction():
+    """Levels Fc + a moving positive, Fc - a moving negative (a = 0.02 N*m)."""
+    m = _model(asym=0.02)
+    assert _steady_velocity(m, 0.4) == pytest.approx((0.8 - FC - 0.02) / B, rel=1e-6)
+    assert _steady_velocity(m, -0.4) == pytest.approx(-(0.8 - FC + 0.02) / B, rel=1e-6)
+
+
+def test_zero_coefficients_are_the_plain_model_and_the_paths_agree():
+    """mu = 0, a = 0: the law writes the model's own frictionloss at every period, so the
+    trajectory is the plain model's bit for bit (the same mj_step arithmetic); with the law on,
+    one-row (mj_step) and batch (rollout) engines agree bit for bit."""
+    t = np.arange(1500) * 0.001
+    r = np.where(t % 0.5 < 0.25, 0.3, -0.3)[None, :]
+    plain = run_p_loop(Engine([Device(_model(), 0.001, TARGET)], [0.0], [None]), r, 3.0)["theta"]
+    zero = run_p_loop(Engine([Device(_model(load=(0, 0), asym=0.0), 0.001, TARGET)], [0.0], [None]),
+                      r, 3.0)["theta"]
+    assert np.array_equal(plain, zero)
+    dev = Device(_model(load=(0.25, 0.6), asym=0.01), 0.001, TARGET)
+    one = run_p_loop(Engine([dev], [0.0], [None]), r, 3.0)["theta"]
+    batch = run_p_loop(Engine([dev, dev], [0.0, 0.0], [None, None], nthread=2), np.vstack([r, r]), 3.0)["theta"]
+    assert np.array_equal(batch[0], one[0]) and np.array_equal(batch[1], one[0])
+    assert np.max(np.abs(one - plain)) > 1e-3  # and the law changes the trajectory
+    assert dev.model.dof_frictionloss[0] == FC  # the device's own model is left as it was
+
+
+def test_load_friction_needs_its_sensor_and_sane_values():
+    with pytest.raises(UserError, match="actuatorfrc"):
+        Device(_model(load=(0.2, 0.5), sensor=False), 0.001, TARGET)
+    with pytest.raises(UserError, match="two coefficients"):
+        Device(_model(load=(-0.2, 0.5)), 0.001, TARGET)
