@@ -168,7 +168,7 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
     L = [f"# {title}", ""]
     if intro:
         L += [intro, ""]
-    L += _md_named(rep) + _md_where(rep) + _md_candidates(rep) + _md_worst(rep)
+    L += _md_named(rep) + _md_where(rep) + _md_candidates(rep) + _md_worst(rep) + _md_sampling(rep)
     for f in figs:
         L += [f"![{f}]({f})", ""]
     t = rep["timings"]
@@ -177,6 +177,22 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
     L += ["The patched model is `model.xml` (nominal + named effects at their all-runs fit). "
           "`report.json` holds every number of this page.", ""]
     return "\n".join(L)
+
+
+def _md_sampling(rep: dict) -> list[str]:
+    """The measured runs as they were logged: period, jitter, longest gap, the device's loop."""
+    rows = rep.get("sampling") or []
+    if not rows:
+        return []
+    L = ["## The runs as logged", "",
+         "| run | samples | period [ms] | jitter (std) [ms] | longest gap [ms] | loop period [ms] | torque off |",
+         "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        L.append(f"| {r['run']} | {r['samples']} | {r['period_s'] * 1e3:.3g} | {r['jitter_s'] * 1e3:.2g} | "
+                 f"{r['max_gap_s'] * 1e3:.3g} | {r['control_period_s'] * 1e3:.3g} | {r['torque_off_share']:.0%} |")
+    return L + ["", "The replay runs the device's loop at the loop period, holds the reference (and "
+                "the torque switch) between log samples and reads the model's angle at the logged "
+                "times.", ""]
 
 
 def _md_named(rep: dict) -> list[str]:

@@ -530,8 +530,20 @@ def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: No
         "rounds": selection.entries,
         "candidates": [[_candidate_row(s) for s in round_scored] for round_scored in rounds],
         "localisation": {"before": loc_before, "after": loc_after},
+        "sampling": [sampling(r) for r in runs],
         "settings": settings,
     }
+
+
+def sampling(run: ReplayRun) -> dict:
+    """How a run was logged and replayed: its name, samples, median ``period_s``, ``jitter_s``
+    (standard deviation of the spacing), longest ``max_gap_s``, the device's
+    ``control_period_s``, and the share of the run with the actuator off."""
+    dt = np.diff(run.t)
+    off = 0.0 if run.enabled is None else float(np.mean(~run.enabled))
+    return {"run": run.name, "samples": int(run.n), "period_s": float(np.median(dt)),
+            "jitter_s": float(np.std(dt)), "max_gap_s": float(np.max(dt)),
+            "control_period_s": float(run.period), "torque_off_share": off}
 
 
 def _candidate_row(s: Scored) -> dict:
