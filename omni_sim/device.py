@@ -370,6 +370,21 @@ class Device:
         for a in self.lugre_actuators():
             m.actuator_biasprm[a, 3:5] = factor * b.actuator_biasprm[a, 3:5]
 
+    def off_model(self) -> mujoco.MjModel:
+        """The model with the drive switched off (torque disabled: the actuator exerts no force;
+        a ``dcmotor``'s winding open, so no back-EMF braking either; back-EMF written as joint
+        damping stays, it is the joint's).  Made once, from the model as it is then."""
+        if getattr(self, "_off", None) is None:
+            m = copy.deepcopy(self.model)
+            a = self.ix.yaw_act
+            if m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_DCMOTOR:
+                m.actuator_gainprm[a, 1] = 0.0  # motor constant K = 0: no torque, no back-EMF
+            else:
+                m.actuator_gainprm[a, :] = 0.0
+                m.actuator_biasprm[a, :] = 0.0
+            self._off = m
+        return self._off
+
     def without_friction(self) -> "Device":
         """A device on a copy of the model with no dry friction on the drive (viscous damping
         kept)."""
@@ -566,6 +581,9 @@ class Engine:
             self._dof = laws[0].dof
             self._force = np.zeros(self.B)  # each row's actuator force of its last step
             self._law_models = [copy.deepcopy(d.model) for d in devices]
+        # torque-off periods (run_p_loop's ``enabled``) step each row's off model
+        self._on_models = self._law_models if self._laws else [d.model for d in devices]
+        self._off_models = None  # made at the first torque-off period
         if self.B == 1:
             m1 = self._law_models[0] if self._laws else d0.model
             self._data = d0.start_data(float(theta0_rad[0]), _pose(gamma_set_deg[0]), data)
@@ -579,7 +597,7 @@ class Engine:
         self._ctrl = np.empty((self.B, self.substeps, d0.model.nu))
         for b, (dev, th0, gs) in enumerate(zip(devices, theta0_rad, gamma_set_deg)):
             self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
-        self._models = self._law_models if self._laws else [d.model for d in devices]
+        self._models = list(self._on_models)
         nthread = max(1, nthread or os.cpu_count() or 1)
         self._own_pool = pool is None
         # one thread: the calling thread steps the batch (no hand-off to a pool thread at
@@ -649,13 +667,23 @@ class Engine:
             else:
                 self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
 
-    def apply(self, v) -> np.ndarray:
+    def _off(self) -> list:
+        if self._off_models is None:
+            self._off_models = [copy.deepcopy(d.off_model()) if self._laws else d.off_model()
+                                for d in self.devices]
+        return self._off_models
+
+    def apply(self, v, on=None) -> np.ndarray:
         """Hold the commands ``v`` [V] (one per row, clipped to each drive) for one control
-        period and advance the physics; returns the applied (clipped) commands."""
+        period and advance the physics; returns the applied (clipped) commands.  ``on`` (B
+        bools, default all True): rows switched off step with the drive off
+        (:meth:`Device.off_model`; their command is 0)."""
         if self._data is not None:  # one row: plain floats and mj_step (the env's hot path)
             vk = float(v[0]) if np.ndim(v) else float(v)
             vk = min(max(vk, -self._vmax1), self._vmax1)
             m, d = self._m1, self._data
+            if on is not None and not bool(np.ravel(on)[0]):
+                m, vk = self._off()[0], 0.0
             if self._laws:
                 self._set_friction()
             d.ctrl[self._yaw_act] = vk
@@ -665,7 +693,9 @@ class Engine:
                 self._force[0] = d.sensordata[self._laws[0].sensor_adr] if self._laws[0].sensor_adr >= 0 else 0.0
             return np.array([vk])
         v = np.clip(np.asarray(v, dtype=float).reshape(self.B), -self.vmax, self.vmax)
-        self._advance(v)
+        if on is not None:
+            v = np.where(on, v, 0.0)
+        self._advance(v, on)
         return v
 
     def apply_per_step(self, v) -> np.ndarray:
@@ -680,10 +710,14 @@ class Engine:
         d0 = self.devices[0]
         return self._state[:, :, 1 + d0.model.nq + d0.ix.yaw_dof].copy()
 
-    def _advance(self, v: np.ndarray) -> None:
+    def _advance(self, v: np.ndarray, on=None) -> None:
         """A batch's :meth:`apply` after the clip: ``v`` (B,) or (B, substeps) already within
-        each drive's limit (one command for the period, or one per physics step)."""
+        each drive's limit (one command for the period, or one per physics step); ``on``: see
+        :meth:`apply`."""
         self._ctrl[:, :, self._yaw_act] = v[:, None] if v.ndim == 1 else v
+        if on is not None or self._off_models is not None:
+            off = self._off()
+            self._models = [mo if (on is None or on[b]) else off[b] for b, mo in enumerate(self._on_models)]
         if self._laws:
             self._set_friction()
         self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
@@ -699,9 +733,12 @@ class Engine:
         levels = _drive_levels(self._laws, self.yaw_velocity(), self._force)
         if self._data is not None:
             self._m1.dof_frictionloss[self._dof] = levels[0]
-            return
-        for m, f in zip(self._law_models, levels):
-            m.dof_frictionloss[self._dof] = f
+        else:
+            for m, f in zip(self._law_models, levels):
+                m.dof_frictionloss[self._dof] = f
+        if self._off_models is not None:
+            for m, f in zip(self._off_models, levels):
+                m.dof_frictionloss[self._dof] = f
 
 
 def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,
@@ -727,8 +764,9 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
         limit (``ctrlrange``).  The drive still clips what it receives to its ``ctrlrange``, so
         the applied command is clipped at the smaller of the two.
     enabled : ndarray of bool, shape (B, n), optional
-        Whether the actuator is on at each period: while False the command is 0 (torque off:
-        the joint swings free of the P law).  Default: always on.
+        Whether the actuator is on at each period: while False the command is 0 and the drive
+        exerts no force (torque off, :meth:`Device.off_model`: the joint swings free).
+        Default: always on.
 
     Returns
     -------
@@ -773,8 +811,7 @@ def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm, vma
             th = engine.yaw()
         y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
         theta[:, k] = y
-        u = p_law(kp, r[:, k], y, vmax)
-        v[:, k] = engine.apply(u if on is None or on[0, k] else np.zeros_like(u))
+        v[:, k] = engine.apply(p_law(kp, r[:, k], y, vmax), None if on is None else on[:, k])
 
 
 def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm, vmax, on) -> None:
@@ -801,4 +838,4 @@ def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm, vmax, on) ->
         if on is not None:
             u = np.where(on[:, k], u, 0.0)
         v[:, k] = u
-        engine._advance(u)
+        engine._advance(u, None if on is None else on[:, k])

@@ -85,6 +85,32 @@ def test_torque_off_run_is_the_free_decay_closed_form(model):
     assert np.max(np.abs(on - want)) > 0.05
 
 
+def test_torque_off_opens_a_dcmotor_winding():
+    """A dcmotor's back-EMF (K^2/R = 0.25 N*m*s/rad here, 60x the joint's damping) brakes at zero
+    volts, as a shorted winding; torque off opens the winding: the same free decay closed form
+    as the plain motor (tolerance as above), and far from the braked decay."""
+    xml = XML.replace('<motor name="drive" joint="hinge" gear="1" ctrllimited="true" ctrlrange="-5 5"/>',
+                      '<dcmotor name="drive" joint="hinge" motorconst="0.5" resistance="1" '
+                      'ctrllimited="true" ctrlrange="-5 5"/>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    rng = np.random.default_rng(3)
+    t = _log_times(rng)
+    (got,), _ = _replay(m, [_run("off", t, np.full_like(t, 0.3), 0.1, enabled=np.zeros_like(t))])
+    w0 = math.sqrt(K / J)
+    zeta = B / (2 * math.sqrt(K * J))
+    wd = w0 * math.sqrt(1 - zeta**2)
+    want = 0.1 * np.exp(-zeta * w0 * t) * (np.cos(wd * t) + zeta * w0 / wd * np.sin(wd * t))
+    assert np.max(np.abs(got - want)) < 1.25e-6
+    d = mujoco.MjData(m)  # zero volts, winding shorted: the braked decay
+    d.qpos[0] = 0.1
+    braked = []
+    for k in range(int(t[-1] / TIMESTEP) + 1):
+        braked.append(d.qpos[0])
+        mujoco.mj_step(m, d)
+    braked = np.interp(t, np.arange(len(braked)) * TIMESTEP, braked)
+    assert np.max(np.abs(braked - want)) > 0.05
+
+
 def _reference_loop(model, t, r, on, theta0, control_period):
     """The slow reference: the servo's loop written out with mj_step, by the documented rule
     (omni_sim.discrepancy.runs.ReplayRun).  Grid time tau_j = j T; the goal and switch of the

@@ -433,7 +433,6 @@ def test_torque_per_volt_of_each_form(form):
     assert device(FORMS[form]()).voltage_limit == SUPPLY  # ctrlrange is the voltage limit
 
 
-@pytest.mark.xfail(reason="Device.torque_constant reads actuator_gear, which for a dcmotor is "
-                          "the gear ratio, not the torque per volt gear*K/R", strict=False)
 def test_device_torque_constant_of_a_dcmotor():
+    """The torque per volt at rest, gear*K/R (not the dcmotor's gear ratio)."""
     assert device(dcmotor_xml()).torque_constant == pytest.approx(GAIN, rel=1e-14)
