@@ -205,7 +205,7 @@ DISCREPANCY_LAYERS = {
     "statistics": ("localise", "fit", "select", "uncertainty"),
     "simulation": ("replay", "effects"),  # MuJoCo: the replay and the effect library
     "workflow": ("workflow",),  # joins statistics and simulation
-    "truth": ("truth_models", "hidden", "experiment_set", "bank"),  # hidden effects, the bank
+    "truth": ("truth_models", "servo_truth", "hidden", "experiment_set", "bank"),  # hidden effects, the bank
 }
 #: The layers each layer may import inside the package (the package's ``__init__`` is exempt).
 DISCREPANCY_ALLOWED = {

@@ -44,8 +44,13 @@ def test_the_name_index_is_built_by_the_device_and_the_loader_only():
     assert _where(r"(?<![.\w])index\(model") == {"omni_sim/model.py"}  # load_model's check
 
 
+#: The geared-servo bank case's truth: a servo loop written independently of the device (it
+#: must not use it, tests/test_discrepancy_bank.py), so it reads the gear itself.
+INDEPENDENT_TRUTH = "omni_sim/discrepancy/servo_truth.py"
+
+
 def test_the_gear_is_read_in_one_place():
-    assert _where(r"actuator_gear\[") == {"omni_sim/device.py"}
+    assert _where(r"actuator_gear\[") - {INDEPENDENT_TRUTH} == {"omni_sim/device.py"}
 
 
 def test_friction_family_arm_control_inertia_and_encoder_are_defined_once():
@@ -65,7 +70,7 @@ def test_the_search_would_see_a_second_copy(tmp_path):
     extra.write_text("def gear(m, a):\n    return m.actuator_gear[a, 0]\n")
     quiet = tmp_path / "quiet.py"
     quiet.write_text('"""reads model.actuator_gear[a, 0]"""\n')
-    assert _where(r"actuator_gear\[", SOURCES + [extra, quiet]) == {"omni_sim/device.py", "copy.py"}
+    assert _where(r"actuator_gear\[", SOURCES + [extra, quiet]) - {INDEPENDENT_TRUTH} == {"omni_sim/device.py", "copy.py"}
 
 
 def test_calibration_writes_structure_not_text():
