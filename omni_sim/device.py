@@ -575,10 +575,14 @@ class Engine:
         laws = [d.drive_friction for d in devices]
         self._laws = None
         if any(f is not None for f in laws):
-            if any(f is None for f in laws):
-                raise ValueError("the devices of one engine all have drive friction laws, or none")
-            self._laws = laws
-            self._dof = laws[0].dof
+            # a row without laws (a candidate model without them, batched with ones that have
+            # them) keeps its own frictionloss: the null law
+            self._laws = [f if f is not None else
+                          DriveFriction(d.ix.yaw_dof, float(d.model.dof_frictionloss[d.ix.yaw_dof]),
+                                        0.0, 0.0, 0.0, -1, 1.0)
+                          for f, d in zip(laws, devices)]
+            self._sensor = np.array([f.sensor_adr for f in self._laws])
+            self._dof = self._laws[0].dof
             self._force = np.zeros(self.B)  # each row's actuator force of its last step
             self._law_models = [copy.deepcopy(d.model) for d in devices]
         # torque-off periods (run_p_loop's ``enabled``) step each row's off model
@@ -689,8 +693,8 @@ class Engine:
             d.ctrl[self._yaw_act] = vk
             for _ in range(self.substeps):
                 mujoco.mj_step(m, d)
-            if self._laws:
-                self._force[0] = d.sensordata[self._laws[0].sensor_adr] if self._laws[0].sensor_adr >= 0 else 0.0
+            if self._laws and self._sensor[0] >= 0:
+                self._force[0] = d.sensordata[self._sensor[0]]
             return np.array([vk])
         v = np.clip(np.asarray(v, dtype=float).reshape(self.B), -self.vmax, self.vmax)
         if on is not None:
@@ -724,8 +728,9 @@ class Engine:
                           skip_checks=True, state=self._state, sensordata=self._sens,
                           chunk_size=self._chunk)
         self.x = self._state[:, -1, :].copy()
-        if self._laws and self._laws[0].sensor_adr >= 0:
-            self._force = self._sens[:, -1, self._laws[0].sensor_adr].copy()
+        if self._laws and np.any(self._sensor >= 0):
+            has = self._sensor >= 0
+            self._force = np.where(has, self._sens[np.arange(self.B), -1, np.maximum(self._sensor, 0)], 0.0)
 
     def _set_friction(self) -> None:
         """Every row's :class:`DriveFriction` level for the coming control period, written into

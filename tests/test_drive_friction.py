@@ -98,3 +98,15 @@ def test_load_friction_needs_its_sensor_and_sane_values():
         Device(_model(load=(0.2, 0.5), sensor=False), 0.001, TARGET)
     with pytest.raises(UserError, match="two coefficients"):
         Device(_model(load=(-0.2, 0.5)), 0.001, TARGET)
+
+
+def test_a_batch_may_mix_rows_with_and_without_the_laws():
+    """A candidate model without the laws batched with one that has them (same sizes: the
+    asymmetry needs no sensor) keeps its own friction: each row equals its one-row engine."""
+    t = np.arange(800) * 0.001
+    r = np.where(t % 0.4 < 0.2, 0.3, -0.3)[None, :]
+    plain, law = Device(_model(sensor=False), 0.001, TARGET), Device(_model(asym=0.02, sensor=False), 0.001, TARGET)
+    both = run_p_loop(Engine([plain, law], [0.0, 0.0], [None, None], nthread=1), np.vstack([r, r]), 3.0)["theta"]
+    for b, dev in enumerate((plain, law)):
+        one = run_p_loop(Engine([dev], [0.0], [None]), r, 3.0)["theta"]
+        assert np.array_equal(both[b], one[0])
