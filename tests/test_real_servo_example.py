@@ -115,7 +115,11 @@ def test_model_numbers():
     d.ctrl[0] = 12.0
     mujoco.mj_forward(m, d)
     assert d.qfrc_actuator[0] == pytest.approx(4.903, abs=2e-3)  # the sheet's stall torque
-    assert m.dof_damping[0] == pytest.approx(0.6227 + 0.0349)
+    assert m.dof_damping[0] == pytest.approx(0.0349)  # the gearbox's; the back-EMF is the actuator's
+    d.qvel[0] = 2.0
+    mujoco.mj_forward(m, d)
+    assert d.qfrc_actuator[0] == pytest.approx(4.903 - 0.6227 * 2.0, abs=2e-3)
+    d.qvel[0] = 0.0
     assert d.M[0] == pytest.approx(1.13 * 0.12**2 + 1.81e-4 + 0.0119)
     # gravity restores towards q = 0 (hanging) from either side
     for q in (-0.5, 0.5):

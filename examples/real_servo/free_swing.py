@@ -6,10 +6,11 @@ The log lifts the pendulum to about -1.54 rad, then switches the servo's torque 
 pendulum falls and swings freely about q = 0.  The check starts the model at the first
 torque-off sample's angle and speed, with control 0, in two readings of "torque off":
 
-* ``brake``: the model as written: zero volts on a motor whose back-EMF stays connected
-  (kt^2/R = 0.6227 N*m*s/rad in the joint's damping), i.e. a shorted winding;
-* ``coast``: the winding left open (what a servo that switches its H-bridge off does): the
-  back-EMF removed, the gearbox's viscous 0.0349 N*m*s/rad and dry 0.199 N*m kept.
+* ``brake``: zero volts on a motor whose back-EMF stays connected (kt^2/R = 0.6227 N*m*s/rad,
+  the actuator's velocity bias), i.e. a shorted winding;
+* ``coast``: the winding left open (what a servo that switches its H-bridge off does, and what
+  the replay does while ``enabled`` = 0): the actuator's back-EMF removed, the gearbox's
+  viscous 0.0349 N*m*s/rad and dry 0.199 N*m kept.
 
 It prints the turning points (time, angle), the mean half period and the amplitude ratio
 between successive turning points, for the log and both simulations, and the RMS difference
@@ -34,9 +35,8 @@ HERE = Path(__file__).resolve().parent
 LOG = HERE / "data" / "2024-10-26_12h23m42.json"  # trajectory lift_and_drop
 MODEL = HERE / "model.xml"
 JOINT = "servo_axis"
-#: The motor's back-EMF kt^2/R [N*m*s/rad] that model.xml holds in the joint's damping
-#: (stall torque / no-load speed = 4.903 / 7.874, the STS3250 sheet; see model.xml).
-BACK_EMF_NMS = 0.6227
+#: The actuator that holds the motor's back-EMF kt^2/R (its velocity bias; model.xml).
+ACTUATOR = "servo"
 
 
 def torque_off_span(path: Path = LOG) -> tuple[np.ndarray, np.ndarray, float]:
@@ -71,13 +71,14 @@ def simulate(model: mujoco.MjModel, q0: float, v0: float, duration_s: float,
 
 
 def models(path: Path = MODEL, joint: str = JOINT) -> dict[str, mujoco.MjModel]:
-    """``brake``: the model as written; ``coast``: the same without the back-EMF damping."""
+    """``brake``: the model as written at zero volts; ``coast``: the same with the actuator's
+    back-EMF bias removed (an open winding)."""
     spec = mujoco.MjSpec.from_file(str(path))
     brake = spec.compile()
-    jnt = spec.joint(joint)
-    damping = jnt.damping.copy()  # MuJoCo 4: (linear, ...) damping coefficients
-    damping[0] -= BACK_EMF_NMS
-    jnt.damping = damping
+    act = spec.actuator(ACTUATOR)
+    bias = list(act.biasprm)
+    bias[2] = 0.0
+    act.biasprm = bias
     return {"brake": brake, "coast": spec.compile()}
 
 
