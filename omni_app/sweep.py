@@ -312,9 +312,12 @@ def _parse_pipeline(doc: dict, source: str, base_dir: Path) -> dict:
         pipe.update(campaign_text=ctext, campaign_source=csource)
     else:
         case_name = p.get("hidden", "viscous_damping")
-        names = [c.name for c in hidden.CASES]
+        # the sweep writes a case's truth on the study's Omni variants: the Omni's cases only
+        # (a geared-servo case simulates a device of its own)
+        names = [c.name for c in hidden.CASES if c.truth == "omni"]
         if case_name not in names:
-            raise _err(source, "pipeline.hidden", f"must be a case of the bank ({', '.join(names)}), got {case_name!r}")
+            raise _err(source, "pipeline.hidden", f"must be one of the bank's Omni cases ({', '.join(names)}), "
+                       f"got {case_name!r}")
         dur = _num(source, "pipeline.duration_s", p.get("duration_s", experiment_set.DURATION_S))
         if not 1.0 <= dur <= 60:
             raise _err(source, "pipeline.duration_s", f"must be in [1, 60] s, got {dur}")
