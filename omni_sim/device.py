@@ -91,6 +91,12 @@ class DriveFriction:
     geared drive's friction is larger (a self-locking gearbox when ``mu_back >= 1``).  The
     velocity at rest is MuJoCo's soft-constraint creep, whose sign is that of the net torque,
     so a load that would back-drive a held servo meets ``mu_back``.
+
+    The one-row and batch engines agree bit for bit on tests/test_drive_friction.py's runs, but
+    not always: near rest the branch ``tau w > 0`` follows the sign of a creep velocity of
+    ~1e-9 rad/s, which last-bit differences between ``mj_step`` and ``mujoco.rollout`` can flip
+    (measured up to 4.5e-4 rad apart on a lift-and-drop run of the bank's geared-servo case,
+    under one encoder count).
     """
 
     dof: int
