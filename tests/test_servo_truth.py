@@ -1,6 +1,7 @@
-"""The geared-servo truth (omni_sim/discrepancy/servo_truth.py): its load-dependent friction law
-step by step, the nominal model when both coefficients are 0 (bit for bit, and the device's own
-loop on regular times), self-locking, energy in free swing, and the host's log (irregular
+"""The geared-servo truth (omni_sim/discrepancy/servo_truth.py): its load-dependent and
+direction-dependent friction law step by step, the nominal model when the asymmetry and both
+coefficients are 0 (bit for bit, and the device's own loop on regular times), self-locking,
+energy in free swing, where a free fall stops with an asymmetry, and the host's log (irregular
 times, goal held, torque-off spans, encoder counts)."""
 
 import math
@@ -46,16 +47,30 @@ def test_nominal_model_numbers(nominal):
 
 
 def test_mu_zero_is_the_nominal_model_bit_for_bit():
-    """mu_drive = mu_back = 0 writes Fc every step: the same trajectory as the plain loop that
-    never writes the friction (noise and counts on)."""
+    """mu_drive = mu_back = 0 (and the asymmetry 0, its default) writes Fc every step: the same
+    trajectory as the plain loop that never writes the friction (noise and counts on)."""
     e = st.EXPERIMENTS[7]  # square waves about 0.6 rad
     t = st.log_times(3.0, np.random.default_rng(3))
     noise = np.random.default_rng(4).normal(0, st.NOISE_RAD, int(t[-1] / DT) + 1)
     a = st.simulate(t, e.goal(t), e.enabled(t), mu_drive=0.0, mu_back=0.0, noise=noise)
     b = st.simulate(t, e.goal(t), e.enabled(t), noise=noise, friction_law=False)
+    c = st.simulate(t, e.goal(t), e.enabled(t), mu_drive=0.0, mu_back=0.0, asymmetry_nm=0.0,
+                    noise=noise)
     for f in ("theta", "omega", "y", "u", "tau"):
         np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+        np.testing.assert_array_equal(getattr(a, f), getattr(c, f), err_msg=f)
     assert np.all(a.frictionloss == 0.03)
+
+
+def test_zero_asymmetry_leaves_the_load_friction_law_bit_for_bit():
+    """The asymmetry's default 0 leaves the load-dependent law as it was (the load_friction
+    case's runs unchanged): the same trajectory with asymmetry_nm = 0 given or not."""
+    e = st.EXPERIMENTS[3]
+    t = st.log_times(2.0, np.random.default_rng(7))
+    a = st.simulate(t, e.goal(t), e.enabled(t), mu_drive=0.15, mu_back=0.45)
+    b = st.simulate(t, e.goal(t), e.enabled(t), mu_drive=0.15, mu_back=0.45, asymmetry_nm=0.0)
+    for f in ("theta", "omega", "u", "tau", "frictionloss"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
 
 
 def test_nominal_loop_is_the_devices_on_regular_times(nominal):
@@ -89,6 +104,65 @@ def test_the_friction_law_step_by_step():
     assert drive.mean() > 0.2 and (~drive & (np.abs(w) > 0.05)).mean() > 0.2
     # the transmitted torque is the command through the gear (no saturation beyond ctrlrange)
     np.testing.assert_allclose(tr.tau, 0.30 * tr.u, rtol=1e-12, atol=1e-15)
+
+
+def test_the_asymmetry_step_by_step():
+    """With an asymmetry ``a`` (and no load-dependent part) each step's frictionloss is
+    max(0, Fc + a sign(w)), w the velocity before the step: Fc + a moving positive, Fc - a moving
+    negative, Fc at rest exactly (the first step); with the load-dependent part too, the two
+    add (max(0, Fc + a sign(w) + mu |tau_prev|)); a = -0.05 > Fc clips at 0 moving negative."""
+    e = st.EXPERIMENTS[1]  # a 1.5 Hz sine about the hanging pose: both directions
+    t = st.log_times(e.duration_s, np.random.default_rng(8))
+    noise = np.random.default_rng(9).normal(0, st.NOISE_RAD, 5001)
+    for a, mu in ((0.0075, (0.0, 0.0)), (-0.01, (0.15, 0.45)), (-0.05, (0.0, 0.0))):
+        tr = st.simulate(t, e.goal(t), e.enabled(t), mu_drive=mu[0], mu_back=mu[1], asymmetry_nm=a,
+                         noise=noise)
+        w = tr.omega[:-1]
+        tau_prev = np.concatenate(([0.0], tr.tau[:-1]))
+        m = np.where(tau_prev * w > 0, mu[0], mu[1])
+        expect = np.maximum(0.0, 0.03 + a * np.sign(w) + m * np.abs(tau_prev))
+        np.testing.assert_array_equal(tr.frictionloss, expect)
+        assert tr.frictionloss[0] == 0.03 and w[0] == 0.0
+        assert (w > 0.05).mean() > 0.2 and (w < -0.05).mean() > 0.2
+        if mu == (0.0, 0.0):
+            levels = set(np.unique(tr.frictionloss))
+            assert levels <= {0.03, max(0.0, 0.03 + a), max(0.0, 0.03 - a)}, levels
+
+
+def test_the_asymmetry_is_the_devices_law(nominal):
+    """On regular times with an exact encoder, the truth's loop with an asymmetry agrees with
+    the device's engine (omni_sim.device.DriveFriction) on the nominal model declaring the same
+    ``friction_asymmetry``: the two were written apart and implement one law."""
+    spec = mujoco.MjSpec.from_file(str(st.model_path()))
+    spec.add_numeric(name="friction_asymmetry", data=[st.ASYMMETRY_NM])
+    m = spec.compile()
+    t = np.arange(2001) * DT
+    r = 0.4 * np.sin(2 * np.pi * 1.5 * t) + 0.3
+    tr = st.simulate(t, r, np.ones_like(t), mu_drive=0.0, mu_back=0.0,
+                     asymmetry_nm=st.ASYMMETRY_NM, step_rad=0.0)
+    plain = st.simulate(t, r, np.ones_like(t), mu_drive=0.0, mu_back=0.0, step_rad=0.0)
+    dev = Device(m, DT, target=st.target())
+    with dev.engine([0.0], [None], nthread=1) as engine:
+        out = run_p_loop(engine, r[None, :], st.KP, command_limit=st.COMMAND_LIMIT)
+    np.testing.assert_allclose(out["theta"][0], tr.theta[: len(t)], rtol=0, atol=1e-9)
+    assert np.max(np.abs(tr.theta - plain.theta)) > 1e-4  # the asymmetry shows
+
+
+def test_free_fall_stops_where_gravity_meets_the_lower_level():
+    """Torque off after a lift to 1.0 rad: the pendulum falls (moving negative, overdamped by
+    the back-EMF, slow time constant ~0.24 s) and comes to rest where the gravity torque
+    m g l sin(theta) meets the friction level it was moving against, Fc - a with an asymmetry a,
+    Fc without (closed form); the torque-off span is 4 s here (the bank's runs: 1.5 s)."""
+    e = st.Experiment("lift_drop_long", "other", 0.0, 1.00, shape="lift_drop", off_s=(2.0, 6.0),
+                      duration_s=6.5)
+    t = _regular(e.duration_s)
+    k = int(5.9 / DT)
+    for a in (0.0, st.ASYMMETRY_NM):
+        tr = st.simulate(t, e.goal(t), e.enabled(t), mu_drive=0.0, mu_back=0.0, asymmetry_nm=a,
+                         step_rad=0.0)
+        assert abs(tr.omega[k]) < 1e-3
+        rest = math.asin((0.03 - a) / 1.1847)
+        assert tr.theta[k] == pytest.approx(rest, abs=2e-4), a
 
 
 def _hold_then_relax(mu_back, mu_drive=0.15):
@@ -215,8 +289,8 @@ def test_hidden_friction_shows_above_the_noise(runs):
         assert np.sqrt(np.mean((a.theta - b.theta) ** 2)) > 2 * st.ENCODER_STEP_RAD, a.name
 
 
-def test_only_load_friction_is_simulated():
-    with pytest.raises(ValueError, match="only load_friction"):
+def test_only_load_friction_and_asymmetry_are_simulated():
+    with pytest.raises(ValueError, match="only load_friction and asymmetric_friction"):
         st.generate(effects=(("coulomb_friction", (0.01,)),))
 
 
@@ -233,3 +307,22 @@ def test_the_bank_case():
     np.testing.assert_array_equal(runs[0].theta, st.measure(st.EXPERIMENTS[0]).theta)
     with pytest.raises(ValueError):
         hidden.truth_spec(c)
+
+
+def test_the_asymmetric_friction_case():
+    """The bank's asymmetric_friction case: the servo truth with the asymmetry alone (no
+    load-dependent part) on the load_friction case's experiments, log times and noise; its
+    friction differs from the nominal model's by more than a count on the torque-off runs."""
+    c = hidden.case("asymmetric_friction")
+    assert c.truth == "servo" and c.effects == (("asymmetric_friction", (st.ASYMMETRY_NM,)),)
+    assert c.expect == ("asymmetric_friction",)
+    assert 0.1 <= st.ASYMMETRY_NM / 0.03 <= 0.5  # a few tens of % of the nominal Fc
+    assert hidden.nominal(c) == (st.model_path(), st.target())
+    exps = [st.EXPERIMENTS[0], st.EXPERIMENTS[11]]
+    runs = hidden.generate(c, exps)
+    nominal = st.generate(effects=(), experiments=exps)
+    for e, r, n in zip(exps, runs, nominal, strict=True):
+        np.testing.assert_array_equal(r.theta, st.measure(e, mu_drive=0.0, mu_back=0.0,
+                                                          asymmetry_nm=st.ASYMMETRY_NM).theta)
+        np.testing.assert_array_equal(r.t, n.t)
+    assert np.max(np.abs(runs[1].theta - nominal[1].theta)) > 2 * st.ENCODER_STEP_RAD

@@ -1,30 +1,34 @@
-"""A pendulum on a geared servo whose gearbox friction grows with the torque it transmits: the
-truth of the hidden-effect bank's geared-servo case, and its "measured" runs as a host logs a
-real servo.
+"""A pendulum on a geared servo whose gearbox friction grows with the torque it transmits, or
+depends on the direction of motion: the truth of the hidden-effect bank's geared-servo cases,
+and their "measured" runs as a host logs a real servo.
 
 Written independently of the effect library (:mod:`omni_sim.discrepancy.effects`) and of the
 device's closed-loop engine (:mod:`omni_sim.device`): a plain loop over physics steps with
 ``mujoco.mj_step`` on a private copy of the nominal model ``models/servo_pendulum.xml`` (joint
 ``pivot``, actuator ``servo``, control in volts).
 
-The hidden law (load-dependent gearbox friction)
-------------------------------------------------
+The hidden law (load-dependent and direction-dependent gearbox friction)
+------------------------------------------------------------------------
 At every physics step (timestep = the servo's 1 ms loop period): ``w`` = the hinge velocity
 before the step; ``tau`` = the torque the motor transmits, ``gear * actuator_force`` of the
 servo's actuator as computed in the previous step (0 before the first step); the hinge's
 Coulomb friction for this step is::
 
-    frictionloss = max(0, Fc + mu * |tau|),   mu = mu_drive if tau * w > 0 else mu_back
+    frictionloss = max(0, Fc + a * sign(w) + mu * |tau|),   mu = mu_drive if tau * w > 0 else mu_back
 
 (``mu_drive``: the motor drives the load; ``mu_back``: the load back-drives the motor, or at
-rest), ``Fc`` the nominal model's own ``frictionloss`` of the hinge.  It is written into the
-private model's ``dof_frictionloss`` before each ``mj_step``.  With both coefficients 0 the loop
-is the nominal model's, bit for bit (``tests/test_servo_truth.py``).
+rest), ``Fc`` the nominal model's own ``frictionloss`` of the hinge, ``a`` [N*m] the
+direction-dependent part of the Coulomb level (``Fc + a`` moving positive, ``Fc - a`` moving
+negative, ``Fc`` at ``w = 0`` exactly; ``sign`` is -1, 0 or +1).  It is written into the private
+model's ``dof_frictionloss`` before each ``mj_step``.  With ``a`` and both coefficients 0 the
+loop is the nominal model's, bit for bit (``tests/test_servo_truth.py``).
 
-Magnitudes (the case's values, :data:`MU_DRIVE`, :data:`MU_BACK`): a driving gearbox passes
-``eta_f * tau`` to the load and loses ``(1 - eta_f) * tau``, so ``mu_drive = 1 - eta_f``; a
-back-driven one loses ``T - eta_b * T`` of the load torque ``T`` while the motor holds
-``tau = eta_b * T``, so ``mu_back = 1/eta_b - 1``.
+Magnitudes (the ``load_friction`` case's values, :data:`MU_DRIVE`, :data:`MU_BACK`): a driving
+gearbox passes ``eta_f * tau`` to the load and loses ``(1 - eta_f) * tau``, so
+``mu_drive = 1 - eta_f``; a back-driven one loses ``T - eta_b * T`` of the load torque ``T``
+while the motor holds ``tau = eta_b * T``, so ``mu_back = 1/eta_b - 1``.  The
+``asymmetric_friction`` case's ``a`` is :data:`ASYMMETRY_NM` (its truth has no load-dependent
+part: ``mu_drive = mu_back = 0``).
 
 The experiment and its log
 --------------------------
@@ -71,6 +75,16 @@ JOINT, ACTUATOR = "pivot", "servo"
 #: the gear) reported for such servos, not a measured figure.
 MU_DRIVE = 0.15
 MU_BACK = 0.45
+#: The hidden direction-dependent Coulomb part [N*m] of the bank's ``asymmetric_friction`` case
+#: (the nominal model has none): +7.5 mN*m, 25 % of the nominal Fc = 30 mN*m (friction 37.5
+#: mN*m moving positive, 22.5 mN*m moving negative).  An ESTIMATE, set before the case was
+#: run: about half of a small servo's no-load friction is the motor's own (brushes on the
+#: commutator, reflected through the gear; the rest the gear train), and a brushed motor's
+#: brush friction differs with the direction of rotation (brushes in inclined holders trail one
+#: way and lead the other; wear and the commutator's edges make it worse) by up to about half
+#: (estimate, not a measured figure): 0.5 x 0.5 x Fc = 0.25 Fc.  Inside the library effect's
+#: "a few to ~30 % of the Coulomb level" (effects/drive.py).
+ASYMMETRY_NM = 0.0075
 #: The servo's loop period [s] (1 kHz: the usual rate of a servo's internal loop, ../shared
 #: notes "Geared servos"); the model's timestep is the same.
 CONTROL_PERIOD_S = 1e-3
@@ -152,8 +166,13 @@ def held_index(t_log: np.ndarray, t_tick: np.ndarray) -> np.ndarray:
     return np.maximum(np.searchsorted(t_log, t_tick, side="right") - 1, 0)
 
 
+def _sign(w: float) -> float:
+    """-1, 0 or +1 (0 at exactly 0)."""
+    return 1.0 if w > 0 else (-1.0 if w < 0 else 0.0)
+
+
 def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BACK,
-             kp: float = KP, command_limit: float = COMMAND_LIMIT, noise=None,
+             asymmetry_nm: float = 0.0, kp: float = KP, command_limit: float = COMMAND_LIMIT, noise=None,
              step_rad: float = ENCODER_STEP_RAD, theta0: float = 0.0, path=None,
              friction_law: bool = True) -> Trajectory:
     """Run the truth's servo loop from rest at ``theta0`` until the last log time.
@@ -165,6 +184,8 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
         [rad], torque enable (0/1).
     mu_drive, mu_back : float [-]
         The load-dependent friction's coefficients (0, 0: the nominal model).
+    asymmetry_nm : float [N*m]
+        The direction-dependent Coulomb part ``a`` (0: the nominal model).
     kp, command_limit : float
         The P law ``clip(kp (goal - y), +-command_limit)`` [V/rad, V].
     noise : array (n,), optional [rad]
@@ -202,7 +223,7 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
         if friction_law:
             w = d.qvel[dof]
             mu = mu_drive if tau * w > 0 else mu_back
-            m.dof_frictionloss[dof] = max(0.0, fc + mu * abs(tau))
+            m.dof_frictionloss[dof] = max(0.0, fc + asymmetry_nm * _sign(w) + mu * abs(tau))
         fl[k] = m.dof_frictionloss[dof]
         d.ctrl[aid] = u[k]
         mujoco.mj_step(m, d)
@@ -315,7 +336,7 @@ EXPERIMENTS: tuple[Experiment, ...] = (
 
 
 def measure(e: Experiment, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BACK,
-            seed: int = 1, exact: bool = False, path=None) -> Run:
+            asymmetry_nm: float = 0.0, seed: int = 1, exact: bool = False, path=None) -> Run:
     """One run of the truth, logged as the host logs it (irregular times, goal held, encoder
     counts and noise; ``exact``: neither noise nor rounding, on the loop or in the log)."""
     t_log = log_times(e.duration_s, _rng(seed, e.name, "clock"))
@@ -324,8 +345,8 @@ def measure(e: Experiment, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BA
     noise_rad = 0.0 if exact else NOISE_RAD
     step = 0.0 if exact else ENCODER_STEP_RAD
     loop_noise = _rng(seed, e.name, "loop").normal(0.0, noise_rad, n) if noise_rad else None
-    traj = simulate(t_log, r, en, mu_drive=mu_drive, mu_back=mu_back, noise=loop_noise,
-                    step_rad=step, path=path)
+    traj = simulate(t_log, r, en, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry_nm,
+                    noise=loop_noise, step_rad=step, path=path)
     theta_true, v = at_log_times(traj, t_log)
     log_noise = _rng(seed, e.name, "log").normal(0.0, noise_rad, len(t_log)) if noise_rad else 0.0
     theta = read_encoder(theta_true, log_noise, step)
@@ -337,18 +358,26 @@ def measure(e: Experiment, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BA
             "units": {"r": "rad", "theta": "rad", "v": "V (motor voltage command)", "kp": "V/rad",
                       "command_limit": "V", "enabled": "torque enable (0: 0 V)"},
             "device": "pendulum on a geared servo (models/servo_pendulum.xml + load-dependent "
-                      "gearbox friction, omni_sim/discrepancy/servo_truth.py)"}
+                      "or direction-dependent gearbox friction, "
+                      "omni_sim/discrepancy/servo_truth.py)"}
     return Run(e.name, t_log, r, theta, v, meta, {"enabled": en})
+
+
+#: The effects this truth simulates (library names) and their parameters' order.
+SIMULATED = ("load_friction", "asymmetric_friction")
 
 
 def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK)),), seed: int = 1, exact: bool = False,
              experiments=EXPERIMENTS) -> list[Run]:
-    """The "measured" runs of the truth with the hidden ``effects`` (only ``load_friction``
-    (mu_drive, mu_back) is simulated here; none: the nominal model)."""
+    """The "measured" runs of the truth with the hidden ``effects``: ``load_friction``
+    (mu_drive, mu_back) and ``asymmetric_friction`` (a [N*m]), either or both (none: the
+    nominal model)."""
     effects = dict(effects)
-    unknown = set(effects) - {"load_friction"}
+    unknown = set(effects) - set(SIMULATED)
     if unknown:
-        raise ValueError(f"the servo truth simulates only load_friction, not {sorted(unknown)}")
+        raise ValueError("the servo truth simulates only load_friction and asymmetric_friction, "
+                         f"not {sorted(unknown)}")
     mu_drive, mu_back = effects.get("load_friction", (0.0, 0.0))
-    return [measure(e, mu_drive=mu_drive, mu_back=mu_back, seed=seed, exact=exact)
-            for e in experiments]
+    (asymmetry,) = effects.get("asymmetric_friction", (0.0,))
+    return [measure(e, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry, seed=seed,
+                    exact=exact) for e in experiments]
