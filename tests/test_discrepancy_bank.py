@@ -345,11 +345,12 @@ def _cable(m):
     raise AssertionError("no cable tendon yaw - yaw_output")
 
 
-#: The Omni's cases with library effects written by :mod:`truth_models` (the geared-servo case's
+#: The Omni's cases with library effects written by :mod:`truth_models` (the geared-servo cases'
 #: truth is a per-step law of its own, tests/test_servo_truth.py).
 LIBRARY_CASES = [c for c in hidden.CASES if c.effects and not c.outside and c.truth == "omni"]
 #: Library effects whose truth is a simulation of its own, not a model written by
-#: :mod:`truth_models` (the servo pendulum's load-dependent gearbox friction).
+#: :mod:`truth_models` (the servo pendulum's load-dependent and direction-dependent gearbox
+#: friction).
 SIMULATED = {n for c in hidden.CASES if c.truth != "omni" for n, _ in c.effects}
 
 
@@ -382,7 +383,7 @@ def test_bank_covers_the_library():
     assert set(fx.NAMES) <= singles
     written = set(fx.NAMES) - SIMULATED  # the rest have a truth simulation of their own
     assert written <= set(truth_models.TRUTH) and written <= set(bank.RANGES)
-    assert SIMULATED == {"load_friction"} and not SIMULATED & set(truth_models.TRUTH)
+    assert SIMULATED == {"load_friction", "asymmetric_friction"} and not SIMULATED & set(truth_models.TRUTH)
     assert {c.name for c in hidden.CASES if c.expect == ("none",)} >= {"none", "none_exact"}
     assert hidden.case("none_exact").exact and not hidden.case("none").exact
     assert any(len(c.effects) == 2 for c in hidden.CASES) and any(len(c.effects) == 3 for c in hidden.CASES)

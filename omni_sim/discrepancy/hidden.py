@@ -14,10 +14,11 @@ device's closed-loop engine, the reference path) on the compact experiment set
 device; the case ``none_exact`` has neither.  The workflow sees only these runs and the nominal
 model.
 
-One case is not the Omni: ``load_friction`` (``truth="servo"``) is a pendulum on a geared servo
-(nominal model ``models/servo_pendulum.xml``, joint ``pivot``, actuator ``servo``: see
-:func:`nominal`) whose gearbox friction grows with the torque it transmits; its truth is a
-per-step simulation of its own and its runs are logged as a host logs a servo (irregular
+Two cases are not the Omni: ``load_friction`` and ``asymmetric_friction`` (``truth="servo"``)
+are a pendulum on a geared servo (nominal model ``models/servo_pendulum.xml``, joint ``pivot``,
+actuator ``servo``: see :func:`nominal`) whose gearbox friction grows with the torque it
+transmits, or whose Coulomb level depends on the direction of motion; their truth is a
+per-step simulation of its own and their runs are logged as a host logs a servo (irregular
 times at ~200 Hz, the goal held between writes, torque-off spans), :mod:`.servo_truth`.
 """
 
@@ -172,6 +173,15 @@ CASES: tuple[HiddenCase, ...] = (
                     "gearbox, 0.96-0.97 per mesh) and mu_back 0.45 (back-driving efficiency 0.69, an "
                     "estimate: back-driving such servos loses markedly more, up to self-locking); 12 runs "
                     "of 5 s logged at ~200 Hz with jitter, 4096-count encoder (servo_truth.py)"),
+    HiddenCase("asymmetric_friction", (("asymmetric_friction", (servo_truth.ASYMMETRY_NM,)),),
+               expect=("asymmetric_friction",), truth="servo",
+               note="the same geared servo and pendulum (models/servo_pendulum.xml, Fc 30 mN*m) whose "
+                    "Coulomb friction depends on the direction of motion: +7.5 mN*m moving positive, "
+                    "-7.5 mN*m moving negative (25 % of Fc; an estimate set before the case was run: "
+                    "about half of a small servo's no-load friction is the brushed motor's, whose brush "
+                    "friction differs with the direction of rotation by up to about half); no "
+                    "load-dependent friction (mu_drive = mu_back = 0); the load_friction case's 12 runs "
+                    "and log (servo_truth.py)"),
 )
 
 
