@@ -590,6 +590,11 @@ KNOWN_FAILURES = {
     "end_stop": "names presliding_friction with low confidence (x2.3), a stand-in not on the "
                 "case's expect list (none, torque_saturation, joint_stiffness); the list was set "
                 "before any run and is not widened to the result (docs/discrepancy/bank.md)",
+    "asymmetric_friction": "with the effect in the library (commit 33a9091) it was named with high "
+                           "confidence and a = 7.57 +- 0.33 mN*m covered the truth 7.5, but the "
+                           "held-out gap shrank only x2.6 (1.54e-3 -> 6.04e-4 rad, noise floor "
+                           "6.3e-4): the effect left the library again, so the workflow cannot "
+                           "name it (docs/discrepancy/bank.md)",
 }
 
 

@@ -35,8 +35,6 @@ cogging            new passive ``dcmotor`` ``yaw_cogging``,     ``amplitude_nm``
                    torque a*sin(n*q_yaw + phase), n fixed       ``phase_rad`` [rad]
 load_friction      ``<custom>`` numeric ``load_friction`` (the  ``mu_drive``, ``mu_back`` [-]
                    engine's law) + ``actuatorfrc`` sensor
-asymmetric_        ``<custom>`` numeric ``friction_asymmetry``  ``asymmetry_nm`` [N*m]
-friction           (the engine's law)
 =================  ==========================================  ===================================
 
 (``yaw``/``yaw_motor`` stand for the :class:`Target`'s joint and actuator; added elements are
@@ -93,7 +91,6 @@ LIBRARY: tuple[Effect, ...] = (
     body.ARM_MASS,
     friction.COGGING,
     drive.LOAD_FRICTION_EFFECT,
-    drive.ASYMMETRIC_FRICTION,
 )
 
 NAMES = tuple(e.name for e in LIBRARY)
