@@ -358,3 +358,26 @@ def test_two_mass_drive_starts_at_rest(scene, name, x):
     step = ex.simulate([ex.Experiment("step", "step", 65.0, 90.0, r, 0.0, 0.0, theta0_rad=0.0)],
                        model=m, jobs=1)[0]
     assert abs(step.theta[-1] - 0.1) < 0.02
+
+
+def test_bounds_fit_the_nominal_model():
+    """The library's bounds are the Omni's: on the default scene every effect is unchanged;
+    a geared servo's reflected rotor (0.0119 kg*m^2, above the 0.01 bound) gets its bound moved
+    to 3x its value, so the fit starts at the nominal model instead of a clipped one."""
+    import mujoco
+
+    from omni_sim import model as om
+    from omni_sim.discrepancy import effects as fx
+
+    omni = mujoco.MjSpec.from_file(str(om.DEFAULT_SCENE))
+    assert all(fx.for_model(e, omni, om.OMNI) is e for e in fx.LIBRARY if e.applies(omni, om.OMNI))
+    servo = mujoco.MjSpec.from_string(
+        '<mujoco><worldbody><body><joint name="h" axis="0 1 0" armature="0.0119"/>'
+        '<geom size="0.02" mass="1"/></body></worldbody><actuator><motor name="m" joint="h"/>'
+        '</actuator></mujoco>')
+    target = om.Target("h", "m")
+    b = fx.ModelBuilder(servo, target)
+    arm = b.effect("armature")
+    assert arm.params[0].upper == pytest.approx(3 * 0.0119)
+    assert b.nominal_values(arm)[0] == pytest.approx(0.0119)  # not clipped to 0.01
+    assert b.effect("coulomb_friction") is fx.get("coulomb_friction")

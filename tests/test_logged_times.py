@@ -245,3 +245,25 @@ def test_replay_run_grid_of_a_truncated_run():
     short = rr.truncated(10)
     assert short.period == 0.001 and len(short.enabled) == 10
     assert short.steps == 46  # 0 .. 45 ms on the 1 ms grid
+
+
+def test_batches_of_the_replay_change_nothing_but_memory(model, monkeypatch):
+    """Many models on a run are stepped in batches of BATCH_SAMPLES control periods; every
+    row's trajectory is its own, so batches of 1 row give the same arrays bit for bit."""
+    from omni_sim.discrepancy import replay
+    rng = np.random.default_rng(11)
+    t = _log_times(rng, duration=0.5)
+    run = _run("square", t, np.where(t > 0.1, 0.2, 0.0), 0.0, enabled=t < 0.4)
+    models = []
+    for k in range(5):
+        m = mujoco.MjModel.from_xml_string(XML)
+        m.dof_damping[0] = B * (1 + k)
+        models.append(m)
+    (rr,) = prepare_runs([run], Device(model, 0.001, target=TARGET))
+    with Replayer(2, TARGET, 0.001) as rep:
+        whole = rep.simulate(models, [rr])
+    monkeypatch.setattr(replay, "BATCH_SAMPLES", 1)
+    with Replayer(2, TARGET, 0.001) as rep:
+        one_by_one = rep.simulate(models, [rr])
+    assert all(np.array_equal(a, b) for a, b in zip(whole, one_by_one))
+    assert not np.array_equal(whole[0], whole[4])

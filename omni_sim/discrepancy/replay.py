@@ -80,6 +80,10 @@ def control_period_of(runs: list[Run], source: str = "measured data") -> float:
 #: pair replayed again (a grid point that is also the fit's start, a fit's end point scored
 #: again) is not simulated twice.
 CACHE_SAMPLES = 4_000_000
+#: Control periods (rows x periods) one batch of the replay simulates at most: a parameter
+#: grid of thousands of models on long runs is stepped in batches of this size, so that its
+#: command, angle and reference arrays (8 bytes each) stay near 32 MB each.
+BATCH_SAMPLES = 4_000_000
 #: Devices (compiled models with their start-state caches) a :class:`Replayer` keeps.
 MAX_DEVICES = 512
 
@@ -283,21 +287,28 @@ class Replayer:
         # least nmax samples is the same trajectory, and a pair repeated in this batch is
         # simulated once
         keys = [(self._model_key(models[i]), self._run_key(runs[j])) for i, j in pairs]
-        todo: dict = {}
+        where: dict = {}  # key -> the pairs that ask for it
         for b, key in enumerate(keys):
+            where.setdefault(key, []).append(b)
+        out: list = [None] * len(pairs)
+        todo = []
+        for key, bs in where.items():
             hit = self._traj.get(key)
-            if (hit is None or len(hit) < nmax) and key not in todo:
-                todo[key] = b
-        # trajectories this call returns, kept aside from the cache (a batch larger than the
-        # cache evicts its own first trajectories and cached ones it was about to reuse)
-        fresh: dict = {key: self._traj[key] for key in keys if key not in todo}
-        for key in fresh:
-            self._traj.move_to_end(key)
-        if todo:
-            rows = list(todo.values())
-            theta = self._simulate(models, runs, [pairs[b] for b in rows], nmax, None)
-            for key, th in zip(todo, theta):
-                fresh[key] = th
+            if hit is None or len(hit) < nmax:
+                todo.append(key)
+            else:
+                self._traj.move_to_end(key)
+                for b in bs:
+                    out[b] = runs[pairs[b][1]].at_logged_times(hit)
+        # the pairs to simulate, in batches of at most BATCH_SAMPLES control periods in all
+        # (each row's trajectory is its own: batching changes nothing but the memory held)
+        per = max(1, BATCH_SAMPLES // nmax)
+        for c in range(0, len(todo), per):
+            chunk = todo[c: c + per]
+            theta = self._simulate(models, runs, [pairs[where[key][0]] for key in chunk], nmax, None)
+            for key, th in zip(chunk, theta):
+                for b in where[key]:
+                    out[b] = runs[pairs[b][1]].at_logged_times(th)
                 old = self._traj.pop(key, None)
                 if old is not None:
                     self._traj_samples -= len(old)
@@ -305,7 +316,7 @@ class Replayer:
                 self._traj_samples += nmax
             while self._traj_samples > CACHE_SAMPLES and len(self._traj) > 1:
                 self._traj_samples -= len(self._traj.popitem(last=False)[1])
-        return [runs[j].at_logged_times(fresh[key]) for key, (_, j) in zip(keys, pairs)]
+        return out
 
     def batch_signature(self, model: mujoco.MjModel) -> tuple:
         """What models must share to be stepped in one batch: the device engine's conditions

@@ -57,6 +57,7 @@ model with the encoder's quantisation and 1e-4 rad noise (1.6e-4 rad over
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import mujoco
@@ -116,6 +117,29 @@ def nominal_values(effect: Effect, spec: mujoco.MjSpec, target: Target = OMNI) -
     return effect.clip(x)
 
 
+#: A bound is widened to this multiple of the nominal value when the nominal model holds more
+#: than half of it (:func:`for_model`).
+WIDEN = 3.0
+
+
+def for_model(effect: Effect, spec: mujoco.MjSpec, target: Target = OMNI) -> Effect:
+    """``effect`` with bounds that fit the nominal model: the library's bounds are sized for the
+    virtual Omni (mN*m of friction, 1e-4 kg*m^2 of rotor inertia); a user's device whose nominal
+    value passes half a bound (a geared servo's reflected rotor of 1e-2 kg*m^2) gets that bound
+    moved to :data:`WIDEN` times its nominal value, so the fit can start at the nominal model
+    and move both ways.  The Omni's nominal values are all below half their bounds: unchanged."""
+    x = effect.read(spec, target)
+    params, changed = [], False
+    for p, v in zip(effect.params, x):
+        lo, hi = p.lower, p.upper
+        if np.isfinite(v) and v > 0.5 * hi > 0:
+            hi, changed = WIDEN * float(v), True
+        if np.isfinite(v) and v < 0.5 * lo < 0:
+            lo, changed = WIDEN * float(v), True
+        params.append(dataclasses.replace(p, lower=lo, upper=hi))
+    return dataclasses.replace(effect, params=tuple(params)) if changed else effect
+
+
 def apply(spec: mujoco.MjSpec, changes: list[tuple[Effect, np.ndarray]],
           target: Target = OMNI) -> mujoco.MjSpec:
     """A copy of ``spec`` with every ``(effect, values)`` written into ``target``."""
@@ -154,12 +178,13 @@ class ModelBuilder:
         return NAMES
 
     def effect(self, name: str) -> Effect:
-        """The library effect called ``name`` (:func:`get`)."""
-        return get(name)
+        """The library effect called ``name`` (:func:`get`), its bounds fitted to the nominal
+        model (:func:`for_model`)."""
+        return for_model(get(name), self.spec, self.target)
 
     def nominal_values(self, effect: Effect) -> np.ndarray:
         """The values the nominal model holds for ``effect`` (:func:`nominal_values`)."""
-        return nominal_values(effect, self.spec, self.target)
+        return nominal_values(for_model(effect, self.spec, self.target), self.spec, self.target)
 
     def compile(self, changes: list[tuple[Effect, np.ndarray]]) -> mujoco.MjModel:
         """The nominal model with ``changes`` written in, compiled (:func:`compile_with`)."""
