@@ -17,14 +17,19 @@ def ideal():
 
 def test_ideal_boundary_within_15_percent_of_colgate(ideal):
     """On the ideal device (no dry friction, no quantisation) the largest passive K of each
-    damping row B < b is 2 (b - |B|) / T within 15 % (Colgate & Schenkel 1997)."""
+    damping row B < b is 2 (b - |B|) / T within 15 % (Colgate & Schenkel 1997), up to 0.99 b.
+    Tighter where the bound is not near 0: within 1 % up to 0.75 b (measured <= 0.2 % with no
+    tolerance; TOL moves the boundary by TOL * 2b/T, 0.4 % of the 0.75 b row's bound)."""
     dev, tlim = ideal
     b, T = physical_damping(dev), dev.control_period_s
-    B = np.array([0.0, 0.25, 0.5, 0.75]) * b
+    B = np.array([0.0, 0.25, 0.5, 0.75, 0.92, 0.99]) * b
     K = np.linspace(0.0, 2.4 * b / T, 25)
-    res = passivity_map(dev, K, B, tlim, duration_s=0.5)
+    # the tool's 1 s runs: at B = 0 (every frequency equally bad) the slow probe's transient
+    # still counts after 0.5 s (-9 % there, measured)
+    res = passivity_map(dev, K, B, tlim)
     kb, kc = boundary(K, res["index"]), colgate_limit(b, B, T)
     assert np.all(np.abs(kb / kc - 1) < 0.15), (kb, kc)
+    assert np.all(np.abs(kb[:4] / kc[:4] - 1) < 0.01), (kb, kc)
     # the map is not all one colour: walls well outside the bound are found active
     assert res["passive"][:, 0].all() and not res["passive"][:, -1].any()
 
