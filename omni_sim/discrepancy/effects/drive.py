@@ -63,6 +63,13 @@ def _ensure_torque_sensor(spec: mujoco.MjSpec, target: Target) -> None:
                     objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=act)
 
 
+def _geared(spec, target: Target) -> bool:
+    """Whether the drive can have a gearbox: every device but the virtual Omni, whose yaw is
+    driven by a capstan (a cable on a drum: no gear mesh whose efficiency sets a load-dependent
+    friction; models/README.md), unless its model already declares the law."""
+    return target != OMNI or spec.numeric(LOAD_FRICTION) is not None
+
+
 def _read_load(spec, target=OMNI):
     n = _numeric(spec, LOAD_FRICTION)
     return np.zeros(2) if n is None else np.array(list(n.data)[:2], float)
@@ -84,4 +91,4 @@ LOAD_FRICTION_EFFECT = Effect(
     "gear friction rising with the transmitted torque, larger when the load back-drives the motor",
     (Param("mu_drive", "-", 0.0, 2.0, 0.02),
      Param("mu_back", "-", 0.0, 2.0, 0.02)),
-    _read_load, _write_load, _load_grid)
+    _read_load, _write_load, _load_grid, applies=lambda spec, target=OMNI: _geared(spec, target))
