@@ -422,6 +422,14 @@ def performance_table(src: dict) -> str:
         f"`{'`, `'.join(dis['discrepancy_named'])}`) | "
         f"{met(dis['discrepancy_correct'] and dis['discrepancy_s'] < 600)} |",
     ]
+    srv = b.get("discrepancy_servo")
+    if srv:
+        rows.append(
+            f"| `omni discrepancy` as a user runs it on {srv['runs']} geared-servo runs of 6 s "
+            f"({srv['control_periods'] / 1e3:.0f} k control periods, {srv['log_samples'] / 1e3:.0f} k logged "
+            f"samples at 200 Hz) | ≤ 300 s, ≤ 2 GB | {srv['wall_s']:.0f} s, {srv['peak_rss_mb']:.0f} MB (named "
+            f"`{'`, `'.join(srv['named'])}`, gap ×{srv['shrink_factor']:.1f}) | "
+            f"{met(srv['wall_s'] <= 300 and srv['peak_rss_mb'] <= 2048)} |")
     return "\n".join(rows)
 
 
