@@ -1,0 +1,595 @@
+#!/usr/bin/env python
+"""Fidelity screen: which single effect of the discrepancy library moves the virtual Omni's
+linear-model step error towards the real Omni's, and at what cost on Table 3.
+
+The virtual Omni is calibrated to the paper's Table 3, Table 9's resonance, Table 10 and
+section 2.3, yet the linear model (26) follows its steps 3-4x better than it follows the real
+Omni's (Table 11, linear column: median over the 25 Table 2 poses 11.2 mrad; lugre 3.1 mrad,
+coulomb 2.9 mrad).  This script is a first *screen* for the missing effect: for each base scene
+(``lugre`` = models/scene.xml, ``coulomb`` = models/scene_coulomb.xml) and each (effect,
+magnitude) of :data:`CONFIGURATIONS`, one effect at a time is written into a copy of the base's
+MjSpec (:func:`omni_sim.discrepancy.effects.apply`, target OMNI), the model is compiled and the
+paper's campaign runs on it in memory (:func:`omni_app.reproduce.simulate_campaign`).  Nothing
+is re-calibrated: the friction and inertia stay the base scene's.
+
+Measured, device-describing figures only:
+
+* the linear model's step errors at the 25 Table 2 poses (per pose: median and p90 of
+  |theta_linear - theta| over the whole record, as Table 11), their median over poses beside
+  Table 11's linear column, and the poses within 40 % of Table 11's linear median;
+* Table 3: the identified C_linear and beta~_linear at the 9 Table 1 poses against the paper's
+  (worst relative errors) and the worst actual-angle error;
+* the resonance sqrt(beta_linear)/(2 pi) at 65/90 (Table 9).
+
+The alpha-invariant model is neither fitted nor simulated here: the identification stops after
+the per-pose linear models and the inertia model (6), and only the linear model is simulated
+on the steps.  Tables 8 and 11's alpha columns are the paper's validation; no choice of this
+screen may look at them.  As a second guard, every key containing "alpha" is dropped from what
+is written (:func:`strip_alpha`).
+
+The magnitudes are data (:data:`CONFIGURATIONS`, each with its provenance in the library's
+docstrings or models/README.md), fixed before any result was seen.
+
+Writes ``--out`` (default docs/fidelity/screen.json) and, next to it, ``screen.md`` and
+``screen.png``.
+
+    python scripts/fidelity_screen.py --jobs 2
+    python scripts/fidelity_screen.py --merge --only lugre/time_delay/2ms   # re-run one
+    python scripts/fidelity_screen.py --list
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+#: The Omni's encoder count [rad] (2 pi / 15000), for the backlash magnitudes.
+COUNT_RAD = 2 * math.pi / 15000
+#: A pose "matches" Table 11 when its linear median step error is within this fraction of it.
+WITHIN = 0.40
+#: The bases: scene file (relative to the project) per friction family.
+BASES = {"lugre": "models/scene.xml", "coulomb": "models/scene_coulomb.xml"}
+#: The scene's calibrated LuGre element ``yaw_friction`` (models/scene_lugre.xml): sigma0
+#: [N*m/rad], Fc, Fs [N*m], vs [rad/s]; the lugre base's presliding_friction values start here.
+LUGRE = (3.20549, 0.012916, 0.0316457, 0.615182)
+
+# -- the configurations (fixed before any result) -----------------------------------------------
+#: ``(effect, label, values, provenance)`` per base; values in the effect's parameter order
+#: (omni_sim/discrepancy/effects).  Every magnitude lies inside the library's bounds and its
+#: documented plausible range (the provenance says where).
+_SHARED = [
+    ("coulomb_friction", "10mNm", [0.010],
+     "joint frictionloss 10 mN*m: middle of models/README.md's waist Coulomb estimate 5-20 mN*m; "
+     "library grid value (effects/joint.py). lugre base: a hard stick added to the LuGre element "
+     "(its frictionloss is 0); coulomb base: replaces the calibrated 3.85 mN*m"),
+    ("coulomb_friction", "20mNm", [0.020],
+     "joint frictionloss 20 mN*m: top of models/README.md's 5-20 mN*m estimate; library grid value"),
+    ("stribeck_friction", "Fc5_Fs15_vs0.1", [0.005, 0.015, 0.1],
+     "added stiff LuGre (Stribeck) element Fc 5, Fs 15 mN*m, vs 0.1 rad/s: the example of "
+     "effects/friction.py's docstring (realistic Fc 5-20, Fs up to 35 mN*m); stacks on the base's friction"),
+    ("stribeck_friction", "Fc10_Fs30_vs0.1", [0.010, 0.030, 0.1],
+     "added Stribeck element Fc 10, Fs 30 mN*m, vs 0.1 rad/s: library grid value (effects/friction.py), "
+     "inside its realistic Fc 5-20 / Fs <= 35 mN*m; stacks on the base's friction"),
+    ("cogging", "1mNm", [0.001, 0.0],
+     "cogging 1 mN*m, 45 periods per turn, phase 0: bottom of effects/friction.py's 1-3 mN*m estimate"),
+    ("cogging", "3mNm", [0.003, 0.0],
+     "cogging 3 mN*m, 45 periods per turn, phase 0: top of effects/friction.py's 1-3 mN*m estimate"),
+    ("backlash", "1count", [1 * COUNT_RAD],
+     "half-width 1 encoder count (0.42 mrad): effects/two_mass.py, a slack cable or loose coupling "
+     "gives a few counts (1 count: 8x the noise floor)"),
+    ("backlash", "3counts", [3 * COUNT_RAD],
+     "half-width 3 encoder counts (1.26 mrad): effects/two_mass.py's 'a few counts' (19x the floor)"),
+    ("drive_compliance", "k20", [20.0, 0.0, 1e-4],
+     "capstan cable 20 N*m/rad, no cable damping, rotor = the scene's armature 1e-4 kg*m^2: "
+     "effects/two_mass.py's soft-drive range 0.5-100 N*m/rad (k = 20: 160x the floor)"),
+    ("drive_compliance", "k5", [5.0, 0.0, 1e-4],
+     "capstan cable 5 N*m/rad (a loose or stretched cable), rotor 1e-4 kg*m^2: effects/two_mass.py "
+     "(k = 5: 600x the floor; grid 2, 5, 15, 40)"),
+    ("armature", "5e-5", [5e-5],
+     "reflected rotor inertia 5e-5 kg*m^2: bottom of models/README.md's estimate 5e-5-2e-4 (nominal 1e-4)"),
+    ("armature", "2e-4", [2e-4],
+     "reflected rotor inertia 2e-4 kg*m^2: top of models/README.md's estimate 5e-5-2e-4"),
+    ("actuator_lag", "2ms", [0.002],
+     "first-order drive lag 2 ms (amplifier/current loop): library scale and grid value (effects/actuator.py)"),
+    ("actuator_lag", "5ms", [0.005],
+     "first-order drive lag 5 ms: library grid value (effects/actuator.py)"),
+    ("time_delay", "2ms", [0.002],
+     "pure loop delay 2 ms: 'a USB servo loop's few ms' (effects/actuator.py; models/README.md: "
+     "servo loop 1 kHz nominal, 700-900 Hz on some USB units); library grid value"),
+    ("time_delay", "5ms", [0.005],
+     "pure loop delay 5 ms: the upper end of 'a few ms' (effects/actuator.py); library grid value"),
+    ("joint_stiffness", "0.03", [0.03],
+     "torsional spring 0.03 N*m/rad at the yaw, rest at 0 (cables, wiring through the turret): "
+     "library grid value (effects/joint.py; scale 0.02)"),
+    ("joint_stiffness", "0.1", [0.1],
+     "torsional spring 0.1 N*m/rad (a tenth of the P loop's kp * gear = 1 N*m/rad): library grid value"),
+]
+
+_PRESLIDING = {
+    "lugre": [
+        ("presliding_friction", "sigma0x0.3", [0.3 * LUGRE[0], *LUGRE[1:]],
+         "yaw_friction's bristles weaker, sigma0 x 0.3 (0.96 N*m/rad), levels kept: library grid "
+         "factor (effects/friction.py; bounds 0.3-100 N*m/rad)"),
+        ("presliding_friction", "sigma0x3", [3.0 * LUGRE[0], *LUGRE[1:]],
+         "yaw_friction's bristles stiffer, sigma0 x 3 (9.6 N*m/rad), levels kept: library grid "
+         "factor; its docstring: sigma0 3.2 -> 10 is 54x the floor"),
+        ("presliding_friction", "Fc19_Fs35", [LUGRE[0], 0.0194, 0.0348, LUGRE[3]],
+         "yaw_friction's levels at the top of the documented ranges, Fc 19.4 mN*m (x1.5, estimate "
+         "5-20) and Fs 34.8 mN*m (x1.1, below the 35 mN*m back-drive bound, models/README.md)"),
+    ],
+    "coulomb": [
+        ("presliding_friction", "s3_Fc5_Fs10", [3.0, 0.005, 0.010, 0.5],
+         "an added LuGre element sigma0 3, Fc 5, Fs 10 mN*m, vs 0.5 rad/s (the hard stick kept): "
+         "library grid for a model without one (effects/friction.py)"),
+        ("presliding_friction", "s10_Fc10_Fs20", [10.0, 0.010, 0.020, 0.5],
+         "an added LuGre element sigma0 10, Fc 10, Fs 20 mN*m, vs 0.5 rad/s: library grid value"),
+    ],
+}
+
+
+def configurations() -> list[dict]:
+    """Every configuration: the two bases unchanged, then each base's (effect, magnitude)s."""
+    out = []
+    for base in BASES:
+        out.append({"id": f"{base}/none/base", "base": base, "effect": None, "label": "base",
+                    "values": [], "provenance": f"{BASES[base]} as calibrated"})
+        for eff, label, values, prov in _PRESLIDING[base] + _SHARED:
+            out.append({"id": f"{base}/{eff}/{label}", "base": base, "effect": eff, "label": label,
+                        "values": [float(v) for v in values], "provenance": prov})
+    return out
+
+
+CONFIGURATIONS = configurations()
+
+
+# -- the paper's reference (linear columns only) -------------------------------------------------
+def paper_reference() -> dict:
+    """Table 11's linear columns (per pose and their median over poses), Table 9's resonance."""
+    from identification import paper
+
+    rows = paper.table11()
+    med = [r["median_linear_rad"] for r in rows]
+    p90 = [r["p90_linear_rad"] for r in rows]
+    beta = paper.table9()["beta_linear"]["fitted"]
+    return {"step_linear_median_over_poses_rad": float(np.median(med)),
+            "step_linear_p90_median_over_poses_rad": float(np.median(p90)),
+            "n_poses": len(rows),
+            "resonance_hz_65_90": math.sqrt(beta) / (2 * math.pi),
+            "table11_linear": {f"{int(r['gamma1_set_deg'])}/{int(r['gamma2_set_deg'])}":
+                               [r["median_linear_rad"], r["p90_linear_rad"]] for r in rows}}
+
+
+# -- one configuration ---------------------------------------------------------------------------
+def build_model(cfg: dict):
+    """The base's MjSpec with the configuration's effect written in, compiled."""
+    import mujoco
+
+    from omni_sim.discrepancy import effects
+
+    spec = mujoco.MjSpec.from_file(str(ROOT / BASES[cfg["base"]]))
+    if cfg["effect"] is not None:
+        eff = effects.get(cfg["effect"])
+        spec = effects.apply(spec, [(eff, np.asarray(cfg["values"], float))], effects.OMNI)
+    return spec.compile()
+
+
+def _linear_step_errors(runs, inertia_params) -> list[dict]:
+    """The linear model (26) on every step run, as the validation stage simulates it
+    (identification/validation.py: inertia model (6) at the run's actual angles, from rest at
+    the first measured angle, batched by length, dt and kp), scored over the whole record."""
+    from identification import scoring
+    from identification.simulate import simulate_linear
+    from identification.validation import Params
+
+    params = Params(inertia_params, None, [])  # no alpha model: only linear_coefficients is used
+    steps = [r for r in runs if r.kind == "step"]
+    groups: dict = {}
+    for r in steps:
+        groups.setdefault((len(r.t), round(r.dt, 12), r.kp), []).append(r)
+    rows = []
+    for (_, dt, kp), group in groups.items():
+        _, Cl, bl = (np.array(x) for x in zip(*[params.linear_coefficients(r) for r in group]))
+        th0 = np.array([r.theta[0] for r in group])
+        lin = simulate_linear(Cl, bl, np.vstack([r.r for r in group]), dt, kp, theta0=th0, phi0=0.0)
+        for j, r in enumerate(group):
+            s = scoring.abs_error_stats(r.theta, lin.theta[j])
+            rows.append({"set_deg": [round(float(r.meta.get("gamma1_set_deg"))),
+                                     round(float(r.meta.get("gamma2_set_deg")))],
+                         "median_linear_rad": s["median_abs_error_rad"],
+                         "p90_linear_rad": s["p90_abs_error_rad"]})
+    return sorted(rows, key=lambda x: tuple(x["set_deg"]))
+
+
+def measure_model(model, jobs=None) -> dict:
+    """The screen's figures of one compiled model (see the module docstring)."""
+    from identification.identify import Identification, identify_runs
+    from identification.inertia import MIN_POSES, fit_inertia_model
+    from omni_app.comparison import _pose, _resonance_hz, table3_errors
+    from omni_app.figures import DETAIL_POSE
+    from omni_app.reproduce import simulate_campaign
+
+    res = simulate_campaign(model=model, jobs=jobs)
+    res["bar"].close()
+    runs = res["runs"]
+    lin = identify_runs(runs, linear_only=True)  # per-pose linear models: stops before any alpha fit
+    usable = [p for p in lin.poses if p.physical]
+    out: dict = {"warnings": list(lin.warnings)}
+    t3 = table3_errors(lin)
+    out["table3"] = {k: t3[k] for k in ("n_poses", "C_linear_worst_rel_error",
+                                       "beta_tilde_linear_worst_rel_error", "angle_worst_error_deg")}
+    out["table3"]["poses"] = [{k: r[k] for k in ("set_deg", "C_linear_rel_error",
+                                                "beta_tilde_linear_rel_error", "angle_error_deg")}
+                              for r in t3["poses"]]
+    detail = _pose(lin, DETAIL_POSE)
+    out["resonance_hz_65_90"] = (_resonance_hz(detail.beta_linear) if detail is not None and detail.physical
+                                 else None)
+    if len(usable) < MIN_POSES:
+        out["ok"] = False
+        out["error"] = f"only {len(usable)} physical poses: no inertia model (6), no step prediction"
+        return out
+    inertia = fit_inertia_model([p.gamma1_deg for p in usable], [p.gamma2_deg for p in usable],
+                                [p.C_linear for p in usable], [p.beta_tilde_linear for p in usable])
+    if inertia.poorly_determined:
+        out["warnings"].append("inertia model: poorly determined " + ", ".join(inertia.poorly_determined))
+    ident = Identification(lin.poses, inertia, out["warnings"], lin.ignored_runs)
+    steps = _linear_step_errors(runs, ident.inertia.params)
+    out["step_linear"] = summarise_steps(steps)
+    out["ok"] = True
+    return out
+
+
+def summarise_steps(rows: list[dict]) -> dict:
+    """Per-pose linear step errors beside Table 11's linear column, and their summaries."""
+    from identification import paper
+
+    t11 = paper.by_set_pose(paper.table11())
+    within = 0
+    for r in rows:
+        t = t11.get(tuple(r["set_deg"]))
+        r["paper_median_linear_rad"] = t["median_linear_rad"] if t else None
+        r["paper_p90_linear_rad"] = t["p90_linear_rad"] if t else None
+        r["ratio_to_paper"] = r["median_linear_rad"] / t["median_linear_rad"] if t else None
+        if t and abs(r["ratio_to_paper"] - 1) <= WITHIN:
+            within += 1
+    med = [r["median_linear_rad"] for r in rows]
+    p90 = [r["p90_linear_rad"] for r in rows]
+    return {"n_poses": len(rows),
+            "median_over_poses_rad": float(np.median(med)),
+            "p90_median_over_poses_rad": float(np.median(p90)),
+            "median_p90_over_poses_rad": float(np.percentile(med, 90)),
+            "poses_within_40pct": within,
+            "statistic": "per pose: median (p90) of |theta_linear - theta| over the whole record "
+                         "(Table 11); summaries: median over poses",
+            "poses": rows}
+
+
+def strip_alpha(x):
+    """``x`` without any dict key that mentions "alpha" (recursively)."""
+    if isinstance(x, dict):
+        return {k: strip_alpha(v) for k, v in x.items() if "alpha" not in str(k).lower()}
+    if isinstance(x, list):
+        return [strip_alpha(v) for v in x]
+    return x
+
+
+def run_configuration(cfg: dict, jobs=None) -> dict:
+    """Build, simulate and measure one configuration; a failure is recorded, never dropped."""
+    t0 = time.perf_counter()
+    try:
+        model = build_model(cfg)
+        fig = measure_model(model, jobs)
+    except Exception as exc:  # noqa: BLE001  (a configuration that fails is a result)
+        fig = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+    fig["wall_s"] = time.perf_counter() - t0
+    return strip_alpha({**cfg, **fig})
+
+
+# -- writing -------------------------------------------------------------------------------------
+def _git_commit() -> str | None:
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+
+
+def _mrad(x) -> str:
+    return "—" if x is None else f"{1e3 * x:.2f}"
+
+
+def _pct(x) -> str:
+    return "—" if x is None else f"{100 * x:+.1f}"
+
+
+def _t3_worst(r: dict) -> float | None:
+    t = r.get("table3")
+    if not t:
+        return None
+    return max(abs(t["C_linear_worst_rel_error"]), abs(t["beta_tilde_linear_worst_rel_error"]))
+
+
+def format_markdown(doc: dict) -> str:
+    ref = doc["paper"]
+    res = doc["configurations"]
+    lines = [
+        "# Fidelity screen: single effects against the real Omni's linear step error",
+        "",
+        "Generated by `scripts/fidelity_screen.py` (data: `docs/fidelity/screen.json`, figure: "
+        "`docs/fidelity/screen.png`). **This is a screen, not a calibration**: one effect of the "
+        "discrepancy library (`omni_sim/discrepancy/effects/`) at a time, at 2-3 magnitudes fixed "
+        "beforehand from the library's documented plausible ranges, written into the calibrated "
+        "`lugre` (`models/scene.xml`) or `coulomb` (`models/scene_coulomb.xml`) scene *without* "
+        "re-calibrating the friction, damping or inertia. A configuration that moves the step error "
+        "but spoils Table 3 might still fit once calibrated jointly; one that does not move it at "
+        "these magnitudes is unlikely to be the missing effect alone.",
+        "",
+        f"The real Omni (Table 11, linear column): median over its {ref['n_poses']} poses of the "
+        f"per-pose median step error **{_mrad(ref['step_linear_median_over_poses_rad'])} mrad**, of "
+        f"the per-pose p90 {_mrad(ref['step_linear_p90_median_over_poses_rad'])} mrad; Table 9's "
+        f"resonance at 65/90 {ref['resonance_hz_65_90']:.2f} Hz.",
+        "",
+        "**The alpha model was not computed**: the identification stops after the per-pose linear "
+        "models and the inertia model (6), only the linear model (26) is simulated on the steps, "
+        "and Tables 8 and 11's alpha columns (the paper's validation) were neither computed nor read.",
+        "",
+        _pipeline_check(res),
+        "",
+        "Columns: linear step error, median over the 25 Table 2 poses of the per-pose median "
+        "(p90) over the whole record [mrad] (paper "
+        f"{_mrad(ref['step_linear_median_over_poses_rad'])} / "
+        f"{_mrad(ref['step_linear_p90_median_over_poses_rad'])}); poses whose median is within "
+        f"{100 * WITHIN:.0f} % of Table 11's; Table 3's worst relative errors of C_linear and "
+        "beta~_linear at the 9 Table 1 poses [%]; worst actual-angle error [deg]; resonance at "
+        "65/90 [Hz].",
+        "",
+        "| base | effect | magnitude | linear median / p90 [mrad] | poses within 40 % | "
+        "Table 3 worst C / beta~ [%] | angle [deg] | resonance [Hz] |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in res:
+        if not r.get("ok"):
+            lines.append(f"| {r['base']} | {r['effect'] or '—'} | {r['label']} | failed: "
+                         f"{r.get('error', '?')} | | | | |")
+            continue
+        s, t = r["step_linear"], r["table3"]
+        res_hz = "—" if r.get("resonance_hz_65_90") is None else f"{r['resonance_hz_65_90']:.2f}"
+        lines.append(
+            f"| {r['base']} | {r['effect'] or '— (base)'} | {r['label']} | "
+            f"{_mrad(s['median_over_poses_rad'])} / {_mrad(s['p90_median_over_poses_rad'])} | "
+            f"{s['poses_within_40pct']}/{s['n_poses']} | {_pct(t['C_linear_worst_rel_error'])} / "
+            f"{_pct(t['beta_tilde_linear_worst_rel_error'])} | {t['angle_worst_error_deg']:+.2f} | {res_hz} |")
+    lines += ["", "## What moves the linear step error", ""]
+    lines += _findings(doc)
+    lines += [
+        "",
+        "## Caveats",
+        "",
+        "- One effect at a time on a scene calibrated without it: the friction, damping and inertia "
+        "were not re-fitted, so Table 3's errors here are the cost *before* re-calibration, and an "
+        "effect that needs the friction to change with it is not seen.",
+        "- Two or three magnitudes per effect, chosen from the library's documented ranges before "
+        "any result; an effect's response between or beyond them is not known.",
+        "- The real Omni's per-pose figures are Table 11 as printed; a pose counts as matched when "
+        f"the virtual Omni's linear median is within {100 * WITHIN:.0f} % of it.",
+        "- The step error of the linear model is a property of the device *and* of how well the "
+        "identified linear model describes it; a larger error is not by itself closer to the real "
+        "Omni (the whole set of figures has to match).",
+        "",
+        f"Code commit {doc.get('code_commit') or 'unknown'}; {len(res)} configurations, "
+        f"{sum(r.get('wall_s', 0) for r in res):.0f} s of wall time in all.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _cost_side(r: dict) -> str:
+    """Where a configuration's Table 3 error sits: C_linear, beta~_linear or both."""
+    c = abs(r["table3"]["C_linear_worst_rel_error"])
+    b = abs(r["table3"]["beta_tilde_linear_worst_rel_error"])
+    return "mainly C" if c > 2 * b else "mainly beta~" if b > 2 * c else "C and beta~"
+
+
+def _pipeline_check(res: list[dict]) -> str:
+    """Whether the bases' linear step medians are the ones ``omni reproduce --friction all``
+    wrote into docs/friction/comparison.json (the same pipeline, alpha model included)."""
+    path = ROOT / "docs/friction/comparison.json"
+    try:
+        fams = json.loads(path.read_text())["families"]
+    except (OSError, ValueError, KeyError):
+        return "(docs/friction/comparison.json not found: the pipeline check was not made.)"
+    parts = []
+    for r in res:
+        if r.get("effect") is None and r.get("ok") and r["base"] in fams:
+            theirs = fams[r["base"]]["step_linear_vs_table11"]["median_over_poses_rad"]
+            ours = r["step_linear"]["median_over_poses_rad"]
+            parts.append(f"{r['base']} {_mrad(ours)} mrad "
+                         + ("(equal)" if math.isclose(ours, theirs, rel_tol=1e-9) else f"(there {_mrad(theirs)})"))
+    return ("Check of the linear-only pipeline against the full one: the bases' linear medians here "
+            "and in `docs/friction/comparison.json` (`omni reproduce --friction all`): "
+            + "; ".join(parts) + ".")
+
+
+def _findings(doc: dict) -> list[str]:
+    """The configurations whose median lands within 40 % of the real Omni's (cheapest on Table 3
+    first), then per base each configuration's change of the median, largest rise first."""
+    ref = doc["paper"]["step_linear_median_over_poses_rad"]
+    res_hz = doc["paper"]["resonance_hz_65_90"]
+    out = []
+    res = [r for r in doc["configurations"] if r.get("ok")]
+    near = sorted((r for r in res if abs(r["step_linear"]["median_over_poses_rad"] / ref - 1) <= WITHIN),
+                  key=_t3_worst)
+    out.append(f"Within {100 * WITHIN:.0f} % of the real Omni's {_mrad(ref)} mrad (median over poses), "
+               f"cheapest on Table 3 first ({len(near)} of {len(res)} configurations; the bases' own "
+               f"Table 3 worst is ~10 %; Table 9's resonance {res_hz:.2f} Hz):")
+    out.append("")
+    for r in near:
+        s, t = r["step_linear"], r["table3"]
+        hz = r.get("resonance_hz_65_90")
+        out.append(f"- {r['base']} + {r['effect']} {r['label']}: {_mrad(s['median_over_poses_rad'])} / "
+                   f"{_mrad(s['p90_median_over_poses_rad'])} mrad, {s['poses_within_40pct']}/{s['n_poses']} "
+                   f"poses within 40 %; Table 3 C {_pct(t['C_linear_worst_rel_error'])} %, beta~ "
+                   f"{_pct(t['beta_tilde_linear_worst_rel_error'])} % ({_cost_side(r)}); resonance "
+                   + ("—" if hz is None else f"{hz:.2f} Hz"))
+    out.append("")
+    for base in BASES:
+        b = next((r for r in res if r["base"] == base and r["effect"] is None), None)
+        if b is None:
+            continue
+        m0 = b["step_linear"]["median_over_poses_rad"]
+        others = sorted((r for r in res if r["base"] == base and r["effect"] is not None),
+                        key=lambda r: -r["step_linear"]["median_over_poses_rad"])
+        out.append(f"**{base}** (base {_mrad(m0)} mrad, {100 * m0 / ref:.0f} % of the real Omni's; "
+                   f"Table 3 worst {100 * _t3_worst(b):.1f} %). Largest rises of the median:")
+        out.append("")
+        for r in others[:5]:
+            m = r["step_linear"]["median_over_poses_rad"]
+            out.append(f"- {r['effect']} {r['label']}: {_mrad(m)} mrad ({m / m0:.2f}x the base, "
+                       f"{100 * m / ref:.0f} % of 11.2), {r['step_linear']['poses_within_40pct']}/25 "
+                       f"poses within 40 %; Table 3 worst {100 * _t3_worst(r):.1f} %")
+        lower = [r for r in others if r["step_linear"]["median_over_poses_rad"] < 0.95 * m0]
+        if lower:
+            out.append("- lower than the base (by more than 5 %): " + ", ".join(
+                f"{r['effect']} {r['label']} ({_mrad(r['step_linear']['median_over_poses_rad'])})"
+                for r in lower))
+        out.append("")
+    return out
+
+
+def draw_figure(doc: dict, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ref = doc["paper"]["step_linear_median_over_poses_rad"]
+    res = [r for r in doc["configurations"] if r.get("ok")]
+    effects = []
+    for r in res:
+        if r["effect"] not in effects:
+            effects.append(r["effect"])
+    cmap = plt.get_cmap("tab20")
+    colors = {e: ("k" if e is None else cmap(i % 20)) for i, e in enumerate(effects)}
+    markers = {"lugre": "o", "coulomb": "s"}
+    fig, ax = plt.subplots(figsize=(9, 5.5))
+    for r in res:
+        x = 100 * _t3_worst(r)
+        y = 1e3 * r["step_linear"]["median_over_poses_rad"]
+        ax.scatter(x, y, color=colors[r["effect"]], marker=markers.get(r["base"], "^"),
+                   s=60 if r["effect"] is None else 36, edgecolor="k" if r["effect"] is None else "none",
+                   zorder=3)
+        if r["effect"] is not None:
+            ax.annotate(r["label"], (x, y), fontsize=6, xytext=(3, 2), textcoords="offset points")
+    ax.axhspan(1e3 * ref * (1 - WITHIN), 1e3 * ref * (1 + WITHIN), color="crimson", alpha=0.07, lw=0)
+    ax.axhline(1e3 * ref, color="crimson", ls="--", lw=1.2,
+               label=f"real Omni, Table 11 linear: {1e3 * ref:.1f} mrad (band: +-{100 * WITHIN:.0f} %)")
+    for e in effects:
+        ax.scatter([], [], color=colors[e], label="base scene" if e is None else e)
+    for b, m in markers.items():
+        ax.scatter([], [], color="grey", marker=m, label=f"base {b}")
+    ax.set_yscale("log")
+    ax.set_xscale("log")
+    from matplotlib.ticker import FuncFormatter
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        axis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if str(f"{v:g}")[0] in "25" else ""))
+    ax.set_xlabel("Table 3 worst |relative error| of C_linear or beta~_linear [%]")
+    ax.set_ylabel("linear model step error, median over 25 poses [mrad]")
+    ax.set_title("Fidelity screen: one effect at a time (not re-calibrated); alpha model not computed",
+                 fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    ax.tick_params(which="minor", labelsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_outputs(doc: dict, out: Path, pages: bool = True) -> None:
+    """The JSON at ``out``; with ``pages``, ``<stem>.md`` and ``<stem>.png`` next to it."""
+    doc = strip_alpha(doc)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    tmp.replace(out)
+    if pages and any(r.get("ok") for r in doc["configurations"]):
+        (out.parent / (out.stem + ".md")).write_text(format_markdown(doc))
+        draw_figure(doc, out.parent / (out.stem + ".png"))
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog="configurations: see --list")
+    p.add_argument("--out", default=str(ROOT / "docs/fidelity/screen.json"),
+                   help="output JSON; screen.md and screen.png go next to it "
+                        "(default docs/fidelity/screen.json)")
+    p.add_argument("--jobs", type=int, default=None, help="simulation threads (default: all cores)")
+    p.add_argument("--only", default=None,
+                   help="comma-separated configuration ids (default: all; see --list)")
+    p.add_argument("--merge", action="store_true",
+                   help="keep the configurations already in --out and run only the missing ones "
+                        "(with --only: re-run those)")
+    p.add_argument("--list", action="store_true", help="print the configurations and exit")
+    args = p.parse_args(argv)
+    if args.list:
+        for c in CONFIGURATIONS:
+            print(f"{c['id']:40s} {c['values']}")
+        return 0
+    if args.jobs is not None and args.jobs < 1:
+        p.error("--jobs must be >= 1")
+    ids = [c["id"] for c in CONFIGURATIONS]
+    chosen = ids if args.only is None else [s.strip() for s in args.only.split(",") if s.strip()]
+    unknown = [c for c in chosen if c not in ids]
+    if unknown or not chosen:
+        p.error(f"unknown configuration(s) {unknown}; see --list")
+    out = Path(args.out)
+    done: dict = {}
+    if args.merge and out.exists():
+        done = {r["id"]: r for r in json.loads(out.read_text()).get("configurations", [])}
+    todo = [c for c in CONFIGURATIONS if c["id"] in chosen
+            and (args.only is not None or not done.get(c["id"], {}).get("ok"))]
+    doc = {"description": "fidelity screen: one library effect at a time on the calibrated "
+                          "scenes; linear-model step errors and Table 3 (no alpha model)",
+           "settings": {"bases": BASES, "campaign": "paper", "within_fraction": WITHIN,
+                        "jobs": args.jobs, "target": "OMNI (joint yaw, actuator yaw_motor)"},
+           "code_commit": _git_commit(),
+           "machine": {"python": platform.python_version(), "processor": platform.machine()},
+           "paper": paper_reference(),
+           "configurations": []}
+    from tqdm import tqdm
+
+    from omni_app.reproduce import _one_blas_thread
+
+    bar = tqdm(todo, unit="cfg", file=sys.stderr)
+    with _one_blas_thread():
+        for cfg in bar:
+            bar.set_description(cfg["id"])
+            done[cfg["id"]] = run_configuration(cfg, args.jobs)
+            r = done[cfg["id"]]
+            msg = (f"{cfg['id']:40s} {r['wall_s']:5.1f} s  " + (
+                f"linear median {_mrad(r['step_linear']['median_over_poses_rad'])} mrad, "
+                f"T3 worst C {_pct(r['table3']['C_linear_worst_rel_error'])} % beta~ "
+                f"{_pct(r['table3']['beta_tilde_linear_worst_rel_error'])} %" if r.get("ok")
+                else f"failed: {r.get('error')}"))
+            bar.write(msg)
+            doc["configurations"] = [done[i] for i in ids if i in done]
+            write_outputs(doc, out, pages=False)  # after every configuration: an interrupted run resumes with --merge
+    doc["configurations"] = [done[i] for i in ids if i in done]
+    write_outputs(doc, out)
+    print(f"wrote {out} and {out.stem}.md, {out.stem}.png next to it")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
