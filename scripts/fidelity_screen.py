@@ -55,8 +55,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-#: The Omni's encoder count [rad] (2 pi / 15000), for the backlash magnitudes.
-COUNT_RAD = 2 * math.pi / 15000
+from omni_sim.device import ENCODER_STEP_RAD  # noqa: E402
+
+#: The Omni's encoder count [rad] (the device's, 15000 counts/rev), for the backlash magnitudes.
+COUNT_RAD = ENCODER_STEP_RAD
 #: A pose "matches" Table 11 when its linear median step error is within this fraction of it.
 WITHIN = 0.40
 #: The bases: scene file (relative to the project) per friction family.
