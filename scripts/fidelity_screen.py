@@ -44,7 +44,6 @@ import argparse
 import json
 import math
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -300,11 +299,9 @@ def run_configuration(cfg: dict, jobs=None) -> dict:
 
 # -- writing -------------------------------------------------------------------------------------
 def _git_commit() -> str | None:
-    try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return None
+    from scripts._provenance import git_commit
+
+    return git_commit()
 
 
 def _mrad(x) -> str:

@@ -27,7 +27,6 @@ import argparse
 import json
 import math
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -160,11 +159,9 @@ def colgate_general(b: float, damping, T: float, delay: int, n: int = 200001) ->
 
 
 def _git_commit() -> str | None:
-    try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return None
+    from scripts._provenance import git_commit
+
+    return git_commit()
 
 
 def main(argv=None) -> int:
