@@ -107,10 +107,11 @@ def _other_truths(cases: dict) -> str:
     text = ""
     servo = [n for n, c in cases.items() if c.get("truth", "omni") == "servo"]
     if servo:
-        text += (f" Not the Omni: {', '.join(servo)} is a pendulum on a geared servo (nominal model "
+        verb = "is" if len(servo) == 1 else "are"
+        text += (f" Not the Omni: {', '.join(servo)} {verb} a pendulum on a geared servo (nominal model "
                  "`models/servo_pendulum.xml`, `--joint pivot --actuator servo`) whose truth "
-                 "`omni_sim/discrepancy/servo_truth.py` simulates its hidden load-dependent gearbox "
-                 "friction step by step; 12 runs of 5 s logged as a host logs a servo (~200 Hz with "
+                 "`omni_sim/discrepancy/servo_truth.py` simulates the hidden drive friction (load-"
+                 "dependent, or direction-dependent) step by step; 12 runs of 5 s logged as a host logs a servo (~200 Hz with "
                  "jitter, the goal held between writes, torque-off spans, 4096-count encoder, servo loop "
                  "1 kHz).")
     merged = _merged(cases)
