@@ -135,14 +135,24 @@ class DriveFriction:
                    mu[0], mu[1], adr, float(model.actuator_gear[act, 0]))
 
 
-def _drive_levels(laws: list, w: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """:class:`DriveFriction` levels [N*m] of B rows: velocities ``w`` and actuator forces
-    ``force`` (B,)."""
-    base = np.array([f.base_nm for f in laws])
-    asym = np.array([f.asymmetry_nm for f in laws])
-    tau = force * np.array([f.gear for f in laws])
-    mu = np.where(tau * w > 0, [f.mu_drive for f in laws], [f.mu_back for f in laws])
-    return np.maximum(0.0, base + asym * np.sign(w) + mu * np.abs(tau))
+class _DriveLaws:
+    """The :class:`DriveFriction` of B rows as arrays (made once per engine: the levels are
+    computed at every control period)."""
+
+    def __init__(self, laws: list[DriveFriction]):
+        self.dof = laws[0].dof
+        self.sensor = np.array([f.sensor_adr for f in laws])
+        self.base = np.array([f.base_nm for f in laws])
+        self.asym = np.array([f.asymmetry_nm for f in laws])
+        self.gear = np.array([f.gear for f in laws])
+        self.mu_drive = np.array([f.mu_drive for f in laws])
+        self.mu_back = np.array([f.mu_back for f in laws])
+
+    def levels(self, w: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """The Coulomb levels [N*m] of the rows: velocities ``w`` and actuator forces ``force``."""
+        tau = force * self.gear
+        mu = np.where(tau * w > 0, self.mu_drive, self.mu_back)
+        return np.maximum(0.0, self.base + self.asym * np.sign(w) + mu * np.abs(tau))
 
 
 @dataclass(frozen=True)
@@ -323,6 +333,7 @@ class Device:
         self.drive_friction = DriveFriction.of(model, act, self.ix.yaw_dof, source)
         self._eq: dict[tuple[float, float], tuple[float, float]] = {}
         self._scratch: mujoco.MjData | None = None  # start_state's MjData (made on first use)
+        self._off_model: mujoco.MjModel | None = None  # off_model()'s (made on first use)
 
     @classmethod
     def load(cls, path=None, control_period_s: float = CONTROL_PERIOD_S, friction: str | None = None,
@@ -380,7 +391,7 @@ class Device:
         """The model with the drive switched off (torque disabled: the actuator exerts no force;
         a ``dcmotor``'s winding open, so no back-EMF braking either; back-EMF written as joint
         damping stays, it is the joint's).  Made once, from the model as it is then."""
-        if getattr(self, "_off", None) is None:
+        if self._off_model is None:
             m = copy.deepcopy(self.model)
             a = self.ix.yaw_act
             if m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_DCMOTOR:
@@ -388,8 +399,8 @@ class Device:
             else:
                 m.actuator_gainprm[a, :] = 0.0
                 m.actuator_biasprm[a, :] = 0.0
-            self._off = m
-        return self._off
+            self._off_model = m
+        return self._off_model
 
     def without_friction(self) -> "Device":
         """A device on a copy of the model with no dry friction on the drive (viscous damping
@@ -583,12 +594,10 @@ class Engine:
         if any(f is not None for f in laws):
             # a row without laws (a candidate model without them, batched with ones that have
             # them) keeps its own frictionloss: the null law
-            self._laws = [f if f is not None else
-                          DriveFriction(d.ix.yaw_dof, float(d.model.dof_frictionloss[d.ix.yaw_dof]),
-                                        0.0, 0.0, 0.0, -1, 1.0)
-                          for f, d in zip(laws, devices)]
-            self._sensor = np.array([f.sensor_adr for f in self._laws])
-            self._dof = self._laws[0].dof
+            self._laws = _DriveLaws([f if f is not None else
+                                     DriveFriction(d.ix.yaw_dof, float(d.model.dof_frictionloss[d.ix.yaw_dof]),
+                                                   0.0, 0.0, 0.0, -1, 1.0)
+                                     for f, d in zip(laws, devices)])
             self._force = np.zeros(self.B)  # each row's actuator force of its last step
             self._law_models = [copy.deepcopy(d.model) for d in devices]
         # torque-off periods (run_p_loop's ``enabled``) step each row's off model
@@ -699,8 +708,8 @@ class Engine:
             d.ctrl[self._yaw_act] = vk
             for _ in range(self.substeps):
                 mujoco.mj_step(m, d)
-            if self._laws and self._sensor[0] >= 0:
-                self._force[0] = d.sensordata[self._sensor[0]]
+            if self._laws and self._laws.sensor[0] >= 0:
+                self._force[0] = d.sensordata[self._laws.sensor[0]]
             return np.array([vk])
         v = np.clip(np.asarray(v, dtype=float).reshape(self.B), -self.vmax, self.vmax)
         if on is not None:
@@ -734,22 +743,20 @@ class Engine:
                           skip_checks=True, state=self._state, sensordata=self._sens,
                           chunk_size=self._chunk)
         self.x = self._state[:, -1, :].copy()
-        if self._laws and np.any(self._sensor >= 0):
-            has = self._sensor >= 0
-            self._force = np.where(has, self._sens[np.arange(self.B), -1, np.maximum(self._sensor, 0)], 0.0)
+        if self._laws and np.any(self._laws.sensor >= 0):
+            adr = self._laws.sensor
+            self._force = np.where(adr >= 0, self._sens[np.arange(self.B), -1, np.maximum(adr, 0)], 0.0)
 
     def _set_friction(self) -> None:
         """Every row's :class:`DriveFriction` level for the coming control period, written into
         the row's own model."""
-        levels = _drive_levels(self._laws, self.yaw_velocity(), self._force)
-        if self._data is not None:
-            self._m1.dof_frictionloss[self._dof] = levels[0]
-        else:
-            for m, f in zip(self._law_models, levels):
-                m.dof_frictionloss[self._dof] = f
+        levels = self._laws.levels(self.yaw_velocity(), self._force)
+        dof = self._laws.dof
+        for m, f in zip(self._law_models, levels):  # the one row's model is _law_models[0]
+            m.dof_frictionloss[dof] = f
         if self._off_models is not None:
             for m, f in zip(self._off_models, levels):
-                m.dof_frictionloss[self._dof] = f
+                m.dof_frictionloss[dof] = f
 
 
 def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,
