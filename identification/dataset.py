@@ -141,12 +141,17 @@ def _is_uniform(t: np.ndarray) -> bool:
     return bool(np.max(np.abs(dt - dt.mean())) <= UNIFORM_RTOL * dt.mean())
 
 
-def timing(run: Run) -> dict:
-    """How a run was sampled: ``period_s`` (median spacing), ``jitter_s`` (standard deviation
-    of the spacing), ``max_gap_s`` (longest spacing), ``uniform`` (bool), ``samples``."""
-    dt = np.diff(run.t)
+def spacing(t: np.ndarray) -> dict:
+    """How times ``t`` are spaced: ``period_s`` (median spacing), ``jitter_s`` (standard
+    deviation of the spacing), ``max_gap_s`` (longest spacing)."""
+    dt = np.diff(t)
     return {"period_s": float(np.median(dt)), "jitter_s": float(np.std(dt)),
-            "max_gap_s": float(np.max(dt)), "uniform": run.uniform, "samples": int(len(run.t))}
+            "max_gap_s": float(np.max(dt))}
+
+
+def timing(run: Run) -> dict:
+    """How a run was sampled: :func:`spacing` of its times, ``uniform`` (bool), ``samples``."""
+    return {**spacing(run.t), "uniform": run.uniform, "samples": int(len(run.t))}
 
 
 def resample_uniform(run: Run) -> Run:

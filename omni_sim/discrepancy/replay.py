@@ -55,7 +55,7 @@ PERIOD_RTOL = 1e-6
 
 def control_period_of(runs: list[Run], source: str = "measured data") -> float:
     """The control period [s] of a set of runs: each run's metadata ``control_period_s``, else
-    its median sample period; one period for all runs (they are replayed in one batch).
+    its sample period (``Run.dt``); one period for all runs (they are replayed in one batch).
 
     Raises
     ------
@@ -67,7 +67,7 @@ def control_period_of(runs: list[Run], source: str = "measured data") -> float:
     periods = {}
     for run in runs:
         c = run.meta.get("control_period_s")
-        periods[run.name] = float(c) if c is not None else float(np.median(np.diff(run.t)))
+        periods[run.name] = float(c) if c is not None else run.dt
     first = next(iter(periods.values()))
     odd = {k: v for k, v in periods.items() if abs(v - first) > PERIOD_RTOL * first}
     if odd:

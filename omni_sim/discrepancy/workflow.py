@@ -26,7 +26,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from identification.dataset import Run
+from identification.dataset import Run, spacing
 from identification.errors import UserError
 
 from .. import model as om
@@ -539,10 +539,8 @@ def sampling(run: ReplayRun) -> dict:
     """How a run was logged and replayed: its name, samples, median ``period_s``, ``jitter_s``
     (standard deviation of the spacing), longest ``max_gap_s``, the device's
     ``control_period_s``, and the share of the run with the actuator off."""
-    dt = np.diff(run.t)
     off = 0.0 if run.enabled is None else float(np.mean(~run.enabled))
-    return {"run": run.name, "samples": int(run.n), "period_s": float(np.median(dt)),
-            "jitter_s": float(np.std(dt)), "max_gap_s": float(np.max(dt)),
+    return {"run": run.name, "samples": int(run.n), **spacing(run.t),
             "control_period_s": float(run.period), "torque_off_share": off}
 
 
