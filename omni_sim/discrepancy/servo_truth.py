@@ -68,8 +68,9 @@ JOINT, ACTUATOR = "pivot", "servo"
 #: forward efficiency eta_f = 0.85 of a 4-5 stage spur gearbox (0.96-0.97 per mesh, textbook
 #: spur-gear figure, over ~350:1) -> mu_drive = 1 - 0.85 = 0.15; back-driving efficiency
 #: eta_b = 0.69 -> mu_back = 1/0.69 - 1 = 0.45.  eta_b is an ESTIMATE: back-driving a small
-#: servo's gearbox loses markedly more than driving it (../shared notes "Geared servos": the
-#: friction is larger when the load back-drives the motor, up to self-locking), while the
+#: servo's gearbox loses markedly more than driving it (docs/servo-actuators.md, "Typical
+#: geared servos": the friction is larger when the load back-drives the motor, up to
+#: self-locking), while the
 #: textbook mesh-friction relation eta_b = 2 - 1/eta per mesh would give ~0.83; 0.69 stands for
 #: the larger back-drive losses (bearing preload, the motor's brushes and cogging seen through
 #: the gear) reported for such servos, not a measured figure.
@@ -85,10 +86,10 @@ MU_BACK = 0.45
 #: (estimate, not a measured figure): 0.5 x 0.5 x Fc = 0.25 Fc.  Inside the library effect's
 #: "a few to ~30 % of the Coulomb level" (effects/drive.py).
 ASYMMETRY_NM = 0.0075
-#: The servo's loop period [s] (1 kHz: the usual rate of a servo's internal loop, ../shared
-#: notes "Geared servos"); the model's timestep is the same.
+#: The servo's loop period [s] (1 kHz: the usual rate of a servo's internal loop,
+#: docs/servo-actuators.md, "Typical geared servos"); the model's timestep is the same.
 CONTROL_PERIOD_S = 1e-3
-#: The host's log period [s] (200 Hz: the top of the 50-200 Hz hosts log at, same notes).
+#: The host's log period [s] (200 Hz: the top of the 50-200 Hz hosts log at, same page).
 LOG_PERIOD_S = 5e-3
 #: Host timing jitter: N(0, 0.4 ms) on every log time, clipped to +-1.5 ms (a USB-serial
 #: round trip on a non-real-time OS, estimate); the first time is 0.

@@ -13,7 +13,7 @@ transmitted torque or the direction of motion, so the effects write the law's co
   ``mu_drive`` 0.1-0.4 (estimate); back-driving a multi-stage reduction runs each mesh at a
   lower efficiency (the friction moment adds to the load instead of the motor), so ``mu_back``
   is larger, 0.2-1 (estimate; actuator-model work on Dynamixel and Feetech servos finds the
-  back-driven efficiency markedly lower than the forward one, ../shared/notes/facts.md).
+  back-driven efficiency markedly lower than the forward one, docs/servo-actuators.md).
   Bounds 0-2 (2: firmly self-locking).  The nominal model holds 0 (no such law).
 (The engine's direction-dependent Coulomb law, ``friction_asymmetry``, is not a library
 effect: its case on the independent bank, ``asymmetric_friction`` (the geared servo with
