@@ -318,7 +318,7 @@ def families_verdict(src: dict) -> str:
     comp = src["comparison"]
     F, P = comp["families"], comp["paper"]
     ps = P["step"]
-    fams = ("coulomb", "lugre")
+    fams = tuple(F)  # every family the comparison ran (omni_sim.model.FRICTION_FAMILIES)
 
     def row(label, pap, fmt):
         return f"| {label} | {pap} | " + " | ".join(fmt(F[f]) for f in fams) + " |"
@@ -326,7 +326,7 @@ def families_verdict(src: dict) -> str:
     t7 = paper.table7()
     t11 = F["lugre"]["step_linear_vs_table11"]
     rows = [
-        "| figure | paper | coulomb | lugre |", "|---|---|---|---|",
+        "| figure | paper | " + " | ".join(fams) + " |", "|---|---|" + "---|" * len(fams),
         row("step: ratio of medians linear/α, whole record", f"{ps['ratio_of_medians']:.2f}",
             lambda d: f"{d['step']['ratio_of_medians_whole_record']:.2f}"),
         row(f"step: ratio of means linear/α, whole record (the paper's \"{P['step_ratio']}\")",

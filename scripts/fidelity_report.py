@@ -16,10 +16,10 @@ def _mrad(x) -> str:
 
 def _value(p: dict) -> str:
     v = p["value"]
-    unit = p["name"].rsplit("_", 1)[-1] if "." in p["name"] else ""
-    if unit == "s":
+    seconds = "." in p["name"] and p["name"].endswith("_s") and not p["name"].endswith("_per_s")
+    if seconds:
         text = f"{1e3 * v:.2f} ms"
-    elif unit == "rad" and "half_width" in p["name"]:
+    elif "half_width" in p["name"]:
         text = f"{1e3 * v:.2f} mrad"
     else:
         text = f"{v:.4g}"
@@ -33,7 +33,7 @@ def _effect_text(r: dict) -> str:
 
 def _row(r: dict) -> str:
     if not r.get("ok"):
-        return f"| {r['id']} | failed: {r.get('error', '?')} | | | | | | | | |"
+        return f"| {r['id']} | failed: {r.get('error', '?')} | | | | | | | | | |"
     f = r["figures"]
     m = f["meets"]
     yes = lambda ok: "**yes**" if ok else "no"  # noqa: E731
@@ -42,14 +42,28 @@ def _row(r: dict) -> str:
     return (f"| {r['id']} | {_effect_text(r)} | {r['cost_start']:.1f} → **{r['cost']:.1f}** | "
             f"{step} | {100 * f['table3_C_worst_rel']:+.1f} / {100 * f['table3_beta_tilde_worst_rel']:+.1f} | "
             f"{f['angle_worst_deg']:.2f} | {f['resonance_hz']:.2f} | {f['table10_C_fall']:.2f} | "
-            f"{f['min_physical_margin']:+.3f} | {yes(m['all'])} |")
+            f"{f['min_physical_margin']:+.3f} | {yes(m['all'])} | {_n_tables(r)}/5 |")
+
+
+def _refresh(doc: dict) -> None:
+    """Recompute every candidate's acceptance flags from its figures (the rule may be newer
+    than the run)."""
+    from scripts.fidelity_search import meets
+
+    for r in doc["candidates"]:
+        if r.get("ok"):
+            for key in ("figures", "figures_start"):
+                r[key]["meets"] = meets(r[key])
+
+
+def _n_tables(r: dict) -> int:
+    return sum(r["figures"]["meets"]["tables"].values())
 
 
 def _best(doc: dict):
+    """Candidates by the number of published tables they meet, then by cost."""
     ok = [r for r in doc["candidates"] if r.get("ok")]
-    return sorted(ok, key=lambda r: (-sum(r["figures"]["meets"][k] for k in
-                                          ("table3", "angles", "resonance", "step_median", "step_poses")),
-                                     r["cost"]))
+    return sorted(ok, key=lambda r: (-_n_tables(r), r["cost"]))
 
 
 def format_markdown(doc: dict) -> str:
@@ -91,15 +105,20 @@ def format_markdown(doc: dict) -> str:
         "Columns: the effect's fitted magnitude; cost at the start → fitted (½Σr²); linear step "
         f"error median over poses [mrad] / poses within 40 % (real {_mrad(ref['step_linear_median_over_poses_rad'])}); "
         "Table 3 worst C / β̃ error [%]; worst angle error [°]; resonance at 65/90 [Hz]; fall of "
-        "C(α) (Table 10: 4.57×); smallest physical margin (section 2.3 wants ≤ −0.01); meets all.",
+        "C(α) (Table 10: 4.57×; met at ≥ 3× as in the calibration); smallest physical margin "
+        "(section 2.3 wants ≤ −0.01); the acceptance's five figures all met; published tables met "
+        "of five (Table 3 with its angles, Table 9, Table 10's fall, section 2.3, Table 11's linear "
+        "median and poses).",
         "",
         "| candidate | effect, fitted | cost | step median / poses | Table 3 C / β̃ [%] | angle [°] | "
-        "resonance [Hz] | C fall | margin | meets all |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "resonance [Hz] | C fall | margin | acceptance met | tables met |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     lines += [_row(r) for r in cands]
     lines += ["", "## Verdict", ""]
     lines += _verdict(doc)
+    lines += ["", "## The matched scene", ""]
+    lines += _matched(doc)
     lines += ["", "## Fitted magnitudes and their plausibility", "",
               "| candidate | parameter | start | fitted | bounds | plausible in an Omni | source |",
               "|---|---|---|---|---|---|---|"]
@@ -129,27 +148,76 @@ def _verdict(doc: dict) -> list[str]:
     ranked = _best(doc)
     if not ranked:
         return ["No candidate ran."]
-    full = [r for r in ranked if r["figures"]["meets"]["all"]]
+    full = [r for r in ranked if _n_tables(r) == 5]
+    accepted = [r for r in ranked if r["figures"]["meets"]["all"]]
     out = []
     if full:
         out.append("Meet every published table at once: " + ", ".join(
             f"**{r['id']}** (cost {r['cost']:.1f})" for r in full) + ".")
     else:
-        out.append("**No candidate meets every published table at once.** The closest, by the "
-                   "number of acceptance figures met and then the cost:")
-    for r in ranked[:6]:
+        out.append("**No candidate meets every published table at once.**")
+    if accepted:
+        out.append("Meet the acceptance's five figures (step median, poses within 40 %, Table 3, "
+                   "angles, resonance): " + ", ".join(
+                       f"**{r['id']}** ({_n_tables(r)}/5 tables)" for r in accepted) + ".")
+    out += ["", "Ranked by the published tables met, then the cost:", ""]
+    for r in ranked[:8]:
         f = r["figures"]
-        missed = [k for k, ok in f["meets"].items() if k != "all" and not ok]
+        missed = [k for k, ok in f["meets"]["tables"].items() if not ok]
         out.append(f"- {r['id']} ({_effect_text(r)}): cost {r['cost']:.1f}; step median "
                    f"{_mrad(f.get('step_median_rad'))} mrad, {f.get('poses_within_40pct', 0)}/25 poses; "
                    f"Table 3 {100 * f['table3_C_worst_rel']:+.1f} / {100 * f['table3_beta_tilde_worst_rel']:+.1f} %; "
-                   f"resonance {f['resonance_hz']:.2f} Hz; misses: {', '.join(missed) or 'nothing'}")
+                   f"resonance {f['resonance_hz']:.2f} Hz; C fall {f['table10_C_fall']:.2f}×; "
+                   f"{_n_tables(r)}/5 tables, misses: {', '.join(missed) or 'nothing'}")
     bases = {r["family"]: r for r in doc["candidates"] if r.get("ok") and not r["effects"]}
     for fam, r in sorted(bases.items()):
         f = r["figures"]
         out.append(f"- {fam} alone, its friction refitted to these targets: cost {r['cost']:.1f}, step "
                    f"median {_mrad(f.get('step_median_rad'))} mrad, Table 3 "
                    f"{100 * f['table3_C_worst_rel']:+.1f} / {100 * f['table3_beta_tilde_worst_rel']:+.1f} %")
+    return out
+
+
+def _matched(doc: dict) -> list[str]:
+    """Which candidate became ``models/scene_matched.xml`` and why."""
+    from scripts.fidelity_search import SCENE_EFFECTS
+
+    ranked = _best(doc)
+    ok = [r for r in ranked if r["family"] == "lugre" and all(e in SCENE_EFFECTS for e in r["effects"])]
+    if not ok:
+        return ["No candidate can be declared by a scene on the shared robot."]
+    best = ok[0]
+    f = best["figures"]
+    above = [r for r in ranked[:ranked.index(best)]]
+    out = [
+        "A scene file includes `omni.xml` (the robot every family shares: masses, turret, arm "
+        "servos) and the campaign's A_r is shared too, so the matched scene is the best candidate "
+        "on the **lugre footing** whose effect a scene can declare around `omni.xml` (the yaw "
+        f"joint's defaults: {', '.join(f'`{k}`' for k in SCENE_EFFECTS)}): "
+        f"**{best['id']}** — {_effect_text(best)}; {_n_tables(best)}/5 published tables; "
+        f"step median {_mrad(f.get('step_median_rad'))} mrad, {f.get('poses_within_40pct')}/25 "
+        f"poses within 40 %; Table 3 {100 * f['table3_C_worst_rel']:+.1f} / "
+        f"{100 * f['table3_beta_tilde_worst_rel']:+.1f} %; resonance {f['resonance_hz']:.2f} Hz; "
+        f"C fall {f['table10_C_fall']:.2f}×. Its structure is both friction families at once: "
+        "the LuGre drive and a hard stick.",
+        "",
+    ]
+    if above:
+        out += ["", "Ranked above it but not declarable by a scene: " + "; ".join(
+            f"{r['id']} (cost {r['cost']:.1f}, {_n_tables(r)}/5 tables: "
+            + ("a bias of `yaw_motor`, which `omni.xml` defines" if "position_offset" in r["effects"]
+               else "not a scene-level effect") + ")" for r in above) + ".", ""]
+    cf = [r for r in ranked if r["family"] == "coulomb" and r["figures"]["meets"]["all"]]
+    if cf:
+        r = cf[0]
+        out += ["", 
+            f"The coulomb-footed candidates that meet the acceptance's five figures (best: {r['id']}, "
+            f"cost {r['cost']:.1f}) stand on the all-free Coulomb robot and its A_r = "
+            "0.087 rad, not on the shared robot and campaign (A_r = 0.050 rad); started on the "
+            "shared robot, the same structure (a hard stick plus a soft LuGre element: "
+            "lugre/coulomb_friction@coulomb_presliding) costs 850 and fits back to 42.6 with "
+            "Table 3 at −13.7 %. They also miss Table 10's fall (≤ 2.7×, paper 4.6×) and section "
+            "2.3's non-physical frequency, which the lugre footing keeps."]
     return out
 
 
@@ -197,6 +265,7 @@ def plot(doc: dict, path: Path) -> Path:
 
 
 def write_report(doc: dict, folder: Path) -> list[Path]:
+    _refresh(doc)
     md = folder / "search.md"
     md.write_text(format_markdown(doc))
     return [md, plot(doc, folder / "search.png")]

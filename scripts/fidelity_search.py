@@ -60,8 +60,8 @@ OUT = ROOT / "docs" / "fidelity" / "search.json"
 COULOMB_ALL_FREE = ROOT / "docs" / "fidelity" / "coulomb_all_free.json"
 SCENES = {"lugre": ROOT / "models" / "scene_lugre.xml", "coulomb": ROOT / "models" / "scene_coulomb.xml"}
 #: Simulations per candidate (each 1-1.5 s; 5-6 s with a delay or lag, which the batched fast
-#: path cannot run): ~6 Jacobians of a 6-parameter fit.
-MAX_EVALS = 40
+#: path cannot run): ~9 Jacobians of a 6-parameter fit.
+MAX_EVALS = 60
 #: Pairs: all pairs among this many best single effects of each family.
 PAIR_TOP = 3
 #: The issue's acceptance (also the report's "meets" columns).
@@ -117,6 +117,17 @@ LEFT_OUT = {
                      "self-locking (docs/servo-actuators.md)",
     "asymmetric_friction": "not in the library: its bank case failed (docs/discrepancy.md)",
 }
+#: Extra starts, added after the first pass: the structure that met the acceptance on the
+#: coulomb footing (hard stick + a soft LuGre element), started on the lugre footing (the shared
+#: robot and A_r) from its fitted friction, so that the basin it found is tried on the robot
+#: every scene shares.
+EXTRA = [
+    {"id": "lugre/coulomb_friction@coulomb_presliding", "family": "lugre",
+     "effects": ["coulomb_friction"],
+     "start": {"yaw_damping": 0.006975, "lugre_stiffness": 0.718, "lugre_friction": 0.006521,
+               "stribeck_ratio": 1.18, "stribeck_speed": 0.4248,
+               "coulomb_friction.frictionloss_nm": 0.01736}},
+]
 #: The arm servos' compliance: not a library effect but the robot's servo gains, freed.
 ARM_SERVOS = ("shoulder_kp", "elbow_kp")
 
@@ -132,6 +143,7 @@ def candidates(singles_ranked: dict | None = None) -> list[dict]:
                 continue
             out.append({"id": f"{fam}/{name}", "family": fam, "effects": [name]})
         out.append({"id": f"{fam}/arm_servos", "family": fam, "effects": ["arm_servos"]})
+        out += [c for c in EXTRA if c["family"] == fam]
         if singles_ranked and fam in singles_ranked:
             best = singles_ranked[fam][:PAIR_TOP]
             for i in range(len(best)):
@@ -206,8 +218,9 @@ def fit(cand: dict, jobs: int | None = None, max_evals: int = MAX_EVALS, verbose
     base, source = footing(cand["family"])
     free = _free(cand)
     start = []
-    for f in free:
-        start.append(EFFECTS[f["effect"]][1][f["index"]] if f["kind"] == "effect" else base[f["name"]])
+    for f in free:  # the footing's value, the effect's start, or the candidate's own start
+        start.append(cand.get("start", {}).get(f["name"], EFFECTS[f["effect"]][1][f["index"]]
+                                                  if f["kind"] == "effect" else base[f["name"]]))
     lo = np.array([f["lower"] for f in free])
     hi = np.array([f["upper"] for f in free])
     x0 = np.clip(np.array(start, float), lo, hi)
@@ -308,6 +321,14 @@ def meets(f: dict) -> dict:
                          and abs(f["step_median_rad"] / real - 1) <= ACCEPT["step_median_rel"]),
          "step_poses": f.get("poses_within_40pct", 0) >= ACCEPT["poses_within_40pct"]}
     m["all"] = all(m.values())
+    # the two published figures the acceptance does not name, as the calibration meets them:
+    # Table 10's fall of C(alpha) >= 3x (paper 4.6x) and section 2.3's non-physical frequency
+    m["table10_fall"] = f["table10_C_fall"] >= 3.0
+    m["section2_3"] = f["min_physical_margin"] <= cal.MARGIN_TARGET
+    m["all_tables"] = m["all"] and m["table10_fall"] and m["section2_3"]
+    m["tables"] = {"Table 3": m["table3"] and m["angles"], "Table 9": m["resonance"],
+                   "Table 10": m["table10_fall"], "section 2.3": m["section2_3"],
+                   "Table 11 linear": m["step_median"] and m["step_poses"]}
     return m
 
 
@@ -330,7 +351,29 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--list", action="store_true", help="list the candidates and exit")
     ap.add_argument("--report-only", action="store_true", help="rewrite search.md/png from --out")
+    ap.add_argument("--write-scene", metavar="ID", default=None,
+                    help="write candidate ID of --out into models/scene_matched.xml and its record "
+                         "models/calibration_matched.json (a lugre-footed candidate whose effects "
+                         "a scene can declare: %s)" % ", ".join(SCENE_EFFECTS))
+    ap.add_argument("--polish", action="append", default=None, metavar="ID",
+                    help="continue candidate ID of --out from its fitted values (a chained run, "
+                         "id ID@polish; with --merge)")
     args = ap.parse_args(argv)
+    if args.polish:
+        old = json.loads(args.out.read_text())
+        results = list(old["candidates"])
+        for cid in args.polish:
+            prev = next(r for r in results if r["id"] == cid)
+            cand = {"id": f"{cid}@polish", "family": prev["family"], "effects": prev["effects"],
+                    "start": {q["name"]: q["value"] for q in prev["parameters"]}, "continues": cid}
+            results = [r for r in results if r["id"] != cand["id"]]
+            results.append(fit(cand, args.jobs, args.max_evals))
+            _write(args.out, results)
+        return 0
+    if args.write_scene:
+        for path in write_scene(json.loads(args.out.read_text()), args.write_scene):
+            print("wrote", path)
+        return 0
     if args.list:
         for c in candidates():
             print(c["id"])
@@ -356,6 +399,82 @@ def main(argv=None) -> int:
     for p in write_report(doc, args.out.parent):
         print("wrote", p)
     return 0
+
+
+# -- the matched scene ----------------------------------------------------------------------------
+MATCHED_SCENE = ROOT / "models" / "scene_matched.xml"
+MATCHED_RECORD = ROOT / "models" / "calibration_matched.json"
+#: Effects a scene file can declare around omni.xml (which it includes and cannot edit): the
+#: yaw's joint defaults.  A delay, lag or bias of yaw_motor, a two-mass drive or cogging would
+#: need omni.xml itself.
+SCENE_EFFECTS = {"coulomb_friction": "frictionloss", "joint_stiffness": "stiffness"}
+
+
+def write_scene(doc: dict, cid: str) -> list[Path]:
+    """Write candidate ``cid``'s fitted friction into models/scene_matched.xml (attributes of
+    named elements through an XML tree, comments kept) and its record, re-measured on the
+    written file."""
+    import datetime as dt
+
+    from omni_sim import model as om
+
+    cand = next((r for r in doc["candidates"] if r["id"] == cid), None)
+    if cand is None or not cand.get("ok"):
+        raise SystemExit(f"--write-scene: no successful candidate {cid!r} in the search record")
+    if cand["family"] != "lugre" or any(e not in SCENE_EFFECTS for e in cand["effects"]):
+        raise SystemExit(f"--write-scene: {cid} is not a lugre-footed candidate of {sorted(SCENE_EFFECTS)}")
+    v = {p["name"]: p["value"] for p in cand["parameters"]}
+    joint = {"damping": cal._fmt(v["yaw_damping"]), "frictionloss": "0"}
+    for name, attr in SCENE_EFFECTS.items():
+        key = next((k for k in v if k.startswith(name + ".")), None)
+        if key is not None:
+            joint[attr] = cal._fmt(v[key])
+    lugre = [v["lugre_stiffness"], 0.0, v["lugre_friction"], v["lugre_friction"] * v["stribeck_ratio"],
+             v["stribeck_speed"]]
+    cal._set_attributes(MATCHED_SCENE, [
+        (cal._SCENE_JOINT, joint),
+        (f".//actuator/dcmotor[@name='{cal.FRICTION_ACTUATOR}']", {"lugre": " ".join(cal._fmt(x) for x in lugre)}),
+    ])
+    model = om.load_model(friction="matched")
+    amplitude = cal.ex.load_campaign("sine").sine[0]["amplitude_rad"]
+    fig = cal.evaluate(model, amplitude, steps=True)
+    res = cal.residuals(fig, "tables")
+    achieved = figures(fig)
+    others = []
+    for r in doc["candidates"]:
+        if r.get("ok"):
+            m = meets(r["figures"])
+            others.append({"id": r["id"], "cost": r["cost"], "tables_met": sum(m["tables"].values()),
+                           "acceptance_met": m["all"]})
+        else:
+            others.append({"id": r["id"], "error": r.get("error")})
+    record = {
+        "family": "matched",
+        "date": dt.date.today().isoformat(),
+        "from_candidate": cid,
+        "method": "scripts/fidelity_search.py: scipy.optimize.least_squares (trf, bounded), "
+                  "simulation-in-the-loop with the project's own identification, table-level "
+                  "targets (omni_sim.calibration.residual_terms(targets='tables'))",
+        "targets": doc["targets"],
+        "residual_scales": doc["residual_scales"],
+        "parameters": cand["parameters"],
+        "footing": cand["footing"],
+        "fixed": {"shared_robot_and_campaign": {k: v for k, v in footing("lugre")[0].items()
+                                                if k in cal.SHARED},
+                  "beta_bar_N_m_per_V": 0.5, "lugre_sigma1_N_m_s_per_rad": 0.0},
+        "cost_search": cand["cost"],
+        "cost": 0.5 * float(res @ res),
+        "achieved": achieved,
+        "poses": fig["poses"],
+        "steps": fig["steps"],
+        "why_this_candidate": "the most published tables met, then the lowest cost, among the "
+                              "candidates a scene can declare on the shared robot and campaign "
+                              "(docs/fidelity/search.md, 'The matched scene')",
+        "candidates_tried": others,
+        "code_commit": doc.get("code_commit"),
+    }
+    MATCHED_RECORD.write_text(json.dumps(record, indent=1) + "\n")
+    return [MATCHED_SCENE, MATCHED_RECORD]
 
 
 def _write(path: Path, results: list[dict]) -> dict:

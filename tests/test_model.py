@@ -20,7 +20,7 @@ def model():
     return om.load_model()
 
 
-SCENES = ["scene.xml", "scene_lugre.xml", "scene_coulomb.xml", "omni.xml"]
+SCENES = ["scene.xml", "scene_lugre.xml", "scene_coulomb.xml", "scene_matched.xml", "omni.xml"]
 
 
 @pytest.mark.parametrize("name", SCENES)
