@@ -202,6 +202,18 @@ def _matched(doc: dict) -> list[str]:
         "the LuGre drive and a hard stick.",
         "",
     ]
+    base = next((r for r in doc["candidates"] if r["id"] == "lugre/none" and r.get("ok")), None)
+    if base is not None:
+        fs = base["figures_start"]
+        met = [k for k, ok in fs["meets"]["tables"].items() if ok]
+        n = len(met)
+        verdict = ("more than the default: it becomes the default scene" if _n_tables(best) > n else
+                   "not more than the default: **the default scene stays lugre**")
+        out += [f"The default scene as shipped (lugre, the start of lugre/none) meets {n}/5 tables "
+                f"({', '.join(met)}; step median {_mrad(fs.get('step_median_rad'))} mrad, "
+                f"{fs.get('poses_within_40pct')}/25 poses); the matched scene meets "
+                f"{_n_tables(best)}/5 ({', '.join(k for k, ok in f['meets']['tables'].items() if ok)}): "
+                f"{verdict}.", ""]
     if above:
         out += ["", "Ranked above it but not declarable by a scene: " + "; ".join(
             f"{r['id']} (cost {r['cost']:.1f}, {_n_tables(r)}/5 tables: "
