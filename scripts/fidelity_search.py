@@ -393,7 +393,7 @@ def main(argv=None) -> int:
                 if "+" in c["id"] and c["id"] not in done | {r["id"] for r in results}:
                     results.append(fit(c, args.jobs, args.max_evals))
                     _write(args.out, results)
-    doc = _write(args.out, results)
+    doc = old if args.report_only else _write(args.out, results)
     from scripts.fidelity_report import write_report
 
     for p in write_report(doc, args.out.parent):
