@@ -302,36 +302,19 @@ def step_errors(device: Device, ident, jobs: int | None = None) -> dict:
     over the whole record beside Table 11's.  Reads Table 11's *linear* columns only; the alpha
     model is neither fitted nor simulated.  ``{"poses": [...], "median_over_poses_rad",
     "within_40pct"}``, or ``{"error": ...}`` when no inertia model can be fitted."""
-    from identification import scoring
     from identification.inertia import MIN_POSES, fit_inertia_model
-    from identification.simulate import simulate_linear
-    from identification.validation import Params
 
     usable = [p for p in ident.poses if p.physical]
     if len(usable) < MIN_POSES:
         return {"error": f"only {len(usable)} physical poses: no inertia model (6)"}
     inertia = fit_inertia_model([p.gamma1_deg for p in usable], [p.gamma2_deg for p in usable],
                                 [p.C_linear for p in usable], [p.beta_tilde_linear for p in usable])
-    params = Params(inertia.params, None, [])  # no alpha model: linear_coefficients only
     runs = ex.simulate(ex.campaign("step"), device=device, jobs=jobs)
-    groups: dict = {}
-    for r in runs:
-        groups.setdefault((len(r.t), round(r.dt, 12), r.kp), []).append(r)
     table = {k: (row["median_linear_rad"], row["p90_linear_rad"])
              for k, row in _paper.by_set_pose(_paper.table11()).items()}
-    rows = []
-    for (_, dt, kp), group in groups.items():
-        _, Cl, bl = (np.array(x) for x in zip(*[params.linear_coefficients(r) for r in group]))
-        th0 = np.array([r.theta[0] for r in group])
-        lin = simulate_linear(Cl, bl, np.vstack([r.r for r in group]), dt, kp, theta0=th0, phi0=0.0)
-        for j, r in enumerate(group):
-            s = scoring.abs_error_stats(r.theta, lin.theta[j])
-            key = (round(float(r.meta["gamma1_set_deg"])), round(float(r.meta["gamma2_set_deg"])))
-            paper_median, paper_p90 = table[key]
-            rows.append({"set": list(key), "median_rad": s["median_abs_error_rad"],
-                         "p90_rad": s["p90_abs_error_rad"], "paper_median_rad": paper_median,
-                         "paper_p90_rad": paper_p90})
-    rows.sort(key=lambda x: tuple(x["set"]))
+    rows = linear_step_errors(runs, inertia.params)
+    for row in rows:
+        row["paper_median_rad"], row["paper_p90_rad"] = table[tuple(row["set"])]
     return {"poses": rows,
             "median_over_poses_rad": float(np.median([r["median_rad"] for r in rows])),
             "p90_median_over_poses_rad": float(np.median([r["p90_rad"] for r in rows])),
@@ -354,6 +337,32 @@ def c_at_alpha(pose: dict, alphas) -> list[float]:
     c = np.asarray(pose["C_data"])[mask]
     order = np.argsort(a)
     return [float(np.interp(math.log(x), np.log(a[order]), c[order])) for x in alphas]
+
+
+def linear_step_errors(runs, inertia_params) -> list[dict]:
+    """The linear model (26) on every step run of ``runs``, as the validation stage simulates it
+    (:mod:`identification.validation`: inertia model (6) at the run's actual angles, from rest
+    at the first measured angle, batched by length, dt and kp), scored over the whole record:
+    ``[{"set": [gamma1_set, gamma2_set], "median_rad", "p90_rad"}]`` sorted by set pose."""
+    from identification import scoring
+    from identification.simulate import simulate_linear
+    from identification.validation import Params
+
+    params = Params(inertia_params, None, [])  # no alpha model: linear_coefficients only
+    groups: dict = {}
+    for r in runs:
+        if r.kind == "step":
+            groups.setdefault((len(r.t), round(r.dt, 12), r.kp), []).append(r)
+    rows = []
+    for (_, dt, kp), group in groups.items():
+        _, Cl, bl = (np.array(x) for x in zip(*[params.linear_coefficients(r) for r in group]))
+        th0 = np.array([r.theta[0] for r in group])
+        lin = simulate_linear(Cl, bl, np.vstack([r.r for r in group]), dt, kp, theta0=th0, phi0=0.0)
+        for j, r in enumerate(group):
+            s = scoring.abs_error_stats(r.theta, lin.theta[j])
+            rows.append({"set": [round(float(r.meta["gamma1_set_deg"])), round(float(r.meta["gamma2_set_deg"]))],
+                         "median_rad": s["median_abs_error_rad"], "p90_rad": s["p90_abs_error_rad"]})
+    return sorted(rows, key=lambda x: tuple(x["set"]))
 
 
 def residual_terms(fig: dict, targets: str = "calibration") -> list[tuple[str, float]]:

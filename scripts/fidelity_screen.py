@@ -187,30 +187,12 @@ def build_model(cfg: dict):
 
 
 def _linear_step_errors(runs, inertia_params) -> list[dict]:
-    """The linear model (26) on every step run, as the validation stage simulates it
-    (identification/validation.py: inertia model (6) at the run's actual angles, from rest at
-    the first measured angle, batched by length, dt and kp), scored over the whole record."""
-    from identification import scoring
-    from identification.simulate import simulate_linear
-    from identification.validation import Params
+    """The linear model (26) on every step run (:func:`omni_sim.calibration.linear_step_errors`),
+    in this screen's row layout."""
+    from omni_sim.calibration import linear_step_errors
 
-    params = Params(inertia_params, None, [])  # no alpha model: only linear_coefficients is used
-    steps = [r for r in runs if r.kind == "step"]
-    groups: dict = {}
-    for r in steps:
-        groups.setdefault((len(r.t), round(r.dt, 12), r.kp), []).append(r)
-    rows = []
-    for (_, dt, kp), group in groups.items():
-        _, Cl, bl = (np.array(x) for x in zip(*[params.linear_coefficients(r) for r in group]))
-        th0 = np.array([r.theta[0] for r in group])
-        lin = simulate_linear(Cl, bl, np.vstack([r.r for r in group]), dt, kp, theta0=th0, phi0=0.0)
-        for j, r in enumerate(group):
-            s = scoring.abs_error_stats(r.theta, lin.theta[j])
-            rows.append({"set_deg": [round(float(r.meta.get("gamma1_set_deg"))),
-                                     round(float(r.meta.get("gamma2_set_deg")))],
-                         "median_linear_rad": s["median_abs_error_rad"],
-                         "p90_linear_rad": s["p90_abs_error_rad"]})
-    return sorted(rows, key=lambda x: tuple(x["set_deg"]))
+    return [{"set_deg": r["set"], "median_linear_rad": r["median_rad"], "p90_linear_rad": r["p90_rad"]}
+            for r in linear_step_errors(runs, inertia_params)]
 
 
 def measure_model(model, jobs=None) -> dict:
