@@ -32,8 +32,12 @@ def test_package_data_covers_the_data_files():
     for name in ("omni.xml", "scene.xml", "calibration.json", "README.md"):
         assert (ROOT / "models" / name).is_file(), name
         assert ("omni_sim.models", "*" + Path(name).suffix) in covered, name
-    assert ("identification", "data/*.csv") in covered
-    assert ("omni_sim", "campaigns/*.toml") in covered
+    assert ("identification.data", "*.csv") in covered
+    assert ("omni_sim.campaigns", "*.toml") in covered
+    listed = set(_setuptools()["packages"])
+    for folder in ("identification/data", "omni_sim/campaigns", "models"):
+        pkg = {"models": "omni_sim.models"}.get(folder, folder.replace("/", "."))
+        assert pkg in listed, f"{folder} ships data but is not a listed (data) package"
 
 
 def test_models_dir_is_the_data_package_on_disk():
