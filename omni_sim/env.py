@@ -177,13 +177,30 @@ class OmniYawEnv(gym.Env):
     **Time** -- ``control_period_s`` (default 1 ms, the Omni's servo rate) must be a whole
     multiple ``substeps`` of the model's timestep (``ValueError`` otherwise);
     ``dt == model.opt.timestep * substeps`` and ``metadata["render_fps"] == round(1 / dt)``.
+    It is the action repeat (gymnasium's MuJoCo environments call it ``frame_skip``): the
+    voltage is held for ``substeps`` physics steps.  It changes ``dt``, the episode length in
+    steps (``round(duration_s / dt)``: 4000 at 1 ms, 400 at 10 ms for the default 4 s) and the
+    reward's scale: one reward per control period, so an episode's return is about
+    ``-(1/dt) * integral(e**2 dt)`` -- the same tracking gives a 10x smaller return at 10 ms.
+
+    **With RL libraries** -- the action stays in volts (physical units, as gymnasium's MuJoCo
+    environments keep their actuators' control ranges).  Normalise it the standard way, with
+    float32 bounds so that the wrapper's box keeps the action's dtype::
+
+        env = gymnasium.wrappers.RescaleAction(gym.make("omni_sim/OmniYaw-v0"),
+                                               np.float32(-1), np.float32(1))
+
+    stable-baselines3's ``check_env`` passes that wrapped environment with no warning (and warns
+    about the raw ±1.3 V box); gymnasium's ``check_env`` is meant for the raw environment
+    (``env.unwrapped``), where it passes with one warning, the same recommendation of a ±1 box
+    (tests/test_env.py).
 
     Parameters
     ----------
     model_path : path, optional
         MJCF file keeping the contract's names (default: the built-in scene).  Make-time only:
         the spaces derive from it.
-    friction : {"coulomb", "lugre"}, optional
+    friction : {"coulomb", "lugre", "matched"}, optional
         The built-in scene of this friction family (``models/scene_<friction>.xml``; default
         ``scene.xml``, the ``lugre`` family).  Make-time only; not together with
         ``model_path``.  The attribute ``friction`` names the family in use (for a user's

@@ -76,6 +76,40 @@ def test_check_env(options):
     env.close()
 
 
+def _rescaled(**options):
+    from gymnasium.wrappers import RescaleAction
+
+    return RescaleAction(gym.make(ENV_ID, **options), np.float32(-1), np.float32(1))
+
+
+def test_rescaled_action_is_the_documented_normalisation():
+    """RescaleAction with float32 bounds: a float32 box of +-1 mapped linearly onto +-1.3 V,
+    made without a warning (float64 bounds would warn that the box's precision is lowered)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = _rescaled(reference="sine")
+    assert not [str(w.message) for w in caught]
+    assert env.action_space.dtype == np.float32
+    assert np.array_equal(env.action_space.low, [-1]) and np.array_equal(env.action_space.high, [1])
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.array([0.5], np.float32))
+    assert info["voltage"] == pytest.approx(0.5 * env.unwrapped.voltage_limit, rel=1e-6)
+
+
+def test_rescaled_env_passes_stable_baselines3_check_without_warning():
+    """stable-baselines3's checker on the documented wrapped env: no warning (it warns about the
+    raw +-1.3 V box).  Optional: the core install has no stable-baselines3."""
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sb3_checker.check_env(_rescaled())
+    assert not [str(w.message) for w in caught]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sb3_checker.check_env(gym.make(ENV_ID))
+    assert any("symmetric and normalized" in str(w.message) for w in caught)
+
+
 def test_dt_is_timestep_times_substeps(tmp_path):
     env = OmniYawEnv()
     assert env.substeps == 1 and env.dt == env.model.opt.timestep * env.substeps == 1e-3
