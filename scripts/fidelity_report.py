@@ -4,7 +4,6 @@ rewrites them)."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 TABLES = ("table3", "table9", "table10", "section2.3", "table11")

@@ -6,6 +6,8 @@ alpha columns of Tables 8 and 11 are replaced by nonsense; the residuals must no
 """
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +17,9 @@ from identification import simulate as sim
 from identification import validation
 from omni_sim import calibration as cal
 from omni_sim import model as om
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from scripts.fidelity_search import N_RESIDUALS  # noqa: E402
 
 
 def _forbidden(*args, **kwargs):
@@ -37,6 +42,7 @@ def test_residual_sets(evaluation):
     extra = [label for label, _ in tab_terms[len(cal_terms):]]
     assert extra[0] == "table9 resonance"
     assert len(extra) == 1 + 2 * len(paper.table11()) == 51
+    assert len(tab_terms) == N_RESIDUALS  # what the search returns for a failed candidate
     assert all(label.startswith(("table3", "table10", "section2.3", "table9", "table11 linear"))
                for label, _ in tab_terms)
     assert np.array_equal(cal.residuals(evaluation), np.array([v for _, v in cal_terms]))
