@@ -54,12 +54,14 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from omni_sim.calibration import STEP_BAND_REL  # noqa: E402
 from omni_sim.device import ENCODER_STEP_RAD  # noqa: E402
 
 #: The Omni's encoder count [rad] (the device's, 15000 counts/rev), for the backlash magnitudes.
 COUNT_RAD = ENCODER_STEP_RAD
-#: A pose "matches" Table 11 when its linear median step error is within this fraction of it.
-WITHIN = 0.40
+#: A pose "matches" Table 11 when its linear median step error is within this fraction of it
+#: (the table-level targets' band, omni_sim.calibration.STEP_BAND_REL).
+WITHIN = STEP_BAND_REL
 #: The bases: scene file (relative to the project) per friction family.
 BASES = {"lugre": "models/scene.xml", "coulomb": "models/scene_coulomb.xml"}
 #: The scene's calibrated LuGre element ``yaw_friction`` (models/scene_lugre.xml): sigma0
