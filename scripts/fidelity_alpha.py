@@ -1,0 +1,72 @@
+#!/usr/bin/env python
+"""The alpha model's verdict on every candidate of the table-level search within Table 11's band.
+
+Reads ``docs/fidelity/search.json``, selects the candidates whose linear model errs on the steps
+as much as the real Omni's (:func:`scripts.fidelity_alpha_verdict.in_band`, from the record's
+linear figures only), rebuilds each one's device and runs ``omni reproduce``'s stages on it, and
+writes ``docs/fidelity/alpha_verdict.json`` (with the code commit), ``alpha_verdict.md`` and
+``alpha_verdict.png`` (rendered from the JSON).  The verdict is reported, never used to choose.
+
+    nice -n 10 python scripts/fidelity_alpha.py          # every in-band candidate (a few minutes)
+    python scripts/fidelity_alpha.py --list              # which candidates, and exit
+    python scripts/fidelity_alpha.py --report-only       # rewrite the md/png from the JSON
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from scripts import fidelity_alpha_verdict as fav  # noqa: E402
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--search", type=Path, default=fav.SEARCH, help="the search record")
+    ap.add_argument("--out", type=Path, default=fav.OUT, help="the verdict record (JSON)")
+    ap.add_argument("--jobs", type=int, default=None, help="threads of each campaign (default: all cores)")
+    ap.add_argument("--list", action="store_true", help="list the in-band candidates and exit")
+    ap.add_argument("--report-only", action="store_true", help="rewrite the md/png from --out")
+    args = ap.parse_args(argv)
+    if args.report_only:
+        rec = json.loads(args.out.read_text())
+    else:
+        doc = json.loads(args.search.read_text())
+        if args.list:
+            for r in fav.in_band(doc):
+                print(r["id"])
+            return 0
+        rec = fav.run(doc, args.jobs)
+        rec.update(code_commit=_commit(), versions=_versions())
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(rec, indent=1) + "\n")
+        print("wrote", args.out)
+    for path in fav.write_report(rec, args.out.parent):
+        print("wrote", path)
+    return 0
+
+
+def _commit():
+    from scripts._provenance import git_commit
+
+    return git_commit()
+
+
+def _versions() -> dict:
+    import mujoco
+    import numpy
+    import scipy
+
+    return {"python": platform.python_version(), "mujoco": mujoco.__version__,
+            "numpy": numpy.__version__, "scipy": scipy.__version__}
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
