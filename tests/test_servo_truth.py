@@ -326,3 +326,167 @@ def test_the_asymmetric_friction_case():
                                                           asymmetry_nm=st.ASYMMETRY_NM).theta)
         np.testing.assert_array_equal(r.t, n.t)
     assert np.max(np.abs(runs[1].theta - nominal[1].theta)) > 2 * st.ENCODER_STEP_RAD
+
+
+# --- the efficiency truth: a gear efficiency law with a smooth sign (issue 34) ----------------
+def _variant(tmp_path, load_nm: float = 0.0) -> str:
+    """The nominal model without gravity and, if ``load_nm``, with a constant load torque on the
+    pivot (a ``general`` actuator of gain 0 and affine bias ``load_nm``): a file for ``path=``."""
+    spec = mujoco.MjSpec.from_file(str(st.model_path()))
+    spec.option.gravity = [0.0, 0.0, 0.0]
+    if load_nm:
+        a = spec.add_actuator()
+        a.name, a.target, a.trntype = "load", st.JOINT, mujoco.mjtTrn.mjTRN_JOINT
+        a.gaintype, a.gainprm = mujoco.mjtGain.mjGAIN_FIXED, [0.0] * 10
+        a.biastype, a.biasprm = mujoco.mjtBias.mjBIAS_AFFINE, [load_nm] + [0.0] * 9
+    p = tmp_path / f"variant_{load_nm:g}.xml"
+    p.write_text(spec.to_xml())
+    return str(p)
+
+
+#: The nominal model's numbers the closed forms below use (test_nominal_model_numbers checks the
+#: model holds them): torque per volt, back-EMF kt^2/R = 1.2^2/4, bearing damping, Coulomb level.
+G, CE, B, FC = 0.30, 0.36, 0.01, 0.03
+#: Steady speeds agree with the closed form to 1e-10 relative: at a steady speed the linearly
+#: implicit step applies exactly -L(w) (its correction s (w+ - w) is 0) and the rotor term
+#: J_r a_prev is 0, so the fixed point of the loop is the root of the steady equation; the
+#: transient decays with a time constant <= J / (c_e + b) = 0.056 s, e^-50 of it left after 3 s;
+#: the rest is round-off (observed <= 6e-15 relative).
+STEADY_REL = 1e-10
+
+
+def _steady(residual) -> float:
+    from scipy.optimize import brentq
+    return brentq(residual, 1e-9, 50.0, xtol=1e-15, rtol=1e-15)
+
+
+@pytest.mark.parametrize("volts", [12.0, 1.0, 0.2])
+def test_efficiency_driving_steady_speed(tmp_path, volts):
+    """No gravity, the command held at +volts (P law saturated on a far goal): the motor drives
+    the load; the speed settles where g u - (c_e + b) w - Fc - (1 - eta_drive) (g u - c_e w)
+    tanh(w / w_s) = 0 (root found by brentq; 0.2 V settles at ~1.4 w_s, in the smooth sign's
+    transition).  The other branch's efficiency gives another speed (the check can fail)."""
+    t = _regular(3.0)
+    tr = st.simulate_efficiency(t, np.full_like(t, 1e3), np.ones_like(t), command_limit=volts,
+                                step_rad=0.0, path=_variant(tmp_path))
+
+    def residual(w, k=1.0 - st.ETA_DRIVE):
+        return G * volts - (CE + B) * w - FC - k * (G * volts - CE * w) * math.tanh(w / st.SMOOTH_SPEED_RAD_S)
+
+    w = _steady(residual)
+    assert tr.omega[-1] == pytest.approx(w, rel=STEADY_REL)
+    assert tr.tau_m[-1] * tr.omega[-2] > 0  # the driving branch
+    wrong = _steady(lambda x: residual(x, 1.0 / st.ETA_BACK - 1.0))
+    assert abs(wrong - w) > 1e-3 * w
+
+
+@pytest.mark.parametrize("load_nm, volts", [(1.0, 2.0), (0.5, 1.0), (0.2, 0.55)])
+def test_efficiency_back_driven_steady_speed(tmp_path, load_nm, volts):
+    """No gravity, a constant load torque T pushing positive, the command held at -volts: the
+    load back-drives the motor (tau_m = -g u - c_e w < 0 < w); the speed settles where
+    T - g u - (c_e + b) w - Fc - (1/eta_back - 1) |g u + c_e w| tanh(w / w_s) = 0.  The last pair
+    creeps at ~0.05 w_s: the smooth sign does not stick, where the library's law (a hard stick up
+    to Fc + mu_back g u = 0.104 N*m) would hold a net 0.035 N*m."""
+    t = _regular(3.0)
+    tr = st.simulate_efficiency(t, np.full_like(t, -1e3), np.ones_like(t), command_limit=volts,
+                                step_rad=0.0, path=_variant(tmp_path, load_nm))
+
+    def residual(w):
+        return (load_nm - G * volts - (CE + B) * w - FC
+                - (1.0 / st.ETA_BACK - 1.0) * abs(G * volts + CE * w) * math.tanh(w / st.SMOOTH_SPEED_RAD_S))
+
+    w = _steady(residual)
+    assert tr.omega[-1] == pytest.approx(w, rel=STEADY_REL)
+    assert tr.tau_m[-1] < 0 < tr.omega[-1]  # the back-driven branch
+    if load_nm == 0.2:
+        assert w < 0.1 * st.SMOOTH_SPEED_RAD_S
+        assert load_nm - G * volts < FC + st.MU_BACK * G * volts  # the engine's law would stick
+
+
+def test_efficiency_law_step_by_step():
+    """Each step's mesh torque, loss and slope are the law's, recomputed here from the recorded
+    speeds and commands in another form (numpy over the whole run): tau_m = g u - c_e w -
+    J_r (w - w_prev)/dt, L = k |tau_m| tanh(w/w_s), dL/dw = k |tau_m| / (w_s cosh^2(w/w_s)); a
+    lift-and-drop run visits driving, back-driving and the torque-off fall (0 V: the back-EMF's
+    torque passes the mesh, back-driven)."""
+    e = st.EXPERIMENTS[10]
+    t = st.log_times(e.duration_s, np.random.default_rng(11))
+    tr = st.simulate_efficiency(t, e.goal(t), e.enabled(t),
+                                noise=np.random.default_rng(12).normal(0, st.NOISE_RAD, 5001))
+    w = tr.omega[:-1]
+    acc = np.concatenate(([0.0], np.diff(tr.omega)[:-1] / DT))
+    tau_m = G * tr.u - CE * w - 2.5e-3 * acc
+    k = np.where(tau_m * w > 0, 1.0 - st.ETA_DRIVE, 1.0 / st.ETA_BACK - 1.0)
+    np.testing.assert_allclose(tr.tau_m, tau_m, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(tr.loss, k * np.abs(tau_m) * np.tanh(w / st.SMOOTH_SPEED_RAD_S), rtol=0, atol=1e-12)
+    slope = k * np.abs(tau_m) / (st.SMOOTH_SPEED_RAD_S * np.cosh(w / st.SMOOTH_SPEED_RAD_S) ** 2)
+    np.testing.assert_allclose(tr.slope, slope, rtol=1e-12, atol=1e-12)
+    assert np.all(tr.frictionloss == FC)
+    drive = tau_m * w > 0
+    off = np.flatnonzero(tr.u == 0)
+    fall = off[np.abs(w[off]) > 0.1]
+    assert drive.mean() > 0.05 and (~drive & (np.abs(w) > 0.1)).mean() > 0.05 and len(fall) > 100
+    assert np.all(tau_m[fall] * w[fall] < 0)  # the fall back-drives the shorted motor
+
+
+def test_efficiency_one_is_the_nominal_model_bit_for_bit():
+    """eta_drive = eta_back = 1: the loss and its slope are 0 every step (damping written back as
+    the nominal 0.37 + 0.0): the same trajectory as the plain nominal loop."""
+    e = st.EXPERIMENTS[11]
+    t = st.log_times(e.duration_s, np.random.default_rng(13))
+    noise = np.random.default_rng(14).normal(0, st.NOISE_RAD, 5001)
+    a = st.simulate_efficiency(t, e.goal(t), e.enabled(t), eta_drive=1.0, eta_back=1.0, noise=noise)
+    b = st.simulate(t, e.goal(t), e.enabled(t), noise=noise, friction_law=False)
+    for f in ("theta", "omega", "y", "u"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+    assert not np.any(a.loss) and not np.any(a.slope)
+
+
+def test_efficiency_truth_differs_from_the_engine_law():
+    """The efficiency truth is not the engine's law in disguise: on the same run it differs from
+    the load_friction truth (mu = 1 - eta_drive, 1/eta_back - 1) by far more than a count, most
+    where the engine's law cannot follow it (the torque-off fall, where the mesh carries the
+    back-EMF's torque), and both differ from the nominal model."""
+    e = st.EXPERIMENTS[11]
+    t = st.log_times(e.duration_s, np.random.default_rng(15))
+    eff = st.simulate_efficiency(t, e.goal(t), e.enabled(t), step_rad=0.0)
+    law = st.simulate(t, e.goal(t), e.enabled(t), mu_drive=1 - st.ETA_DRIVE,
+                      mu_back=1 / st.ETA_BACK - 1, step_rad=0.0)
+    nom = st.simulate(t, e.goal(t), e.enabled(t), mu_drive=0.0, mu_back=0.0, step_rad=0.0)
+    assert st.MU_BACK == pytest.approx(1 / st.ETA_BACK - 1, rel=1e-15)
+    for other in (law, nom):
+        assert np.max(np.abs(eff.theta - other.theta)) > 10 * st.ENCODER_STEP_RAD
+
+
+def test_efficiency_runs_share_the_cases_log():
+    """The efficiency case's runs are logged as the other geared-servo cases' (same log times,
+    goals, enable; seeded, reproducible); with eta = 1 they are the nominal model's runs."""
+    exps = [st.EXPERIMENTS[0], st.EXPERIMENTS[10]]
+    a = st.generate_efficiency(experiments=exps)
+    b = st.generate(effects=(), experiments=exps)
+    one = st.generate_efficiency(1.0, 1.0, experiments=exps)
+    for x, y, z in zip(a, b, one, strict=True):
+        np.testing.assert_array_equal(x.t, y.t)
+        np.testing.assert_array_equal(x.r, y.r)
+        np.testing.assert_array_equal(x.extra["enabled"], y.extra["enabled"])
+        np.testing.assert_array_equal(z.theta, y.theta)
+        assert np.sqrt(np.mean((x.theta - y.theta) ** 2)) > 2 * st.ENCODER_STEP_RAD
+    np.testing.assert_array_equal(a[0].theta, st.generate_efficiency(experiments=exps[:1])[0].theta)
+
+
+def test_assess_efficiency():
+    """The case's criterion on hand-made reports: load_friction first with mu_back > mu_drive and
+    a shrink >= 3 passes (a second name after it too); otherwise it fails, saying why."""
+    def rep(names, mu=(0.1, 0.4), shrink=5.0):
+        effects = [{"name": n, "parameters": {"mu_drive": mu[0], "mu_back": mu[1]} if n == "load_friction"
+                    else {"x": 1.0}} for n in names]
+        return {"effects": effects, "shrink_factor": shrink}
+
+    assert st.assess_efficiency(rep(["load_friction"])) == (True, "ok")
+    assert st.assess_efficiency(rep(["load_friction", "viscous_damping"]))[0]
+    assert st.assess_efficiency(rep(["viscous_damping", "load_friction"])) == \
+        (False, "named ['viscous_damping', 'load_friction'], not load_friction first")
+    assert st.assess_efficiency(rep(["none"]))[1].startswith("named ['none']")
+    assert st.assess_efficiency(rep(["load_friction"], mu=(0.3, 0.2)))[1] == "mu_back 0.2 <= mu_drive 0.3"
+    assert st.assess_efficiency(rep(["load_friction"], shrink=2.9)) == (False, "gap shrank only x2.9")
+    assert not st.assess_efficiency(rep(["load_friction"], shrink=math.nan))[0]
