@@ -21,10 +21,17 @@ other cases kept as they are); each merged entry records its own commit and date
 ``--table`` prints the bank table of docs/discrepancy.md made from the JSON
 (``tests/test_discrepancy_bank.py`` checks that docs/discrepancy.md holds exactly that).
 
+``--gear-efficiency`` runs the case whose truth is written in another form than the library's
+law (:func:`omni_sim.discrepancy.servo_truth.generate_efficiency`: a gear efficiency law with a
+smooth sign; judged by :func:`~omni_sim.discrepancy.servo_truth.assess_efficiency`), writes its
+record to ``bank_gear_efficiency.json`` beside the table and the table's page with its section
+(rendered from that record whenever the page is written).
+
 Usage: python scripts/discrepancy_bank.py [--cases NAME ...] [--no-example] [--jobs N] [--out MD]
                                          [--commit TEXT] [--note TEXT] [--merge]
        python scripts/discrepancy_bank.py --table [--json JSON]      (docs/discrepancy.md's table)
        python scripts/discrepancy_bank.py --markdown [--json JSON] [--out MD]   (MD from JSON)
+       python scripts/discrepancy_bank.py --gear-efficiency [--jobs N] [--commit TEXT] [--note TEXT]
 """
 
 from __future__ import annotations
@@ -42,10 +49,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from omni_sim.discrepancy import experiment_set, hidden  # noqa: E402
+from omni_sim.discrepancy import experiment_set, hidden, servo_truth  # noqa: E402
 
 #: Where the bank's table and its JSON live (docs/discrepancy.md links them).
 DEFAULT_OUT = ROOT / "docs" / "discrepancy" / "bank.md"
+#: The record of the gear_efficiency case (a truth of another form), beside the table.
+EFFICIENCY_JSON = DEFAULT_OUT.with_name("bank_gear_efficiency.json")
 
 
 def _now() -> str:
@@ -210,11 +219,90 @@ def readme_table(data: dict) -> str:
     return "\n".join(rows) + "\n"
 
 
+def _fmt_fit(e: dict) -> str:
+    return ", ".join(f"{p} {v:.4g} ± {e['uncertainty'][p]:.2g}" for p, v in e["parameters"].items())
+
+
+def efficiency_section(rec: dict) -> str:
+    """The bank page's section on the gear_efficiency case, from its record (the JSON
+    ``--gear-efficiency`` writes)."""
+    case, rep, meta = rec["case"], rec["report"], rec["meta"]
+    tr, eq = case["truth"], case["equivalent"]
+    named = ", ".join(e["name"] + (f" ({e['confidence']})" if "confidence" in e else "") for e in rep["effects"])
+    if rep.get("unexplained"):
+        named += ", gap flagged unexplained"
+    fitted = "; ".join(f"{e['name']}: {_fmt_fit(e)}" for e in _named(rep)) or "—"
+    first = rep["effects"][0]
+    mg = first.get("margin")
+    runner = f"{first.get('runner_up') or '—'}" + ("" if mg is None else f" (margin {mg:.2f})")
+    text = [
+        "## A truth of another form: the gear's efficiency law (`gear_efficiency`)", "",
+        "The geared-servo cases above hide the device engine's own law (a Coulomb level "
+        "`Fc + mu |tau|` of the transmitted torque `tau = g u`, set into MuJoCo's `frictionloss`: "
+        "a hard stick). This case's truth (`omni_sim/discrepancy/servo_truth.py`, "
+        "`simulate_efficiency`) writes the same servo's gearbox losses in another form, in plain "
+        "code of its own: the mesh torque `tau_m = g u - c_e w - J_r a` (the winding's torque less "
+        "its back-EMF `c_e = kt g` and its rotor's inertia `J_r`, the model's armature, times the "
+        "previous step's acceleration), a loss `(1 - eta_drive) |tau_m|` while the motor drives "
+        "the load and `(1/eta_back - 1) |tau_m|` while the load back-drives the motor, acting "
+        "against the motion through a smooth sign `tanh(w / w_s)` (no stick: the loss vanishes at "
+        "rest; applied linearly implicitly at each 1 ms step). "
+        f"Truth: eta_drive {tr['eta_drive']:.4g}, eta_back {tr['eta_back']:.4g} (the load_friction "
+        f"case's efficiencies: mu_drive {eq['mu_drive']:g}, mu_back {eq['mu_back']:g} in the "
+        f"engine's form), w_s {tr['smooth_speed_rad_s']:g} rad/s (an estimate), kt "
+        f"{tr['kt_nm_per_a']:g} N*m/A; provenance of each in servo_truth.py. The nominal model "
+        "`models/servo_pendulum.xml`; the load_friction case's 12 runs of 5 s, log and encoder. "
+        "`tests/test_servo_truth.py` checks the truth against steady speeds in closed form "
+        "(driving and back-driven) and the law step by step.", "",
+        f"What a correct workflow should do (stated before the run): {case['expect']}.", "",
+        "| named (confidence) | fitted ± 95 % | gap before | gap after | shrink | noise floor | "
+        "runner-up | result | time |",
+        "|---|---|---|---|---|---|---|---|---|",
+        f"| {named} | {fitted} | {rep['gap_before']:.3g} rad | {rep['gap_after']:.3g} rad | "
+        f"×{rep['shrink_factor']:.3g} | {rep['noise_floor_rad']:.3g} rad | {runner} | "
+        f"{'PASS' if rec['pass'] else 'FAIL'} ({rec['why']}) | {meta['seconds']:.0f} s |", "",
+        f"Run at commit {meta['commit']}, {meta['started']} to {meta['finished']}, with "
+        f"`{meta['command']}` on {meta['cpus']} CPU cores shared with other jobs (load average "
+        f"{meta['load_start']:.2f} at the start, {meta['load_after']:.2f} at the end; nice "
+        f"{meta['nice']})." + (f" {meta['note']}" if meta.get("note") else "")
+        + f" The full report is in `{EFFICIENCY_JSON.name}` beside this file.",
+    ]
+    return "\n".join(text) + "\n"
+
+
+def bank_page(data: dict, out: Path) -> str:
+    """The bank's page: the table of the bank's JSON, then the gear_efficiency section if its
+    record lies beside ``out``."""
+    page = bank_markdown(data)
+    rec = out.with_name(EFFICIENCY_JSON.name)
+    if rec.is_file():
+        page += "\n" + efficiency_section(json.loads(rec.read_text()))
+    return page
+
+
 def _write(out: Path, data: dict) -> None:
     tmp = out.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(data, indent=1, default=str) + "\n")
     tmp.replace(out.with_suffix(".json"))
-    out.write_text(bank_markdown(data))
+    out.write_text(bank_page(data, out))
+
+
+def run_efficiency(args, meta: dict) -> int:
+    """Run the gear_efficiency case, write its record beside ``args.out`` and the page."""
+    from omni_sim.discrepancy.workflow import run_discrepancy
+
+    out = Path(args.out)
+    t0 = time.perf_counter()
+    runs = servo_truth.generate_efficiency()
+    rep = run_discrepancy(runs, servo_truth.model_path(), jobs=args.jobs, target=servo_truth.target()).report
+    ok, why = servo_truth.assess_efficiency(rep)
+    meta.update(seconds=time.perf_counter() - t0, finished=_now(), load_after=os.getloadavg()[0])
+    rec = {"meta": meta, "case": servo_truth.GEAR_EFFICIENCY_CASE, "pass": ok, "why": why, "report": rep}
+    out.with_name(EFFICIENCY_JSON.name).write_text(json.dumps(rec, indent=1, default=str) + "\n")
+    out.write_text(bank_page(json.loads(Path(args.json).read_text()), out))
+    print(f"gear_efficiency: {'PASS' if ok else 'FAIL'} ({why}); named "
+          f"{[e['name'] for e in rep['effects']]}; gap {rep['gap_before']:.3g} -> {rep['gap_after']:.3g} rad")
+    return 0 if ok else 1
 
 
 def main(argv=None) -> int:
@@ -230,6 +318,8 @@ def main(argv=None) -> int:
     ap.add_argument("--table", action="store_true", help="print docs/discrepancy.md's bank table made from --json")
     ap.add_argument("--markdown", action="store_true", help="rewrite --out's table from --json (no run)")
     ap.add_argument("--json", default=str(DEFAULT_OUT.with_suffix(".json")))
+    ap.add_argument("--gear-efficiency", action="store_true", help="run the gear_efficiency case (a truth "
+                    "of another form) into its own record beside --out and rewrite --out's page")
     ap.add_argument("--merge", action="store_true", help="run --cases and put them into --out's "
                     "existing JSON (the other cases kept; each merged entry records its commit)")
     args = ap.parse_args(argv)
@@ -237,7 +327,7 @@ def main(argv=None) -> int:
         sys.stdout.write(readme_table(json.loads(Path(args.json).read_text())))
         return 0
     if args.markdown:
-        Path(args.out).write_text(bank_markdown(json.loads(Path(args.json).read_text())))
+        Path(args.out).write_text(bank_page(json.loads(Path(args.json).read_text()), Path(args.out)))
         return 0
     from omni_sim.discrepancy.workflow import run_discrepancy
 
@@ -254,6 +344,9 @@ def main(argv=None) -> int:
             "step_amplitudes_rad": ", ".join(map(str, experiment_set.STEP_AMPLITUDES_RAD)),
             "poses_deg": ", ".join(str(p) for p in experiment_set.POSES), "noise_rad": experiment_set.NOISE_RAD,
             "note": args.note}
+    if args.gear_efficiency:
+        return run_efficiency(args, {k: meta[k] for k in ("commit", "started", "cpus", "load_start", "nice",
+                                                         "jobs", "command", "note")})
     data = {"meta": meta, "cases": {}}
     if args.merge:
         data = json.loads(out.with_suffix(".json").read_text())
