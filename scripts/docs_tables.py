@@ -9,13 +9,18 @@ The documentation's results pages copy figures from files the tools write:
   calibrations not adopted, ``docs/calibration_coulomb_run.json`` (a hard stick, every robot
   parameter free) and ``docs/calibration_weighted_run.json`` (``scripts/calibrate.py``);
 * ``docs/bench.json`` (``omni bench``), ``docs/sweep/results.csv`` (``omni sweep``);
+* ``docs/haptics/zwidth_ideal.json`` (``omni zwidth --ideal``) and
+  ``examples/real_servo/report/report.json`` (``omni discrepancy`` on the real-servo example);
 * the paper's tables (``identification/paper.py``).
 
 :func:`tables` renders each results table from them; the page named in :data:`TABLES` holds it
 between ``<!-- docs_tables: NAME -->`` and ``<!-- /docs_tables: NAME -->``.  :func:`claims`
 renders the figures the pages quote in their prose, as the phrases that must appear in the page
 named with them (compared with runs of white space, line breaks included, collapsed to one
-space).
+space).  In the passages of :data:`RECORD_PASSAGES` (the README's haptics section and its
+real-servo paragraph) every figure must lie inside such a phrase or be checked by a rule of
+:data:`PASSAGE_RULES` (the Z-width sentence, whatever its wording): a figure typed in there
+without a record is reported too (:func:`unchecked_figures`).
 
     python scripts/docs_tables.py            # check: list what drifted, exit status 1 if any
     python scripts/docs_tables.py --write    # rewrite the generated tables in docs/*.md
@@ -44,7 +49,8 @@ from identification import paper  # noqa: E402
 PAGES = {"results": "docs/results.md", "model": "docs/model.md", "calibration": "docs/calibration.md",
          "friction": "docs/friction-families.md", "errata": "docs/paper-errata.md",
          "performance": "docs/performance.md", "gymnasium": "docs/gymnasium.md",
-         "sweeps": "docs/sweeps.md", "readme": "README.md"}
+         "sweeps": "docs/sweeps.md", "readme": "README.md",
+         "real_servo": "examples/real_servo/README.md"}
 #: The targets the tables state (the report's: omni_app/report.py).
 TARGET_INERTIA_REL = 0.02
 TARGET_STEP_RATIO = 3.0
@@ -59,6 +65,9 @@ TARGET_ALPHA_LSIM = 3.0
 TARGET_REPRODUCE_RATIO = 6.0
 TARGET_VECTOR_RATIO = 0.3
 TARGET_SWEEP_SPEEDUP = 1.7
+#: docs/calibration.md's "close" candidates of the table-level search: a step error (Table 11's
+#: linear column, median over poses) within this share of the real Omni's.
+CLOSE_STEP_REL = 0.25
 MINUS = "\u2212"
 
 
@@ -84,6 +93,8 @@ def load_sources() -> dict:
             "matched_summary": _json("docs/friction/matched/summary.json"),
             "search": _json("docs/fidelity/search.json"),
             "bench": _json("docs/bench.json"),
+            "zwidth_ideal": _json("docs/haptics/zwidth_ideal.json"),
+            "real_servo": _json("examples/real_servo/report/report.json"),
             "sweep": sweep}
 
 
@@ -457,6 +468,8 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
     """Phrases of the pages that carry a figure from the sources, rendered from them: page
     (a key of :data:`PAGES`) -> its phrases.  (Long on purpose: a flat list, one entry per
     quoted figure, read beside the page it checks.)"""
+    from omni_sim.calibration import STEP_BAND_REL
+
     src = src or load_sources()
     s, comp, bench = src["summary"], src["comparison"], src["bench"]
     st = s["step"]
@@ -480,12 +493,13 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
     paper_med = lug["step_linear_vs_table11"]["paper_median_over_poses_rad"]
     close = [max(abs(r["figures"]["table3_C_worst_rel"]), abs(r["figures"]["table3_beta_tilde_worst_rel"]))
              for r in src["search"]["candidates"] if r.get("ok") and r["family"] == "lugre"
-             and abs(r["figures"]["step_median_rad"] / paper_med - 1) <= 0.25]
+             and abs(r["figures"]["step_median_rad"] / paper_med - 1) <= CLOSE_STEP_REL]
     mt = {"paper_step_rad": paper_med, "step_mrad": 1e3 * cm["step_median_rad"],
           "step_p90_rad": cm["step_p90_median_rad"], "poses": cm["poses_within_40pct"],
           "C": 100 * cm["table3_C_worst_rel"], "beta": 100 * cm["table3_beta_tilde_worst_rel"],
           "angle": cm["angle_worst_deg"], "n_close": len(close), "close_lo": 100 * min(close),
-          "close_hi": 100 * max(close)}
+          "close_hi": 100 * max(close), "n_poses": mst["n_poses"], "band": 100 * STEP_BAND_REL,
+          "ratio": paper_med / lug["step_linear_vs_table11"]["median_over_poses_rad"]}
     bt = _beta_tilde_65_90(src["lugre_params"])
     beta_bar = cal["fixed"]["beta_bar_N_m_per_V"]
     kp = paper.kp()
@@ -516,20 +530,23 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
         f"breakpoints ({', '.join(f'{a:.3g}' for a in lug['alpha_breaks'])} V²/s²)",
         f"cycles or creeps on {100 * s['alpha_simulation']['steps_solved_by_bisection'] / s['alpha_simulation']['steps']:.1f} % of the steps",
     ], "readme": [
-        f"3.6× better than the real Omni's (Table 11's linear column: "
+        f"{mt['ratio']:.1f}× better than the real Omni's (Table 11's linear column: "
         f"{_mrad(lug['step_linear_vs_table11']['median_over_poses_rad'], 2)} against "
         f"{_mrad(mt['paper_step_rad'])} mrad)",
         f"calibrated {len(src['search']['candidates'])} candidate effects",
-        f"linear column met ({mt['step_mrad']:.1f} mrad, {mt['poses']} of 25 poses within 40 %) with "
+        f"linear column met ({mt['step_mrad']:.1f} mrad, {mt['poses']} of {mt['n_poses']} poses within "
+        f"{mt['band']:.0f} %) with "
         f"Table 3's C_linear {abs(mt['C']):.1f} % off",
         f"(ratio of medians linear/α {mat['step']['ratio_of_medians_whole_record']:.2f}, the paper's "
         f"{comp['paper']['step']['ratio_of_medians']:.2f})",
     ], "calibration": [
-        f"each of the {mt['n_close']} lugre-footed candidates whose step error comes within 25 % of the "
+        f"each of the {mt['n_close']} lugre-footed candidates whose step error comes within "
+        f"{100 * CLOSE_STEP_REL:.0f} % of the "
         f"real Omni's misses Table 3, its worst coefficient {mt['close_lo']:.1f}–{mt['close_hi']:.1f} % off",
         f"(median {mt['step_mrad']:.1f} mrad against {_mrad(mt['paper_step_rad'])}, p90 "
         f"{_mrad(mt['step_p90_rad'])} against {_mrad(comp['paper']['step']['p90_abs_error_linear_rad'])} mrad, "
-        f"{mt['poses']}/25 poses within 40 %) with Table 3's C_linear at {_m(mt['C'])} % at its worst pose "
+        f"{mt['poses']}/{mt['n_poses']} poses within {mt['band']:.0f} %) with Table 3's C_linear at "
+        f"{_m(mt['C'])} % at its worst pose "
         f"(β̃ {_m(mt['beta'])} %, angles {mt['angle']:.2f}°)",
         f"{_mrad(mst['median_abs_error_linear_rad'], 2)} → {_mrad(mst['median_abs_error_alpha_rad'], 2)} mrad",
         f"ratio of medians {mat['step']['ratio_of_medians_whole_record']:.2f} against "
@@ -576,7 +593,7 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
         f"joint `frictionloss` {1e3 * vc['yaw_frictionloss']:.2f} mN m; viscous "
         f"{_sci(vc['yaw_damping'], 2)} N m s/rad",
         f"drove the Coulomb level down to {1e3 * vc['yaw_frictionloss']:.2f} mN m",
-        f"35.1 → {af['cost_after']:.1f} (lugre's calibration: {src['cal']['cost_after']:.1f}), Table 3 at "
+        f"{af['cost_before']:.1f} → {af['cost_after']:.1f} (lugre's calibration: {src['cal']['cost_after']:.1f}), Table 3 at "
         f"{100 * afa['max_rel_error_C_linear']:.1f} %/{100 * afa['max_rel_error_beta_tilde_linear']:.1f} %, "
         f"angles {afa['max_angle_error_deg']:.2f}°, resonance {afa['resonance_65_90_hz']:.2f} Hz, frictionloss "
         f"{1e3 * afv['yaw_frictionloss']:.1f} mN m, damping {_sci(afv['yaw_damping'])} N m s/rad, A_r = "
@@ -612,13 +629,164 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
         f"the inertia bias goes {_m(100 * sl[0.5]['inertia_worst_signed_rel_error'])} %, "
         f"{_m(100 * sl[1.0]['inertia_worst_signed_rel_error'])} %",
         f"({min(n_nonphys)} to {max(n_nonphys)} of 81)",
+    ], "performance": [
+        f"{bench['reproduce']['ratio_to_raw_rollout']:.1f} ({bench['reproduce']['wall_s']:.2f} s vs "
+        f"{bench['reproduce']['raw_rollout_s']:.2f} s, the run in `docs/bench.json`)",
     ], "gymnasium": [
         f"{b_vec['num_envs']} Omnis at {b_vec['env_steps_per_s'] / 1e3:.0f} k steps/s against "
         f"{b_vec['rollout_ceiling_steps_per_s'] / 1e3:.0f} k steps/s of a raw `mujoco.rollout` of the "
         f"same model on {bench['cores']} threads ({b_vec['ratio_to_raw_rollout']:.2f}×; `omni bench`, "
         f"`docs/bench.json`)",
     ]}
+    for page, found in record_claims(src).items():
+        out[page] = out.get(page, []) + found
     return out
+
+
+# -- the README's record passages: every figure in them checked ------------------------------------
+#: The passages of a page whose every figure must be checked against a record (by a phrase of
+#: :func:`claims` or by :func:`zwidth_bound`): page -> passages, each the section under a
+#: heading (a key that starts with ``#``) or the paragraph that holds the key.
+RECORD_PASSAGES = {"readme": ("## Haptic walls", "(examples/real_servo/README.md)")}
+#: A figure: a number that is not the tail of a name (``STS3250``, ``OmniWall-v0``) or a count
+#: in words.
+FIGURE = re.compile(r"(?<![\w.\-−/])[\-−]?\d+(?:\.\d+)?(?:e[\-−]?\d+)?|"
+                    r"\b(?:two|three|four|five|six|seven|eight|nine|ten|eleven|twelve)\b", re.I)
+_WORDS = {2: "two", 3: "three", 4: "four", 5: "five", 6: "six", 7: "seven", 8: "eight", 9: "nine",
+          10: "ten", 11: "eleven", 12: "twelve"}
+
+
+def _count(n: int) -> str:
+    """A count as the prose writes it: in words up to twelve."""
+    return _WORDS.get(n, str(n))
+
+
+def zwidth_row_errors(rec: dict) -> list[float]:
+    """|boundary / Colgate's bound - 1| [%] of each damping row of a ``zwidth.json`` that has a
+    passive cell and a positive bound, the row B = 0 first."""
+    return [100 * abs(k / c - 1) for k, c in zip(rec["boundary_stiffness"], rec["colgate_stiffness"])
+            if k is not None and c > 0]
+
+
+def zwidth_bound(text: str, rec: dict) -> tuple[list[str], list[tuple[int, int]]]:
+    """The sentence of ``text`` that compares the ideal Z-width map with Colgate & Schenkel's
+    bound, checked against the map's record (``docs/haptics/zwidth_ideal.json``) whatever its
+    wording.  Its m percentages, smallest first, must be the worst error of the boundary
+    against the bound over all rows but the last m - 1, ..., all rows but the last, all rows
+    (:func:`zwidth_row_errors`, to the digits printed): a bound, then its exceptions, which
+    are the rows nearest b.  A bound "near 0" there must be the last row's, closer to 0 than to
+    the row before's.  Returns the problems and the spans of the figures checked (none if no
+    sentence names Colgate)."""
+    at = text.find("Colgate")
+    if at < 0:
+        return [], []
+    ends = [m.end() for m in re.finditer(r"[.!?]\s", text[:at])]
+    start = ends[-1] if ends else 0
+    stop = re.compile(r"[.!?](?:\s|$)").search(text, at)
+    sentence = text[start:stop.start() if stop else len(text)]
+    errs = zwidth_row_errors(rec)
+    pct = sorted(re.finditer(r"(\d+(?:\.\d+)?) ?%", sentence), key=lambda m: float(m.group(1)))
+    problems, spans = [], []
+    for i, m in enumerate(pct):
+        rows = len(errs) - (len(pct) - 1 - i)
+        nd = len(m.group(1).partition(".")[2])
+        want = f"{max(errs[:rows]):.{nd}f}" if rows > 0 else "(no such rows)"
+        if m.group(1) != want:
+            problems.append(f"Z-width sentence {sentence.strip()!r}: {m.group(1)} % should be {want} % "
+                            f"(the worst of the first {rows} rows of docs/haptics/zwidth_ideal.json)")
+        spans.append((start + m.start(), start + m.end()))
+    near = re.search(r"near (0|zero)\b", sentence)
+    if near:
+        c = [c for k, c in zip(rec["boundary_stiffness"], rec["colgate_stiffness"]) if k is not None and c > 0]
+        if not (len(c) > 1 and c[-1] < c[-2] - c[-1]):
+            problems.append(f"Z-width sentence {sentence.strip()!r}: the last row's bound is not near 0 "
+                            f"(rows' bounds {', '.join(f'{x:.3g}' for x in c[-2:])} N·m/rad)")
+        spans.append((start + near.start(1), start + near.end(1)))
+    return problems, spans
+
+
+#: The passages of :data:`RECORD_PASSAGES` that a rule checks besides the phrases:
+#: key -> rule(passage text, sources) -> (problems, spans of the figures checked).
+PASSAGE_RULES = {"## Haptic walls": lambda text, src: zwidth_bound(text, src["zwidth_ideal"])}
+
+
+def passage_span(text: str, key: str) -> tuple[int, int] | None:
+    """Where in ``text`` the passage that ``key`` names (:data:`RECORD_PASSAGES`) is; None if
+    the page has none."""
+    if key.startswith("#"):
+        i = text.find("\n" + key)
+        j = text.find("\n" + key.split()[0] + " ", i + 1)
+        return None if i < 0 else (i, j if j >= 0 else len(text))
+    starts = [0] + [m.end() for m in re.finditer(r"\n\s*\n", text)]
+    ends = [m.start() for m in re.finditer(r"\n\s*\n", text)] + [len(text)]
+    return next(((i, j) for i, j in zip(starts, ends) if key in text[i:j]), None)
+
+
+def _passage(text: str, key: str) -> str | None:
+    """The passage of ``text`` that ``key`` names, white space collapsed; None if none."""
+    span = passage_span(text, key)
+    return None if span is None else _norm(text[span[0]:span[1]])
+
+
+def mask(text: str) -> str:
+    """``text`` with code spans, link targets and comments blanked (the same length)."""
+    return re.sub(r"`[^`]*`|\]\([^)]*\)|<!--.*?-->", lambda m: " " * len(m.group()), text)
+
+
+def unchecked_figures(pages: dict[str, str], src: dict, phrases: dict[str, list[str]]) -> list[str]:
+    """Every figure of the :data:`RECORD_PASSAGES` that no phrase of its page and no rule
+    checks against a record: one problem per figure (and per passage not found)."""
+    problems = []
+    for page, keys in RECORD_PASSAGES.items():
+        for key in keys:
+            text = _passage(pages[page], key)
+            if text is None:
+                problems.append(f"{PAGES[page]}: no passage {key!r} (scripts/docs_tables.py RECORD_PASSAGES)")
+                continue
+            bad, spans = PASSAGE_RULES[key](text, src) if key in PASSAGE_RULES else ([], [])
+            problems += bad
+            for c in map(_norm, phrases.get(page, [])):
+                spans += [(m.start(), m.end()) for m in re.finditer(re.escape(c), text)]
+            for m in FIGURE.finditer(mask(text)):
+                if not any(a <= m.start() and m.end() <= b for a, b in spans):
+                    where = text[max(0, m.start() - 40):m.end() + 20]
+                    problems.append(f"{PAGES[page]}: figure {m.group()!r} in {where!r} is checked against "
+                                    "no record (scripts/docs_tables.py claims)")
+    return problems
+
+
+def record_claims(src: dict) -> dict[str, list[str]]:
+    """The phrases of the README's haptics and real-servo passages and of the real-servo
+    example's page, rendered from their records (``docs/haptics/zwidth_ideal.json``,
+    ``examples/real_servo/report/report.json``, ``docs/bench.json``)."""
+    zw, rs, srv = src["zwidth_ideal"], src["real_servo"], src["bench"]["discrepancy_servo"]
+    gap, noise = rs["gap_after"], rs["noise_floor_rad"]
+    runs = [r["run"] for r in rs["sampling"]]
+    named = [e["name"] for e in rs["effects"] if e["name"] != "none"]
+    verdict = (f"names {', '.join(f'`{n}`' for n in named)}" if named else "names nothing") + (
+        " and flags the gap unexplained" if rs["unexplained"] else "")
+    first = rs["effects"][0]
+    cands = {c["name"]: c for c in rs["candidates"][0]}
+    cf = cands["coulomb_friction"]
+    pair = rs["rounds"][0]["pair_search"]
+    where = {w["where"]: w["ratio"] for w in rs["where"]}
+    return {"readme": [
+        f"at the {1e-3 / zw['sample_period_s']:g} kHz servo rate",
+        f"the workflow {verdict} ({_sci(gap, 2)} rad, {gap / noise:.1f} x the noise floor)",
+        f"{_count(len(runs))} runs of {_count(len(set(runs)))} different experiments",
+    ], "real_servo": [
+        f"stays at {_sci(gap, 2)} rad (x{rs['shrink_factor']:.1f}), {gap / noise:.1f} x the noise floor "
+        f"({_sci(noise, 2)} rad)",
+        f"on the {_count(len(runs))} converted runs ({sum(r['samples'] for r in rs['sampling'])} logged samples)",
+        f"(best `{first['best_candidate']}`, {100 * first['best_share']:.0f} %; `coulomb_friction` fitted to "
+        f"{cf['parameters']['frictionloss_nm']:.3f} N·m makes the held-out runs worse, {100 * cf['share']:.0f} %)",
+        f"the best pair, `{'` + `'.join(pair['best'].split('+'))}`, removes {100 * pair['share']:.0f} %",
+        f"{where['small amplitudes']:.1f} x larger at the smallest amplitude, {where['high speed']:.1f} x at "
+        f"high speed and {where['command near its limit']:.1f} x where the command is near its limit",
+        f"took {rs['timings']['total_s']:.0f} s (`timings.total_s` of `report.json`)",
+        f"{len(runs)} runs of 6 s took {rs['timings']['total_s']:.0f} s here",
+        f"{srv['runs']} runs of 6 s take {srv['wall_s']:.0f} s and {srv['peak_rss_mb']:.0f} MB",
+    ]}
 
 
 # -- check and write ----------------------------------------------------------------------------
@@ -649,10 +817,11 @@ def check(pages: dict[str, str] | None = None, src: dict | None = None) -> list[
         elif m.group(2).strip() != table:
             problems.append(f"table {name} ({PAGES[page]}): differs from its sources "
                             "(run scripts/docs_tables.py --write)")
-    for page, phrases in claims(src).items():
+    phrases = claims(src)
+    for page, found in phrases.items():
         text = _norm(pages[page])
-        problems += [f"figure not in {PAGES[page]}: {c!r}" for c in phrases if _norm(c) not in text]
-    return problems
+        problems += [f"figure not in {PAGES[page]}: {c!r}" for c in found if _norm(c) not in text]
+    return problems + unchecked_figures(pages, src, phrases)
 
 
 def write(pages: dict[str, str], src: dict | None = None) -> dict[str, str]:

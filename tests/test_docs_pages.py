@@ -122,3 +122,23 @@ def test_the_history_search_finds_them():
     assert not HISTORY.search(ALLOWED.sub("", "Popen(cmd, start_new_" + "sess" + "ion=True)"))
     assert not HISTORY.search("the issue targets")
     assert len(list(_scanned_files())) > 100
+
+
+def test_the_readme_says_what_torque_off_does():
+    """The dataset's ``enabled`` = 0 (torque off): the replay zeroes the actuator's gain and
+    bias (``Device.off_model``), not its command, which on a ``dcmotor`` or a back-EMF bias is
+    a shorted winding that brakes (docs/servo-actuators.md); the README says so."""
+    import mujoco
+
+    from omni_sim.device import Device
+    from omni_sim.model import Target
+
+    m = mujoco.MjModel.from_xml_path(str(ROOT / "examples" / "real_servo" / "model.xml"))
+    dev = Device(m, target=Target("servo_axis", "servo"))
+    a = dev.ix.yaw_act
+    assert m.actuator_gainprm[a].any() and m.actuator_biasprm[a].any()  # a gain and a back-EMF bias
+    off = dev.off_model()
+    assert not off.actuator_gainprm[a].any() and not off.actuator_biasprm[a].any()
+    bullet = re.search(r"optional `enabled`(.*?); more columns", " ".join(README.read_text().split())).group(1)
+    assert "zeroes the actuator's gain and bias" in bullet and "shorted winding" in bullet, bullet
+    assert "command is zero" not in bullet
