@@ -56,7 +56,7 @@ from identification.errors import UserError
 
 from . import model as om
 from .device import CONTROL_PERIOD_S, ENCODER_STEP_RAD, Device, Engine, read_encoder
-from .env import InvalidOptionError
+from .env import RENDER_MODES, InvalidOptionError, _Viewport, available_render_modes
 
 __all__ = ["OmniWallEnv", "wall_torque", "GRASPS", "TIP_RADIUS_M"]
 
@@ -85,15 +85,20 @@ class OmniWallEnv(gym.Env):
     renderer, ``wall_rad`` (0), ``push_rad`` (0.02), ``grasp`` ("loose", "medium", "firm" or a
     (mass, damping, stiffness) tuple at the tip), ``quantize`` (True), ``delay`` (0 servo
     periods), ``duration_s`` (1.0), ``start_rad`` (start angle at rest, default wall - 0.005),
-    ``gamma1_set_deg``/``gamma2_set_deg`` (65, 90), ``control_period_s`` (1 ms).
+    ``gamma1_set_deg``/``gamma2_set_deg`` (65, 90), ``control_period_s`` (1 ms), and the
+    rendering's ``render_mode`` (None, ``"rgb_array"`` or ``"human"``), ``render_width``,
+    ``render_height`` (640 x 480) and ``camera`` (``"side"``) as ``OmniYaw-v0``'s: a mode that
+    cannot work in this process raises :class:`InvalidOptionError` when made and is not in the
+    instance's ``metadata["render_modes"]`` (:func:`omni_sim.env.render_mode_problem`).
     """
 
-    metadata = {"render_modes": [], "render_fps": 1000}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 1000}
 
     def __init__(self, model_path=None, friction=None, stiffness=5.0, damping=0.002,
                  wall_rad=0.0, push_rad=0.02, grasp="medium", quantize=True, delay=0,
                  duration_s=1.0, start_rad=None, gamma1_set_deg=65.0, gamma2_set_deg=90.0,
-                 control_period_s=CONTROL_PERIOD_S, render_mode=None):
+                 control_period_s=CONTROL_PERIOD_S, render_mode=None, render_width=640,
+                 render_height=480, camera="side"):
         try:
             model = copy.deepcopy(om.load_model(model_path, friction))
             dev = Device(model, float(control_period_s))
@@ -116,8 +121,6 @@ class OmniWallEnv(gym.Env):
             m_h, c_h, k_h = (float(x) for x in grasp)
             if min(m_h, c_h, k_h) < 0:
                 raise InvalidOptionError("grasp mass, damping and stiffness must be >= 0")
-        if render_mode is not None:
-            raise InvalidOptionError("OmniWall-v0 does not render")
         r2 = TIP_RADIUS_M ** 2
         self.hand = {"inertia": m_h * r2, "damping": c_h * r2, "stiffness": k_h * r2}
         ix = dev.ix
@@ -136,7 +139,11 @@ class OmniWallEnv(gym.Env):
         self.n = int(round(float(duration_s) / self.T))
         self.start_rad = self.wall_rad - 0.005 if start_rad is None else float(start_rad)
         self.gamma_set = (float(gamma1_set_deg), float(gamma2_set_deg))
-        self.render_mode = None
+        self.data = mujoco.MjData(model)  # the engine steps it; the rendering shows it
+        self._viewport = _Viewport(model, render_mode, render_width, render_height, camera)
+        self.render_mode = render_mode
+        self.metadata = {**type(self).metadata, "render_modes": available_render_modes(),
+                         "render_fps": int(round(1.0 / self.T))}
         self.action_space = spaces.Box(-np.float32(self.vlim), np.float32(self.vlim), (1,), np.float32)
         vb = 4 * math.pi / self.T
         self.observation_space = spaces.Box(np.array([-math.pi, -vb, -2 * math.pi]),
@@ -166,11 +173,13 @@ class OmniWallEnv(gym.Env):
             raise InvalidOptionError("OmniWall-v0 takes its options when made")
         if self._engine is not None:
             self._engine.close()
-        self._engine = Engine([self.device], [self.start_rad], [self.gamma_set])
+        self._engine = Engine([self.device], [self.start_rad], [self.gamma_set], data=self.data)
         self._y = self._y_prev = self._read()
         self._queue = [0.0] * self.delay
         self._E = 0.0
         self._k = 0
+        if self.render_mode == "human":
+            self.render()
         return self._obs(), self._info(0.0)
 
     def step(self, action):
@@ -194,9 +203,16 @@ class OmniWallEnv(gym.Env):
         if not (np.isfinite(obs).all() and (obs >= box.low).all() and (obs <= box.high).all()):
             info["diverged"] = True
             return np.clip(np.nan_to_num(obs), box.low, box.high), 0.0, True, False, info
+        if self.render_mode == "human":
+            self.render()
         return obs, -info["penetration"] ** 2, False, self._k >= self.n, info
+
+    def render(self):
+        """An RGB image ``(height, width, 3)`` uint8 (``"rgb_array"``), or update the viewer."""
+        return self._viewport.render(self.data)
 
     def close(self):
         if self._engine is not None:
             self._engine.close()
             self._engine = None
+        self._viewport.close()

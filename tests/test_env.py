@@ -6,6 +6,7 @@ alpha-invariant wrapper against slow references, rendering, and the error paths.
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -69,7 +70,8 @@ def test_check_env(options):
     env = gym.make(ENV_ID, **options)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        check_env(env.unwrapped, skip_render_check=True)  # "human" needs a display
+        # the render modes: headless in a subprocess (test_check_env_headless_tries_every_mode)
+        check_env(env.unwrapped, skip_render_check=True)
     # the only accepted warning: gymnasium's advice to normalise the action space (ours is in V)
     other = [str(w.message) for w in caught if "normalized space" not in str(w.message)]
     assert not other, other
@@ -454,6 +456,98 @@ def test_render_rgb_array(tmp_path):
         assert r["tip_on_robot"], f"the arm's tip is not where the pose puts it ({pose}): {r}"
     a, b = (np.load(tmp_path / f"img_{g:g}.npy") for g in (25.0, 65.0))
     assert np.mean(np.any(a != b, axis=2)) > 0.005  # the two poses look different
+
+
+def headless_env(mujoco_gl):
+    """This process's environment without a display (and MUJOCO_GL as given; None: unset)."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("DISPLAY", "WAYLAND_DISPLAY", "MUJOCO_GL")}
+    return env if mujoco_gl is None else {**env, "MUJOCO_GL": mujoco_gl}
+
+
+#: Run in a fresh process (argv: env id): which render modes the instance advertises, the error
+#: of making each one it does not, then gymnasium's full checker, which makes, resets and renders
+#: every advertised mode.  Exit 77 when MUJOCO_GL names a backend that cannot make a context.
+HEADLESS_CHECK = textwrap.dedent("""
+    import json, os, sys
+    import mujoco
+    if os.environ.get("MUJOCO_GL"):
+        try:
+            mujoco.GLContext(8, 8).free()
+        except Exception as exc:
+            print(repr(exc), file=sys.stderr)
+            sys.exit(77)
+    import gymnasium as gym
+    from gymnasium.utils.env_checker import check_env
+    import omni_sim  # registers the environments
+    env_id = sys.argv[1]
+    env = gym.make(env_id)
+    modes = list(env.unwrapped.metadata["render_modes"])
+    refused = {}
+    for mode in ("human", "rgb_array"):
+        if mode not in modes:
+            try:
+                gym.make(env_id, render_mode=mode)
+            except ValueError as exc:
+                refused[mode] = str(exc)
+    check_env(env.unwrapped)
+    print(json.dumps({"modes": modes, "refused": refused}))
+""")
+
+
+def run_headless_check(env_id, mujoco_gl):
+    """:data:`HEADLESS_CHECK` without a display; skips when MUJOCO_GL's backend cannot work."""
+    proc = subprocess.run([sys.executable, "-c", HEADLESS_CHECK, env_id], capture_output=True,
+                          text=True, timeout=300, env=headless_env(mujoco_gl))
+    if proc.returncode == 77:
+        pytest.skip(f"MUJOCO_GL={mujoco_gl} cannot make an OpenGL context here: "
+                    f"{proc.stderr.strip().splitlines()[-1:]}")
+    # a GLFW failure ends the process (exit 1, "could not initialize GLFW"), not an exception
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    res = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert "human" not in res["modes"]
+    assert "needs a display" in res["refused"]["human"]
+    if mujoco_gl is None:  # MuJoCo's default backend, GLFW, needs a display too
+        assert res["modes"] == []
+        assert "MUJOCO_GL=egl" in res["refused"]["rgb_array"]
+    else:  # the checker rendered an image
+        assert res["modes"] == ["rgb_array"]
+    return res
+
+
+@pytest.mark.parametrize("mujoco_gl", [None, "egl"], ids=["MUJOCO_GL-unset", "egl"])
+def test_check_env_headless_tries_every_mode(mujoco_gl):
+    """Without a display, gymnasium's full check_env (render modes included) passes: the env
+    advertises only the modes that can work and refuses the others when made, with a reason."""
+    run_headless_check(ENV_ID, mujoco_gl)
+
+
+def test_human_mode_needs_a_display(monkeypatch):
+    """Without a display "human" is refused when made (it used to end the process at the first
+    render: GLFW's failure); with one it is offered (no window is opened here)."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(InvalidOptionError, match="needs a display .*MUJOCO_GL=egl"):
+        gym.make(ENV_ID, render_mode="human")
+    assert "human" not in OmniYawEnv().metadata["render_modes"]
+    monkeypatch.setenv("DISPLAY", ":0")
+    assert "human" in OmniYawEnv().metadata["render_modes"]
+    assert OmniYawEnv.metadata["render_modes"] == ["human", "rgb_array"]  # what the class offers
+
+
+def test_readme_env_ids_work_as_written():
+    """Every environment id the README writes makes an environment, as written, in a fresh
+    process that imports only gymnasium (gymnasium loads no plugins: a bare id needs omni_sim
+    imported first, the ``omni_sim:`` form imports it)."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    ids = sorted(set(re.findall(r"(?:[A-Za-z_][\w.]*:)?omni_sim/\w+-v\d+", readme)))
+    assert {i.split(":")[-1] for i in ids} == {"omni_sim/OmniYaw-v0", "omni_sim/OmniWall-v0"}, ids
+    code = ("import sys, gymnasium\n"
+            "for env_id in sys.argv[1:]:\n"
+            "    gymnasium.make(env_id).close()\n")
+    out = subprocess.run([sys.executable, "-c", code, *ids], capture_output=True, text=True,
+                         timeout=120, env=headless_env(None))
+    assert out.returncode == 0, out.stderr[-2000:]
 
 
 @pytest.mark.parametrize("order", ["omni_sim first", "gymnasium first"])

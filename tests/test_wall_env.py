@@ -1,12 +1,21 @@
 """omni_sim/OmniWall-v0: a virtual wall on the yaw, pushed by a hand model."""
 
+import json
+import subprocess
+import sys
+import textwrap
+
 import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
 import omni_sim  # noqa: F401
+from omni_sim.env import InvalidOptionError
 from omni_sim.wall_env import GRASPS, TIP_RADIUS_M, OmniWallEnv
+from test_env import headless_env, run_headless_check
+
+WALL_ID = "omni_sim/OmniWall-v0"
 
 
 def _run(env, n=None, seed=0):
@@ -23,7 +32,67 @@ def _run(env, n=None, seed=0):
 
 def test_check_env_and_registration():
     env = gym.make("omni_sim/OmniWall-v0")
+    # the render modes: headless in a subprocess (test_check_env_headless_tries_every_mode)
     check_env(env.unwrapped, skip_render_check=True)
+
+
+@pytest.mark.parametrize("mujoco_gl", [None, "egl"], ids=["MUJOCO_GL-unset", "egl"])
+def test_check_env_headless_tries_every_mode(mujoco_gl):
+    """gymnasium's full check_env without a display, render modes included (as OmniYaw-v0's):
+    with MUJOCO_GL=egl it renders rgb_array; "human" is refused when made, with a reason."""
+    run_headless_check(WALL_ID, mujoco_gl)
+
+
+def test_human_mode_needs_a_display(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(InvalidOptionError, match="needs a display"):
+        OmniWallEnv(render_mode="human")
+    monkeypatch.setenv("DISPLAY", ":0")
+    assert "human" in OmniWallEnv().metadata["render_modes"]
+
+
+#: Renders the wall env (argv: output prefix) with the stylus at two start angles, 0.6 rad apart,
+#: and at a smaller size; exit 77 when MUJOCO_GL=egl cannot make a context.
+_RENDER = textwrap.dedent("""
+    import json, sys
+    import mujoco
+    import numpy as np
+    try:
+        mujoco.GLContext(8, 8).free()
+    except Exception as exc:
+        print(repr(exc), file=sys.stderr)
+        sys.exit(77)
+    import gymnasium as gym
+    out = {}
+    for start, size in ((-0.6, (640, 480)), (0.0, (640, 480)), (0.0, (320, 240))):
+        env = gym.make("omni_sim:omni_sim/OmniWall-v0", render_mode="rgb_array", start_rad=start,
+                       render_width=size[0], render_height=size[1])
+        env.reset(seed=0)
+        img = env.render()
+        key = f"{start:g}_{size[0]}"
+        np.save(f"{sys.argv[1]}_{key}.npy", img)
+        out[key] = dict(shape=list(img.shape), dtype=str(img.dtype), std=float(img.std()))
+        env.close()
+    print(json.dumps(out))
+""")
+
+
+def test_render_rgb_array_with_egl(tmp_path):
+    """MUJOCO_GL=egl, no display: rgb_array gives an image of the asked size, not blank, that
+    follows the stylus's yaw (skipped only where EGL cannot make a context)."""
+    proc = subprocess.run([sys.executable, "-c", _RENDER, str(tmp_path / "img")],
+                          capture_output=True, text=True, timeout=300, env=headless_env("egl"))
+    if proc.returncode == 77:
+        pytest.skip(f"EGL cannot make an OpenGL context here: {proc.stderr.strip()[-300:]}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    res = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert res["-0.6_640"]["shape"] == res["0_640"]["shape"] == [480, 640, 3]
+    assert res["0_320"]["shape"] == [240, 320, 3]
+    for key, r in res.items():
+        assert r["dtype"] == "uint8" and r["std"] > 10, (key, r)  # not a blank image
+    a, b = (np.load(tmp_path / f"img_{k}.npy") for k in ("-0.6_640", "0_640"))
+    assert np.mean(np.any(a != b, axis=2)) > 0.005  # the stylus turned 0.6 rad
 
 
 def test_seeded_episode_is_deterministic():
