@@ -76,6 +76,15 @@ def _json(rel):
     return json.loads((ROOT / rel).read_text())
 
 
+def _servo_model(rel) -> dict:
+    """The real-servo example's nominal model: its hinge's and its actuator's attributes."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(ROOT / rel).getroot()
+    return {"joint": root.find(".//joint[@name='servo_axis']").attrib,
+            "actuator": root.find("./actuator/*[@name='servo']").attrib}
+
+
 def load_sources() -> dict:
     """Every file the pages' results quote, parsed."""
     with open(ROOT / "docs" / "sweep" / "results.csv") as fh:
@@ -95,6 +104,7 @@ def load_sources() -> dict:
             "bench": _json("docs/bench.json"),
             "zwidth_ideal": _json("docs/haptics/zwidth_ideal.json"),
             "real_servo": _json("examples/real_servo/report/report.json"),
+            "real_servo_model": _servo_model("examples/real_servo/model.xml"),
             "sweep": sweep}
 
 
@@ -758,7 +768,8 @@ def unchecked_figures(pages: dict[str, str], src: dict, phrases: dict[str, list[
 def record_claims(src: dict) -> dict[str, list[str]]:
     """The phrases of the README's haptics and real-servo passages and of the real-servo
     example's page, rendered from their records (``docs/haptics/zwidth_ideal.json``,
-    ``examples/real_servo/report/report.json``, ``docs/bench.json``)."""
+    ``examples/real_servo/report/report.json``, ``docs/bench.json``, the example's
+    ``model.xml``)."""
     zw, rs, srv = src["zwidth_ideal"], src["real_servo"], src["bench"]["discrepancy_servo"]
     gap, noise = rs["gap_after"], rs["noise_floor_rad"]
     runs = [r["run"] for r in rs["sampling"]]
@@ -770,11 +781,21 @@ def record_claims(src: dict) -> dict[str, list[str]]:
     cf = cands["coulomb_friction"]
     pair = rs["rounds"][0]["pair_search"]
     where = {w["where"]: w["ratio"] for w in rs["where"]}
+    joint, act = src["real_servo_model"]["joint"], src["real_servo_model"]["actuator"]
+    bias = [float(x) for x in act["biasprm"].split()]
     return {"readme": [
         f"at the {1e-3 / zw['sample_period_s']:g} kHz servo rate",
         f"the workflow {verdict} ({_sci(gap, 2)} rad, {gap / noise:.1f} x the noise floor)",
         f"{_count(len(runs))} runs of {_count(len(set(runs)))} different experiments",
     ], "real_servo": [
+        f"| torque per volt (the actuator's gain, `gainprm`) | {float(act['gainprm']):.4f} N·m/V = kt/R |",
+        f"| back-EMF (the actuator's velocity bias, `biasprm`) | {-bias[2]:.4f} N·m·s/rad = kt²/R |",
+        f"| reflected rotor inertia (`armature`) | {float(joint['armature']):.4f} kg·m² |",
+        f"| gearbox viscous friction (in `damping`) | {float(joint['damping']):.4f} N·m·s/rad |",
+        f"| dry friction (`frictionloss`) | {float(joint['frictionloss']):.3f} N·m |",
+        f"(`gainprm=\"{act['gainprm']}\"`) and its affine velocity bias is the back-EMF "
+        f"(`biasprm=\"{act['biasprm']}\"`)",
+        f"the joint keeps only the gearbox's {float(joint['damping']):.4f} N·m·s/rad",
         f"stays at {_sci(gap, 2)} rad (x{rs['shrink_factor']:.1f}), {gap / noise:.1f} x the noise floor "
         f"({_sci(noise, 2)} rad)",
         f"on the {_count(len(runs))} converted runs ({sum(r['samples'] for r in rs['sampling'])} logged samples)",

@@ -183,3 +183,18 @@ def test_derived_figures_follow_their_records(dt, src):
     bad["cal_coulomb_all_free"]["cost_before"] += 5
     cost = bad["cal_coulomb_all_free"]["cost_before"]
     assert any(c.startswith(f"{cost:.1f} → ") for c in dt.claims(bad)["friction"])
+
+
+def test_the_servo_example_describes_its_model(dt, src, pages):
+    """The example's model table and actuator paragraph follow its model.xml: the back-EMF
+    described as joint damping, or moved back there in the model, is caught."""
+    before = set(dt.check(pages, src))
+    row = "| back-EMF (the actuator's velocity bias, `biasprm`) |"
+    assert row in pages["real_servo"]
+    old = dict(pages, real_servo=pages["real_servo"].replace(row, "| back-EMF (in the joint's `damping`) |"))
+    assert any("back-EMF" in p for p in set(dt.check(old, src)) - before)
+    bad = copy.deepcopy(src)
+    bad["real_servo_model"]["joint"]["damping"] = "0.6576"  # back-EMF + gearbox as joint damping
+    bad["real_servo_model"]["actuator"]["biasprm"] = "0 0 0"
+    new = set(dt.check(pages, bad)) - before
+    assert any("biasprm" in p for p in new) and any("damping" in p for p in new), new
