@@ -678,15 +678,21 @@ def zwidth_row_errors(rec: dict) -> list[float]:
             if k is not None and c > 0]
 
 
+def _digits(x: float, like: str) -> str:
+    """``x`` with as many decimals as the figure ``like``."""
+    return f"{x:.{len(like.partition('.')[2])}f}"
+
+
 def zwidth_bound(text: str, rec: dict) -> tuple[list[str], list[tuple[int, int]]]:
     """The sentence of ``text`` that compares the ideal Z-width map with Colgate & Schenkel's
     bound, checked against the map's record (``docs/haptics/zwidth_ideal.json``) whatever its
-    wording.  Its m percentages, smallest first, must be the worst error of the boundary
-    against the bound over all rows but the last m - 1, ..., all rows but the last, all rows
-    (:func:`zwidth_row_errors`, to the digits printed): a bound, then its exceptions, which
-    are the rows nearest b.  A bound "near 0" there must be the last row's, closer to 0 than to
-    the row before's.  Returns the problems and the spans of the figures checked (none if no
-    sentence names Colgate)."""
+    wording.  A percentage followed by "up to x b" must be the worst error of the boundary
+    against the bound (:func:`zwidth_row_errors`, to the digits printed) over the rows with
+    B <= x b, one followed by "at x b" that row's error.  The m others, smallest first, must be
+    the worst error over all rows but the last m - 1, ..., all rows but the last, all rows: a
+    bound, then its exceptions, which are the rows nearest b.  Any other "x b" must be a row's
+    B/b, and a bound "near 0" the last row's, closer to 0 than to the row before's.  Returns
+    the problems and the spans of the figures checked (none if no sentence names Colgate)."""
     at = text.find("Colgate")
     if at < 0:
         return [], []
@@ -695,16 +701,36 @@ def zwidth_bound(text: str, rec: dict) -> tuple[list[str], list[tuple[int, int]]
     stop = re.compile(r"[.!?](?:\s|$)").search(text, at)
     sentence = text[start:stop.start() if stop else len(text)]
     errs = zwidth_row_errors(rec)
-    pct = sorted(re.finditer(r"(\d+(?:\.\d+)?) ?%", sentence), key=lambda m: float(m.group(1)))
-    problems, spans = [], []
-    for i, m in enumerate(pct):
-        rows = len(errs) - (len(pct) - 1 - i)
-        nd = len(m.group(1).partition(".")[2])
-        want = f"{max(errs[:rows]):.{nd}f}" if rows > 0 else "(no such rows)"
+    rows = [B / rec["physical_damping"] for B, k, c in zip(rec["damping"], rec["boundary_stiffness"],
+                                                           rec["colgate_stiffness"]) if k is not None and c > 0]
+    problems, spans, free = [], [], []
+    for m in re.finditer(r"(\d+(?:\.\d+)?) ?%(?:,? (up to|at) (\d+(?:\.\d+)?) ?b\b)?", sentence):
+        if m.group(2) is None:
+            free.append(m)
+            continue
+        x = m.group(3)
+        near = [float(_digits(r, x)) for r in rows]  # B/b to the digits printed
+        sel = [e for e, r in zip(errs, near) if (r == float(x) if m.group(2) == "at" else r <= float(x))]
+        want = _digits(max(sel), m.group(1)) if sel else f"(no row {m.group(2)} {x} b)"
+        if m.group(1) != want:
+            problems.append(f"Z-width sentence {sentence.strip()!r}: {m.group(1)} % {m.group(2)} {x} b should be "
+                            f"{want} % (docs/haptics/zwidth_ideal.json)")
+        spans += [(start + m.start(1), start + m.end(1)), (start + m.start(3), start + m.end(3))]
+    free.sort(key=lambda m: float(m.group(1)))
+    for i, m in enumerate(free):
+        n = len(errs) - (len(free) - 1 - i)
+        want = _digits(max(errs[:n]), m.group(1)) if n > 0 else "(no such rows)"
         if m.group(1) != want:
             problems.append(f"Z-width sentence {sentence.strip()!r}: {m.group(1)} % should be {want} % "
-                            f"(the worst of the first {rows} rows of docs/haptics/zwidth_ideal.json)")
-        spans.append((start + m.start(), start + m.end()))
+                            f"(the worst of the first {n} rows of docs/haptics/zwidth_ideal.json)")
+        spans.append((start + m.start(1), start + m.end(1)))
+    for m in re.finditer(r"(\d+(?:\.\d+)?) ?b\b", sentence):
+        if any(a <= start + m.start(1) < b for a, b in spans):
+            continue  # an "up to x b" or "at x b" of a percentage, checked above
+        if m.group(1) not in {_digits(x, m.group(1)) for x in rows}:
+            problems.append(f"Z-width sentence {sentence.strip()!r}: {m.group(1)} b is no row of the map "
+                            f"(B/b = {', '.join(f'{x:.2f}' for x in rows)})")
+        spans.append((start + m.start(1), start + m.end(1)))
     near = re.search(r"near (0|zero)\b", sentence)
     if near:
         c = [c for k, c in zip(rec["boundary_stiffness"], rec["colgate_stiffness"]) if k is not None and c > 0]

@@ -147,8 +147,9 @@ def test_a_changed_servo_or_zwidth_record_is_caught(dt, src, pages):
 
 
 def test_the_zwidth_rule_reads_the_record(dt, src):
-    """The Z-width sentence is checked whatever its wording: its percentages, smallest first,
-    are the worst errors over all rows but the last m - 1, ..., all rows."""
+    """The Z-width sentence is checked whatever its wording: a percentage "up to x b" is the
+    worst error of those rows, "at x b" that row's; the others, smallest first, the worst
+    errors over all rows but the last m - 1, ..., all rows."""
     rec = src["zwidth_ideal"]
     errs = dt.zwidth_row_errors(rec)
     assert len(errs) > 2 and f"{errs[0]:.1f}" != f"{max(errs[:-1]):.1f}"
@@ -164,6 +165,14 @@ def test_the_zwidth_rule_reads_the_record(dt, src):
     assert problems(good[0], f"{errs[-1] + 1:.1f}")
     assert dt.zwidth_bound(f"Colgate's bound within {good[1]} %.", rec)[0] == []  # one bound for all
     assert dt.zwidth_bound(f"Colgate's bound within {good[0]} %.", rec)[0]
+    rows = [B / rec["physical_damping"] for B, k, c in zip(rec["damping"], rec["boundary_stiffness"],
+                                                           rec["colgate_stiffness"]) if k is not None and c > 0]
+    upto, last = f"{rows[-2]:.2f}", f"{rows[-1]:.2f}"
+    assert dt.zwidth_bound(f"Colgate's bound within {good[0]} % up to {upto} b ({good[1]} % at {last} b).",
+                           rec)[0] == []
+    early = f"{max(errs[:3]):.1f}"  # the worst of the first three rows: no bound up to the last but one
+    assert early != good[0] and dt.zwidth_bound(f"Colgate's bound within {early} % up to {upto} b.", rec)[0]
+    assert dt.zwidth_bound(f"Colgate's bound within {good[1]} % at {rows[-1] + 0.5:.2f} b.", rec)[0]
     far = copy.deepcopy(rec)
     c = far["colgate_stiffness"]
     last = max(i for i, (k, x) in enumerate(zip(far["boundary_stiffness"], c)) if k is not None and x > 0)
