@@ -33,11 +33,12 @@ OUT = ROOT / "docs" / "fidelity" / "alpha_verdict.json"
 #: the alpha model halving the linear model's phase p90 (the report's "halves" target; the
 #: paper's Table 8: 15.6 -> 5.4 deg).
 SINE_PHASE_FACTOR = 0.5
-#: A rebuilt candidate must give the search record's figures: its linear step median over poses
-#: (the reproduction's identification and validation path against the search's linear-only
-#: path: measured 5.5e-8 relative on lugre/coulomb_friction@polish; the two paths batch the
-#: inertia fit and the linear simulations differently) and its Table 3 worst C (the same sine
-#: identification).  A larger difference means the device was not rebuilt as searched.
+#: A rebuilt candidate must give the search record's figures: its Table 3 worst C (the same sine
+#: identification: equal to ~1e-15) and its linear step median over poses, which differs by the
+#: start: the validation starts the linear model at the run's estimated first velocity
+#: (identification.validation._initial_velocity), the search's linear_step_errors at rest; the
+#: runs themselves are the same bytes.  Measured over the 17 in-band candidates: at most 2.3e-7
+#: relative.  A device not rebuilt as searched is off by a percent or more.
 REBUILD_RTOL = 1e-6
 
 
@@ -128,16 +129,18 @@ def measure(cand: dict, jobs: int | None = None) -> dict:
 
     from identification.errors import UserError
 
+    from scripts.fidelity_search import meets
+
     t0 = time.perf_counter()
     model, amplitude = rebuild(cand)
     sf = cand["figures"]
+    m = meets(sf)  # the search's rules, recomputed (the record's flags may predate them)
     row = {"id": cand["id"], "family": cand["family"], "effects": cand["effects"],
            "amplitude_rad": amplitude,
            "effect_parameters": {p["name"]: p["value"] for p in cand["parameters"] if p["kind"] != "friction"},
            "search": {k: sf[k] for k in ("step_median_rad", "poses_within_40pct", "table3_C_worst_rel",
                                          "table3_beta_tilde_worst_rel", "table10_C_fall")},
-           "search_meets": {"acceptance": sf["meets"]["all"],
-                            "tables_met": sum(sf["meets"]["tables"].values())}}
+           "search_meets": {"acceptance": m["all"], "tables_met": sum(m["tables"].values())}}
     try:
         with tempfile.TemporaryDirectory() as tmp, _one_blas_thread():
             res = run_reproduce(model=model, jobs=jobs, campaign=str(campaign_file(amplitude, Path(tmp))))
@@ -208,7 +211,7 @@ def _yes(ok: bool) -> str:
 
 def _effect(r: dict) -> str:
     def value(name, v):
-        if name.endswith("_s"):
+        if name.endswith("_s") and not name.endswith("_per_s"):
             return f"{1e3 * v:.2f} ms"
         if "half_width" in name:
             return f"{1e3 * v:.2f} mrad"
@@ -314,7 +317,7 @@ def format_markdown(rec: dict) -> str:
     ]
     lines += [_row(r) for r in rows]
     ps, pn = p["step"], p["sine"]
-    lines.append(f"| *paper (real Omni)* | | {_mrad(b['paper_step_linear_median_rad'])} / 25 | | "
+    lines.append(f"| *paper (real Omni)* | | {_mrad(b['paper_step_linear_median_rad'])} | | "
                  f"{_mrad(ps['median_abs_error_linear_rad'])} → {_mrad(ps['median_abs_error_alpha_rad'])} | "
                  f"**{ps['ratio_of_medians']:.2f}** | {ps['ratio_of_means']:.2f} | "
                  f"{_mrad(ps['p90_abs_error_linear_rad'])} → {_mrad(ps['p90_abs_error_alpha_rad'])} | "
@@ -349,7 +352,8 @@ def plot(rec: dict, path: Path) -> Path:
     ax.axvline(1.0, color="k", lw=0.8)
     ax.set_yticks(y, [r["id"] for r in rows], fontsize=7)
     ax.invert_yaxis()
-    ax.set(xlabel="steps: linear error / α error (whole record)", xscale="log",
+    ax.set(xlabel="steps: linear error / α error (whole record)",
+           xlim=(0.8 * min(1.0, *ax.get_xlim()), 1.1 * max(p["step"]["ratio_of_medians"], *ax.get_xlim())),
            title="steps (1: no gain)")
     ax.legend(fontsize=7)
     ax = axes[1]

@@ -77,3 +77,23 @@ def test_only_declarable_candidates_become_a_scene():
     ranked = [r for r in report._best(doc)
               if r["family"] == "lugre" and all(e in search.SCENE_EFFECTS for e in r["effects"])]
     assert record["from_candidate"] == ranked[0]["id"]
+
+
+def test_fixed_before_ranks_by_the_acceptance_figures_only():
+    """The report's 'fixed before the search' section ranks by the acceptance's five figures and
+    the cost, and names the choice of the tables-met ranking (written with the results) beside
+    it: here a cheaper candidate that misses Table 10's fall wins the first and loses the second."""
+    def cand(cid, cost, **over):
+        f = _figures(**{"table3_C_worst_rel": -0.12, **over})
+        return {"id": cid, "family": "lugre", "effects": [cid.split("/")[1]], "ok": True, "cost": cost,
+                "figures": f, "figures_start": dict(f)}
+    doc = {"candidates": [cand("lugre/coulomb_friction", 40.0),
+                          cand("lugre/joint_stiffness", 30.0, table10_C_fall=2.0),
+                          cand("coulomb/x", 20.0, table3_C_worst_rel=0.05)]}
+    doc["candidates"][2]["family"] = "coulomb"
+    report._refresh(doc)
+    text = "\n".join(report._fixed_before(doc))
+    assert "By them only coulomb/x pass** (1 of 3; all on the coulomb footing's" in text
+    assert "It chose **lugre/coulomb_friction**" in text
+    assert "puts first coulomb/x (5/5 figures)" in text
+    assert "candidates, **lugre/joint_stiffness** (4/5 figures)" in text
