@@ -67,6 +67,9 @@ UNIFORM_RTOL = 1e-3
 MAX_GAP_PERIODS = 10.0
 #: The optional on/off column.
 ENABLED_COLUMN = "enabled"
+#: Optional metadata numbers: absent or null, else finite (their rules: :func:`read_run`);
+#: ``command_limit`` may also be ``Infinity`` (no saturation, as if absent).
+OPTIONAL_NUMBER_KEYS = ("gamma1_set_deg", "gamma2_set_deg", "command_limit", "control_period_s")
 
 
 @dataclass
@@ -204,26 +207,12 @@ def _fail(path: Path, problem: str) -> UserError:
     return UserError(f"{path}: {problem}")
 
 
-def read_run(csv_path: str | os.PathLike, require_pose: bool = True, uniform: bool = True) -> Run:
-    """Read and validate one run from its CSV path (the JSON beside it is read too).
+def _is_number(val) -> bool:
+    return not isinstance(val, bool) and isinstance(val, (int, float)) and math.isfinite(val)
 
-    ``require_pose`` False: ``gamma1_deg``/``gamma2_deg`` may be absent (a device without the
-    Omni's arm); if present they must still be finite numbers.  ``uniform`` True: an irregular
-    run is resampled onto a uniform grid (:func:`resample_uniform`); False: kept at its logged
-    times.
 
-    Raises
-    ------
-    UserError
-        Missing files, missing columns or keys, non-finite samples, time not strictly
-        increasing, a gap longer than :data:`MAX_GAP_PERIODS` periods, an ``enabled`` column
-        with values other than 0/1, a ``control_period_s`` that is not a positive number,
-        unknown ``kind``, fewer than 2 samples.
-    """
-    csv_path = Path(csv_path)
-    json_path = csv_path.with_suffix(".json")
-    if not csv_path.is_file():
-        raise _fail(csv_path, "file not found")
+def _read_meta(json_path: Path, require_pose: bool) -> dict:
+    """The run's JSON object, its keys checked (:func:`read_run`'s rules)."""
     if not json_path.is_file():
         raise _fail(json_path, "metadata file not found (each run needs NAME.csv and NAME.json)")
     try:
@@ -238,25 +227,57 @@ def read_run(csv_path: str | os.PathLike, require_pose: bool = True, uniform: bo
         raise _fail(json_path, f"missing required key(s): {', '.join(missing)}")
     if meta["kind"] not in KINDS:
         raise _fail(json_path, f"kind must be one of {', '.join(KINDS)}, got {meta['kind']!r}")
-    for k in [k for k in REQUIRED_KEYS[1:] if k in meta]:
-        val = meta[k]
-        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
-            raise _fail(json_path, f"{k} must be a finite number, got {val!r}")
-    if "control_period_s" in meta:
-        val = meta["control_period_s"]
-        if (isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val)
-                or not 0 < val <= 1.0):
-            raise _fail(json_path, f"control_period_s must be a number of seconds in (0, 1], got {val!r}")
+    # optional numbers: absent or null, else finite
+    for k in [k for k in REQUIRED_KEYS[1:] if k in meta] + [k for k in OPTIONAL_NUMBER_KEYS
+                                                           if meta.get(k) is not None]:
+        if not (_is_number(meta[k]) or (k == "command_limit" and meta[k] == math.inf)):
+            raise _fail(json_path, f"{k} must be a finite number, got {meta[k]!r}")
+    periodic = meta["kind"] in ("sine", "step")  # a sine or a square wave has a frequency
+    rules = (("kp", meta["kp"] > 0, "must be > 0 (the P gain)"),
+             ("frequency_hz", meta["frequency_hz"] > 0 if periodic else meta["frequency_hz"] >= 0,
+              f"must be {'> 0 for a ' + meta['kind'] if periodic else '>= 0'}"),
+             ("amplitude_rad", meta["amplitude_rad"] > 0 if periodic else meta["amplitude_rad"] >= 0,
+              f"must be {'> 0 for a ' + meta['kind'] if periodic else '>= 0'}"),
+             ("command_limit", meta.get("command_limit") is None or meta["command_limit"] > 0,
+              "must be > 0 (the P law's saturation, in the actuator's control units)"),
+             ("control_period_s", meta.get("control_period_s") is None or 0 < meta["control_period_s"] <= 1.0,
+              "must be a number of seconds in (0, 1]"))
+    for key, ok, rule in rules:
+        if not ok:
+            raise _fail(json_path, f"{key} {rule}, got {meta[key]!r}")
+    return meta
+
+
+def read_table(csv_path: str | os.PathLike, required=REQUIRED_COLUMNS) -> tuple[list[str], np.ndarray]:
+    """A numeric CSV file: its header names and its rows as a 2-D array of finite numbers, at
+    least 2 rows (the samples of a run; ``required``: the columns it must have).
+
+    Raises
+    ------
+    UserError
+        The file is empty, lacks a required column, has no data rows, a malformed or
+        non-finite value, a row of another length than the header, fewer than 2 rows."""
+    csv_path = Path(csv_path)
     try:
         with open(csv_path) as fh:
-            header = fh.readline().strip().split(",")
-            header = [h.strip() for h in header]
-            data = np.loadtxt(fh, delimiter=",", ndmin=2)
-    except (ValueError, UnicodeDecodeError) as exc:
+            text = fh.read()
+    except UnicodeDecodeError as exc:
         raise _fail(csv_path, f"malformed CSV ({exc})") from None
-    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    lines = text.splitlines()
+    need = ",".join(required)
+    if not lines or not lines[0].strip():
+        raise _fail(csv_path, f"empty file (need a header line {need} and one row per sample)")
+    header = [h.strip() for h in lines[0].strip().split(",")]
+    missing = [c for c in required if c not in header]
     if missing:
-        raise _fail(csv_path, f"missing column(s): {', '.join(missing)} (need t, r, theta, v)")
+        raise _fail(csv_path, f"missing column(s): {', '.join(missing)} (need {', '.join(required)})")
+    rows = [ln for ln in lines[1:] if ln.strip()]
+    if not rows:
+        raise _fail(csv_path, "no data rows (only the header line)")
+    try:
+        data = np.loadtxt(rows, delimiter=",", ndmin=2)
+    except ValueError as exc:
+        raise _fail(csv_path, f"malformed CSV ({exc})") from None
     if data.shape[1] != len(header):
         raise _fail(csv_path, f"{data.shape[1]} values per row but {len(header)} header names")
     if data.shape[0] < 2:
@@ -264,7 +285,12 @@ def read_run(csv_path: str | os.PathLike, require_pose: bool = True, uniform: bo
     if not np.all(np.isfinite(data)):
         row, col = np.argwhere(~np.isfinite(data))[0]
         raise _fail(csv_path, f"non-finite value in column {header[col]!r} at sample {row}")
-    cols = {h: data[:, i] for i, h in enumerate(header)}
+    return header, data
+
+
+def _check_samples(csv_path: Path, json_path: Path, cols: dict, meta: dict) -> None:
+    """Time strictly increasing, no long gap, ``enabled`` 0/1, a control period no longer than
+    the sample period."""
     t = cols["t"]
     dt = np.diff(t)
     if np.any(dt <= 0):
@@ -276,12 +302,47 @@ def read_run(csv_path: str | os.PathLike, require_pose: bool = True, uniform: bo
         raise _fail(csv_path, f"a gap of {dt[k]:.4g} s after t = {t[k]:.6g} s is longer than "
                               f"{MAX_GAP_PERIODS:g} sample periods ({period:.4g} s): what the "
                               "reference did inside it is not known; split the run there")
-    if ENABLED_COLUMN in cols and not np.all((cols[ENABLED_COLUMN] == 0) | (cols[ENABLED_COLUMN] == 1)):
-        k = int(np.argmax((cols[ENABLED_COLUMN] != 0) & (cols[ENABLED_COLUMN] != 1)))
-        raise _fail(csv_path, f"column 'enabled' must hold 0 or 1, got {cols[ENABLED_COLUMN][k]!r} "
-                              f"at sample {k}")
+    e = cols.get(ENABLED_COLUMN)
+    if e is not None and not np.all((e == 0) | (e == 1)):
+        k = int(np.argmax((e != 0) & (e != 1)))
+        raise _fail(csv_path, f"column 'enabled' must hold 0 or 1, got {float(e[k]):g} at sample {k}")
+    cp = meta.get("control_period_s")
+    if cp is not None and cp > period * (1 + UNIFORM_RTOL):
+        raise _fail(json_path, f"control_period_s {cp:g} s is longer than the sample period "
+                               f"{period:.4g} s of {csv_path.name}: a log cannot sample the device's "
+                               "loop faster than it runs (control_period_s is in seconds)")
+
+
+def read_run(csv_path: str | os.PathLike, require_pose: bool = True, uniform: bool = True) -> Run:
+    """Read and validate one run from its CSV path (the JSON beside it is read too).
+
+    ``require_pose`` False: ``gamma1_deg``/``gamma2_deg`` may be absent (a device without the
+    Omni's arm); if present they must still be finite numbers.  ``uniform`` True: an irregular
+    run is resampled onto a uniform grid (:func:`resample_uniform`); False: kept at its logged
+    times.
+
+    Raises
+    ------
+    UserError
+        Missing files, missing columns or keys, an empty file or one without data rows,
+        non-finite samples, time not strictly increasing, a gap longer than
+        :data:`MAX_GAP_PERIODS` periods, an ``enabled`` column with values other than 0/1,
+        unknown ``kind``, fewer than 2 samples; a number no run has: ``kp`` <= 0, a negative
+        ``frequency_hz`` or ``amplitude_rad`` (zero for a sine or a step), ``command_limit``
+        <= 0, ``control_period_s`` outside (0, 1] s or longer than the sample period.  Pose
+        angles are checked for being finite numbers only: the joint ranges are the device's
+        (``omni_sim.device.Device.check_pose``, applied by the commands).
+    """
+    csv_path = Path(csv_path)
+    json_path = csv_path.with_suffix(".json")
+    if not csv_path.is_file():
+        raise _fail(csv_path, "file not found")
+    meta = _read_meta(json_path, require_pose)
+    header, data = read_table(csv_path)
+    cols = {h: data[:, i] for i, h in enumerate(header)}
+    _check_samples(csv_path, json_path, cols, meta)
     extra = {h: cols[h] for h in header if h not in REQUIRED_COLUMNS}
-    run = Run(csv_path.stem, t, cols["r"], cols["theta"], cols["v"], meta, extra)
+    run = Run(csv_path.stem, cols["t"], cols["r"], cols["theta"], cols["v"], meta, extra)
     return resample_uniform(run) if uniform else run
 
 
@@ -304,22 +365,63 @@ def read_dataset(folder: str | os.PathLike, require_pose: bool = True,
     return [read_run(p, require_pose, uniform) for p in paths]
 
 
-@contextmanager
-def atomic_output_dir(out: str | os.PathLike, force: bool = False) -> Iterator[Path]:
-    """Yield a temporary folder beside ``out``; on success move it to ``out``.
+def _check_parent(out: Path) -> Path:
+    """The folder ``out`` will be written in: it must exist, be a folder and be writable."""
+    parent = out.resolve().parent
+    if not parent.exists():
+        raise UserError(f"{out}: parent folder {parent} does not exist")
+    if not parent.is_dir():
+        raise UserError(f"{out}: {parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise UserError(f"{out}: parent folder {parent} is not writable")
+    return parent
 
-    Nothing half-written is ever left at ``out``: if the body raises, the temporary folder
-    is removed and ``out`` is untouched.  An existing non-empty ``out`` is an error unless
-    ``force`` is given, in which case it is replaced only after the new output is complete.
+
+def check_output_dir(out: str | os.PathLike, force: bool = False) -> Path:
+    """Check that the output folder ``out`` can be written, before any long work; returns its
+    parent folder.
+
+    Raises
+    ------
+    UserError
+        ``out`` exists and is not a folder; it is a non-empty folder and ``force`` is not given;
+        its parent folder does not exist, is not a folder or is not writable.
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UserError(f"{out}: exists and is not a folder")
     if out.is_dir() and any(out.iterdir()) and not force:
         raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
-    parent = out.resolve().parent
-    if not parent.is_dir():
-        raise UserError(f"{out}: parent folder {parent} does not exist")
+    return _check_parent(out)
+
+
+def check_output_file(path: str | os.PathLike) -> Path:
+    """Check that the output file ``path`` can be written (replaced if it exists), before any
+    long work; returns its parent folder.
+
+    Raises
+    ------
+    UserError
+        ``path`` is a folder; its parent folder does not exist, is not a folder or is not
+        writable.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise UserError(f"{path}: is a folder; give a file name")
+    return _check_parent(path)
+
+
+@contextmanager
+def atomic_output_dir(out: str | os.PathLike, force: bool = False) -> Iterator[Path]:
+    """Yield a temporary folder beside ``out``; on success move it to ``out``.
+
+    Nothing half-written is ever left at ``out``: if the body raises, the temporary folder
+    is removed and ``out`` is untouched.  An existing non-empty ``out`` is an error unless
+    ``force`` is given, in which case it is replaced only after the new output is complete
+    (the checks: :func:`check_output_dir`, which commands call before their work).
+    """
+    out = Path(out)
+    parent = check_output_dir(out, force)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=parent))
     try:
         yield tmp
@@ -346,9 +448,7 @@ def write_dataset(runs, out: str | os.PathLike, force: bool = False) -> None:
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` to ``path`` via a temporary file and rename (never half-written)."""
     path = Path(path)
-    parent = path.resolve().parent
-    if not parent.is_dir():
-        raise UserError(f"{path}: parent folder {parent} does not exist")
+    parent = check_output_file(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=parent)
     try:
         with os.fdopen(fd, "w", newline="\n") as fh:

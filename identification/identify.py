@@ -211,9 +211,19 @@ def read_linear_table(path) -> dict:
     return {c: np.array(v) for c, v in out.items()}
 
 
-def fit_inertia_table(path) -> tuple[InertiaFit, dict]:
-    """Fit the inertia model to a table file; returns the fit and its JSON dict."""
+def fit_inertia_table(path, check_pose=None) -> tuple[InertiaFit, dict]:
+    """Fit the inertia model to a table file; returns the fit and its JSON dict.
+
+    ``check_pose(gamma1_deg, gamma2_deg)``: raises UserError for a pose no device has (the
+    command passes the Omni's joint ranges; this package never loads a model).  It is applied
+    to tables long enough for the fit: a shorter one gets the fit's own message first."""
     tab = read_linear_table(path)
+    if check_pose is not None and len(tab["gamma1_deg"]) >= MIN_POSES:
+        for i, (g1, g2) in enumerate(zip(tab["gamma1_deg"], tab["gamma2_deg"]), start=2):
+            try:
+                check_pose(float(g1), float(g2))
+            except UserError as exc:
+                raise UserError(f"{path}: line {i}: {exc}") from None
     try:
         fit = fit_inertia_model(tab["gamma1_deg"], tab["gamma2_deg"], tab["C_linear"],
                                 tab["beta_tilde_linear"])

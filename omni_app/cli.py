@@ -37,6 +37,16 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+def _version() -> str:
+    """The installed distribution's version (pyproject.toml's ``version``, via its metadata)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("omni-alpha")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
 def _friction_option(p: argparse.ArgumentParser, all_: bool = False, what: str = "") -> None:
     from omni_sim.model import DEFAULT_FRICTION, FRICTION_FAMILIES
 
@@ -53,6 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="omni",
         description="Virtual Phantom Omni (MuJoCo) and the alpha-invariant identification method.",
     )
+    parser.add_argument("--version", action="version", version=f"omni {_version()}",
+                        help="print the installed package's version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for add in (_add_generate, _add_identify, _add_fit_inertia, _add_validate, _add_reproduce,

@@ -11,11 +11,13 @@ import math
 import sys
 from pathlib import Path
 
-from identification.dataset import atomic_output_dir, atomic_write_text, read_dataset, write_dataset
+from identification.dataset import (atomic_output_dir, atomic_write_text, check_output_dir,
+                                    check_output_file, read_dataset, read_table, write_dataset)
 from identification.errors import UserError
 from identification.identify import fit_inertia_table, identify_runs
 from identification.inertia import InertiaFit
 from identification.validation import read_params, validate_runs, write_predictions
+from .inputs import check_run_poses, omni_pose_check
 from omni_sim import experiments as ex
 from omni_sim import model as om
 
@@ -50,12 +52,21 @@ def generate(args: argparse.Namespace) -> int:
     model = model_arg(args)
     settings = _settings(args)
     out = Path(args.out)
-    if out.is_dir() and any(out.iterdir()) and not args.force:
-        raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
+    check_output_dir(out, args.force)
     if args.reference is not None:
+        if Path(args.reference).is_file():
+            read_table(args.reference, ("t", "r"))  # one clear line for an empty or malformed file
         exps = [ex.reference_experiment(args.reference, args.gamma1, args.gamma2)]
+        source = "--gamma1/--gamma2"
     else:
         exps = ex.campaign(args.campaign)
+        source = str(args.campaign)
+    check = omni_pose_check(model)  # the model file: refused here if bad
+    for e in exps:
+        try:
+            check(e.gamma1_set_deg, e.gamma2_set_deg)
+        except UserError as exc:
+            raise UserError(f"{source}: run {e.name}: {exc}") from None
     runs = ex.simulate(exps, model, settings, jobs=jobs, progress=sys.stderr.isatty())
     write_dataset(runs, out, args.force)
     n_sine = sum(r.kind == "sine" for r in runs)
@@ -70,6 +81,8 @@ def bench(args: argparse.Namespace) -> int:
     from .bench import run_bench
 
     jobs = _check_jobs(args.jobs)
+    if args.out:
+        check_output_file(args.out)
     figures = run_bench(jobs=jobs, friction=getattr(args, "friction", None),
                         discrepancy_campaign=getattr(args, "discrepancy_campaign", False))
     text = json.dumps(figures, indent=2, sort_keys=True)
@@ -91,7 +104,9 @@ def discrepancy(args: argparse.Namespace) -> int:
 
 def identify(args: argparse.Namespace) -> int:
     """``omni identify DATA --out DIR [--force]``: writes params.json, report.md, figures."""
+    check_output_dir(args.out, getattr(args, "force", False))
     runs = read_dataset(args.data)
+    check_run_poses(runs, args.data)
     ident = identify_runs(runs)
     params = ident.to_params()
     with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
@@ -123,9 +138,9 @@ def format_inertia_fit(fit: InertiaFit) -> str:
 
 def fit_inertia(args: argparse.Namespace) -> int:
     """``omni fit-inertia TABLE.csv [--out FILE]``."""
-    if args.out and Path(args.out).is_dir():
-        raise UserError(f"{args.out}: is a folder; --out takes a file name")
-    fit, result = fit_inertia_table(args.table)
+    if args.out:
+        check_output_file(args.out)
+    fit, result = fit_inertia_table(args.table, check_pose=omni_pose_check())
     print(format_inertia_fit(fit))
     if args.out:
         atomic_write_text(args.out, json.dumps(result, indent=2) + "\n")
@@ -135,8 +150,10 @@ def fit_inertia(args: argparse.Namespace) -> int:
 
 def validate(args: argparse.Namespace) -> int:
     """``omni validate DATA --params FILE --out DIR [--force]``."""
+    check_output_dir(args.out, getattr(args, "force", False))
     params = read_params(args.params)
     runs = read_dataset(args.data)
+    check_run_poses(runs, args.data)
     scores, predictions = validate_runs(runs, params)
     with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
         write_predictions(tmp, runs, predictions)

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+import threading
 import time
 from pathlib import Path
 
-from identification.dataset import atomic_output_dir, read_dataset, write_run
+from identification.dataset import atomic_output_dir, check_output_dir, read_dataset, write_run
 from identification.errors import UserError
 
 from omni_sim import model as om
@@ -15,13 +16,51 @@ from omni_sim.discrepancy import experiment_set, hidden
 from omni_sim.discrepancy.workflow import run_discrepancy
 
 from . import discrepancy_report as rp
+from .inputs import check_run_poses
 
 #: The effect hidden by ``--demo``: a 4 ms loop delay (USB Omnis run their loop at 700-900 Hz).
 DEMO_CASE = "time_delay"
 
 
-def _log(msg: str) -> None:
-    sys.stderr.write(msg + "\n")
+class Progress:
+    """The workflow's log: each line on ``file`` (stderr); on a terminal, below them, a status
+    line with the last step and the elapsed time, redrawn every ``tick_s`` seconds (the search
+    runs for minutes between two lines on long logs).  A context manager; call it with a line.
+    """
+
+    def __init__(self, enabled: bool | None = None, file=None, tick_s: float = 1.0):
+        from tqdm import tqdm
+
+        self.file = file or sys.stderr
+        if enabled is None:
+            enabled = self.file.isatty()
+        self.bar = tqdm(total=None, bar_format="{desc} [{elapsed} elapsed]", file=self.file,
+                        disable=not enabled, leave=False, desc="discrepancy: starting")
+        self.tick_s = tick_s
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._tick, daemon=True) if enabled else None
+
+    def __call__(self, msg: str) -> None:
+        if self.bar.disable:
+            self.file.write(msg + "\n")
+            return
+        self.bar.write(msg, file=self.file)
+        self.bar.set_description_str("discrepancy: " + msg.strip()[:60])
+
+    def _tick(self) -> None:
+        while not self._stop.wait(self.tick_s):
+            self.bar.refresh()
+
+    def __enter__(self) -> "Progress":
+        if self._thread is not None:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        self.bar.close()
 
 
 def _target(args: argparse.Namespace) -> om.Target:
@@ -46,7 +85,8 @@ def discrepancy_command(args: argparse.Namespace) -> int:
             raise UserError("discrepancy: --demo hides its effect in the default built-in model; "
                             "--friction applies to --measured runs")
         out = Path(args.out or "discrepancy_demo")
-        return demo(out, force=args.force, log=_log)
+        with Progress() as log:
+            return demo(out, force=args.force, log=log)
     if not args.measured:
         raise UserError("discrepancy: --measured DATA is required (or use --demo)")
     if not args.out:
@@ -55,11 +95,13 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     # the nominal model: --model, or the --friction family's built-in scene (both: an error)
     model = args.model if friction is None else str(om.model_path(args.model, friction))
     out = Path(args.out)
-    if out.is_dir() and any(out.iterdir()) and not args.force:
-        raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
+    check_output_dir(out, args.force)
     # the pose keys are checked against the model (needed only with the Omni's arm)
     runs = read_dataset(args.measured, require_pose=False, uniform=False)  # compared at the logged times
-    outcome = run_discrepancy(runs, model, log=_log, target=target)
+    if target == om.OMNI:  # the arm's actual angles too (the replay reads the set points)
+        check_run_poses(runs, args.measured, model)
+    with Progress() as log:
+        outcome = run_discrepancy(runs, model, log=log, target=target)
     with atomic_output_dir(out, force=args.force) as tmp:
         rp.write(outcome, tmp)
     _summary(outcome, out)
@@ -76,8 +118,7 @@ def _summary(outcome, out: Path) -> None:
 def demo(out: Path, force: bool = False, case_name: str = DEMO_CASE, log=None) -> int:
     """Hide an effect in a copy of the virtual Omni, generate "measured" data, find it."""
     out = Path(out)
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
+    check_output_dir(out, force)
     case = hidden.case(case_name)
     runs = hidden.generate(case)
     outcome = run_discrepancy(runs, None, log=log)

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 
-from identification.dataset import atomic_output_dir, write_run
+from identification.dataset import atomic_output_dir, check_output_dir, write_run
 from identification.errors import UserError
 from identification.identify import identify_runs
 from identification.validation import Params, validate_runs, write_predictions
@@ -201,11 +201,6 @@ def _print_summary(res: dict, label: str = "") -> None:
           f"alpha {sn['magnitude_p90_alpha']:.3f}")
 
 
-def _check_out(out: Path, force: bool) -> None:
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
-
-
 def reproduce_command(args) -> int:
     """``omni reproduce [--model PATH | --friction {coulomb,lugre,all}] [--out DIR] [--force]
     [--jobs N]``."""
@@ -218,7 +213,8 @@ def reproduce_command(args) -> int:
             om.model_path(args.model, friction)  # raises: a model file and a family
         return reproduce_all(out, force=args.force, jobs=args.jobs)
     model_path = None if (args.model is None and friction is None) else om.model_path(args.model, friction)
-    _check_out(out, args.force)
+    check_output_dir(out, args.force)
+    Device(om.load_model(model_path))  # a bad model file: refused before the workers start
     t0 = time.perf_counter()
     # the pool is left first: its jobs end before a failure removes the temporary folder
     with _one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp, worker_pool() as pool:
@@ -242,7 +238,7 @@ def reproduce_all(out: Path, force: bool = False, jobs: int | None = None,
     ``out/<family>/`` and their comparison (``out/comparison.json``, ``comparison.md``,
     overlay figures; :mod:`omni_app.comparison`).  ``campaign``: the paper's (the command's),
     or a smaller one (tests)."""
-    _check_out(out, force)
+    check_output_dir(out, force)
     with _one_blas_thread():
         return _reproduce_all(out, force, jobs, campaign)
 

@@ -334,7 +334,19 @@ def _parse_fixed(doc: dict, source: str, check) -> dict:
     for k, v in fixed.items():
         check(f"fixed.{k}", k)
         fixed[k] = _num(source, f"fixed.{k}", v, k)
+        _check_setting(source, f"fixed.{k}", k, fixed[k])
     return fixed
+
+
+#: Run settings that cannot be negative; ``kp`` must be > 0 (the simulator refuses a zero gain).
+_NONNEGATIVE = ("kp", "friction_scale", "amplitude_rad", "noise_rad")
+
+
+def _check_setting(source: str, key: str, param: str, v: float) -> None:
+    if param == "kp" and not v > 0:
+        raise _err(source, key, f"must be > 0 (the yaw P gain), got {v}")
+    if param in _NONNEGATIVE and v < 0:
+        raise _err(source, key, f"must be >= 0, got {v}")
 
 
 def _parse_variants(doc: dict, source: str) -> tuple[list, list, str]:
@@ -372,8 +384,7 @@ def _parse_variants(doc: dict, source: str) -> tuple[list, list, str]:
         raise _err(source, mode, "a parameter is named twice")
     for r in rows:
         for k, v in zip(params, r):
-            if k in ("kp", "friction_scale", "amplitude_rad", "noise_rad") and v < 0:
-                raise _err(source, f"{mode}.{k}", f"must be >= 0, got {v}")
+            _check_setting(source, f"{mode}.{k}", k, v)
     return params, rows, mode
 
 
@@ -563,16 +574,31 @@ def write_table(out: Path, study: Study) -> Path:
     return out / "results.csv"
 
 
-def _prepare_out(out: Path, study: Study) -> None:
+def check_out(out: Path, study: Study) -> None:
+    """Check the output folder before any work, writing nothing: not a file, its parent a
+    writable folder; a new or empty folder, or one holding this study (a resume).
+
+    Raises
+    ------
+    UserError
+        Any of those is not so."""
+    from identification.dataset import check_output_dir
+
+    check_output_dir(out, force=True)  # a file, a missing or read-only parent (a resume: not empty)
     copy = out / "spec.toml"
-    if out.exists() and not out.is_dir():
-        raise UserError(f"{out}: not a folder")
     if copy.is_file():
         if copy.read_text() != study.text:
             raise UserError(f"{out}: holds a study with a different spec ({copy}); "
                             "use a new --out folder")
     elif out.is_dir() and any(p.name != "variants" for p in out.iterdir()):
         raise UserError(f"{out}: output folder exists, is not empty and holds no study (spec.toml)")
+
+
+def _prepare_out(out: Path, study: Study) -> None:
+    """The output folder (:func:`check_out`): ``spec.toml`` and ``variants/``; leftovers of a
+    killed run removed."""
+    check_out(out, study)
+    copy = out / "spec.toml"
     (out / "variants").mkdir(parents=True, exist_ok=True)
     if not copy.is_file():
         (out / ".spec.toml.tmp").write_text(study.text)
@@ -607,13 +633,16 @@ def run_sweep(study: Study, out: str | os.PathLike, workers: int | None = None,
     from tqdm import tqdm
 
     out = Path(out)
-    _prepare_out(out, study)
+    check_out(out, study)  # before the cluster starts; written only once it runs
     done = finished(out)
     todo = [j for j in study.jobs() if j["id"] not in done]
     t0 = time.perf_counter()
-    if todo:
+    if not todo:
+        _prepare_out(out, study)
+    else:
         client, cluster = _client(workers, scheduler)
         try:
+            _prepare_out(out, study)
             tag = hashlib.sha256(study.text.encode()).hexdigest()[:10]
             futures = [client.submit(run_variant, j, retries=2, pure=False,
                                      key=f"omni-sweep-{tag}-{j['id']}-{uuid.uuid4().hex[:6]}")
