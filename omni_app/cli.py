@@ -227,13 +227,20 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
         from .accel import install
         install()  # the compiled α loop (loaded at its first use)
-        return _dispatch(args) or 0
+        code = _dispatch(args) or 0
+        sys.stdout.flush()  # a closed pipe shows here, not at the interpreter's exit
+        return code
     except UserError as exc:
         sys.stderr.write(f"error: {exc}\n")
         return 2
     except KeyboardInterrupt:
         sys.stderr.write("error: interrupted\n")
         return 130
+    except BrokenPipeError:  # the reader of stdout left (``omni ... | head``): stop quietly
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit's flush
+        return 141  # 128 + SIGPIPE, as a shell reports a command killed by it
 
 
 if __name__ == "__main__":

@@ -307,3 +307,28 @@ def test_discrepancy_progress_shows_elapsed_time_between_lines():
     with Progress(enabled=False, file=plain) as log:
         log("gap before 1e-3 rad")
     assert plain.getvalue() == "gap before 1e-3 rad\n"
+
+
+class _ClosedPipe(io.StringIO):
+    """A stdout whose reader has left (``omni ... | head``)."""
+
+    def __init__(self, fd: int):
+        super().__init__()
+        self._fd = fd
+
+    def write(self, text):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    def fileno(self):
+        return self._fd
+
+
+def test_a_closed_stdout_ends_quietly(tmp_path, monkeypatch, capsys):
+    """``omni sweep --example | head -0``: no traceback, the shell's status of a SIGPIPE."""
+    import sys
+
+    with open(tmp_path / "stdout", "w") as fh:
+        monkeypatch.setattr(sys, "stdout", _ClosedPipe(fh.fileno()))
+        code = main(["sweep", "--example"])
+    assert code == 141
+    assert capsys.readouterr().err == ""
