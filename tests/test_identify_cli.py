@@ -9,6 +9,7 @@ import pytest
 
 from identification.identify import identify_dataset
 from identification.dataset import write_run
+from omni_app import commands
 from omni_app.cli import main
 from test_linear import simulate_sine_run
 
@@ -84,6 +85,11 @@ def test_identify_cli_writes_outputs(nine_pose_runs, tmp_path, capsys):
     # existing output needs --force
     code, _, err = _cli(["identify", str(data), "--out", str(out)], capsys)
     _assert_user_error(code, err, "--force")
+
+
+#: The sample :func:`_jitter` stamps late: inside every run's steady-state window (the last
+#: cycles of a 5 s run), so the identification's fits see it.
+JITTERED_SAMPLE = 4000
 
 
 def _hand_written_dataset(folder):
@@ -169,11 +175,12 @@ def _truncate(path, n):
     path.write_text("\n".join(_lines(path)[: n + 1]) + "\n")
 
 
-def _jitter(path):
+def _jitter(path, k=JITTERED_SAMPLE):
+    """Sample ``k`` stamped half a period late (its values kept): a jittered log."""
     lines = _lines(path)
-    parts = lines[100].split(",")
+    parts = lines[k + 1].split(",")
     parts[0] = f"{float(parts[0]) + 0.0005:.4f}"
-    lines[100] = ",".join(parts)
+    lines[k + 1] = ",".join(parts)
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -189,21 +196,53 @@ def _swap_times(path):
     path.write_text("\n".join(lines) + "\n")
 
 
-def test_identify_resamples_a_jittered_log(tmp_path, capsys):
-    """A sample moved by half a period is a jittered log: it is resampled onto the uniform grid
-    (linear interpolation), and the identified coefficients are those of the clean data within
-    0.1 % (one sample of 3000 in one run of three changes by a fraction of its step)."""
+def test_identify_resamples_a_jittered_log(tmp_path, capsys, monkeypatch):
+    """Sample 4000 of a 1 kHz sine stamped half a period late makes a jittered log.  ``omni
+    identify`` identifies it on the uniform grid of its median period (1 ms): the file's own
+    samples where the grid meets them, and at the one grid time inside the late interval (4.000 s,
+    between 3.999 s and 4.0005 s) the linear interpolation, 2/3 of the way from sample 3999 to
+    the late one; ``resampled_from`` records the log's timing.  The coefficients are the clean
+    data's within 1e-4 (measured 3.9e-6: one sample of ~2300 in the steady state of one run of
+    three moved by a third of its step).
+
+    Shown to fail with the resampler made the identity (the run reaches identification with its
+    irregular times)."""
     clean, jittered = tmp_path / "clean", tmp_path / "jittered"
     _hand_written_dataset(clean)
     _hand_written_dataset(jittered)
     _jitter(jittered / "sine_3hz.csv")
-    got = {}
+    identified, got = {}, {}
+    real = commands.identify_runs
+
+    def spy(runs, *args, **kwargs):
+        identified.update({r.name: r for r in runs})
+        return real(runs, *args, **kwargs)
+
+    monkeypatch.setattr(commands, "identify_runs", spy)
     for data in (clean, jittered):
+        identified.clear()
         code, _, err = _cli(["identify", str(data), "--out", str(tmp_path / f"out_{data.name}")], capsys)
         assert code == 0, err
         got[data.name] = json.loads((tmp_path / f"out_{data.name}" / "params.json").read_text())["poses"][0]
     for key in ("C_linear", "beta_linear"):
-        assert got["jittered"][key] == pytest.approx(got["clean"][key], rel=1e-3)
+        assert got["jittered"][key] == pytest.approx(got["clean"][key], rel=1e-4)
+    assert sorted(identified) == ["sine_2hz", "sine_3hz", "sine_5hz"]
+    assert "resampled_from" not in identified["sine_2hz"].meta  # uniform: kept as it is
+    run = identified["sine_3hz"]
+    logged = np.loadtxt(jittered / "sine_3hz.csv", delimiter=",", skiprows=1)
+    assert logged[JITTERED_SAMPLE, 0] == 4.0005
+    k = JITTERED_SAMPLE
+    expected = logged.copy()
+    expected[:, 0] = np.arange(len(logged)) / 1000.0
+    expected[k, 1:] = logged[k - 1, 1:] + (logged[k, 1:] - logged[k - 1, 1:]) * (0.001 / 0.0015)
+    # 1e-11: the grid is t0 + j * (the median spacing of the parsed times), 1 ms within a few
+    # ulps, so within 5000 * 2e-16 s of the file's times (measured 4.4e-15 s), and the values
+    # within that times their slope (< 3 rad/s); without resampling sample k keeps its time
+    # 4.0005 s and its value, 4e-4 rad from the interpolated theta (a third of its 1 ms step)
+    got_cols = np.column_stack([run.t, run.r, run.theta, run.v])
+    np.testing.assert_allclose(got_cols, expected, rtol=0, atol=1e-11)
+    assert run.meta["resampled_from"]["period_s"] == pytest.approx(0.001, rel=1e-9)
+    assert run.meta["resampled_from"]["max_gap_s"] == pytest.approx(0.0015, rel=1e-9)
 
 
 def test_fit_inertia_cli_on_table3(tmp_path, capsys):
