@@ -8,6 +8,8 @@ import csv
 import hashlib
 import importlib.util
 import json
+import re
+import shutil
 from pathlib import Path
 
 import mujoco
@@ -38,15 +40,71 @@ def converted(tmp_path_factory):
     return out
 
 
+def _digests(path: Path) -> tuple[dict, dict, str]:
+    """From a SHA256SUMS file: the SHA-256 of each log, its git blob id at the source commit
+    (comment lines ``#   blob ID  NAME``), and the source commit."""
+    sha, blob, commits = {}, {}, []
+    for line in path.read_text().splitlines():
+        if line.startswith("#"):
+            commits += re.findall(r"\bcommit ([0-9a-f]{40})\b", line)
+            m = re.fullmatch(r"#\s+blob ([0-9a-f]{40})\s+(\S+)", line)
+            if m:
+                blob[m[2]] = m[1]
+        elif line.strip():
+            digest, name = line.split()
+            sha[name] = digest
+    assert len(commits) == 1, commits
+    return sha, blob, commits[0]
+
+
+def _git_blob_id(data: bytes) -> str:
+    """The id git gives a file's bytes (SHA-1 of ``blob <size>\\0`` and the bytes)."""
+    return hashlib.sha1(b"blob %d\0" % len(data) + data).hexdigest()
+
+
+def _check_logs(folder: Path) -> None:
+    """The logs in ``folder`` are the bytes of the source commit, by the digests kept in the
+    project (``folder/SHA256SUMS``): their SHA-256 and their git blob ids."""
+    sha, blob, commit = _digests(folder / "SHA256SUMS")
+    assert sorted(sha) == sorted(blob) == sorted(p.name for p in folder.glob("*.json")) == list(LOGS)
+    for name in LOGS:
+        data = (folder / name).read_bytes()
+        assert hashlib.sha256(data).hexdigest() == sha[name], name
+        assert _git_blob_id(data) == blob[name], name
+
+
 def test_logs_and_attribution():
-    assert sorted(p.name for p in DATA.glob("*.json")) == list(LOGS)
+    """The logs are checked on every run against the digests kept beside them (with the source
+    commit that NOTICE names); the shared copy, where there is one, is the same bytes."""
     notice = (DATA / "NOTICE").read_text()
     for words in ("BAM", "Rhoban", "data_raw_feetech", "b53408c", "Apache"):
         assert words in notice
-    if SHARED.is_dir():  # copied byte for byte
+    _check_logs(DATA)
+    sha, _, commit = _digests(DATA / "SHA256SUMS")
+    assert commit.startswith("b53408c")
+    if SHARED.is_dir():  # an extra where ../shared exists: copied byte for byte from there
         for name in LOGS:
-            assert (hashlib.sha256((DATA / name).read_bytes()).hexdigest()
-                    == hashlib.sha256((SHARED / name).read_bytes()).hexdigest())
+            assert hashlib.sha256((SHARED / name).read_bytes()).hexdigest() == sha[name], name
+
+
+@pytest.mark.parametrize("damage", ["byte", "swap"])
+def test_a_changed_log_is_caught(tmp_path, damage):
+    """The check of the logs fails on a copy with one byte changed, or two logs' names swapped."""
+    copy = tmp_path / "data"
+    shutil.copytree(DATA, copy)
+    _check_logs(copy)
+    path = copy / LOGS[1]
+    if damage == "byte":
+        data = bytearray(path.read_bytes())
+        data[len(data) // 2] ^= 1
+        path.write_bytes(bytes(data))
+    else:
+        other = copy / LOGS[2]
+        a, b = path.read_bytes(), other.read_bytes()
+        path.write_bytes(b)
+        other.write_bytes(a)
+    with pytest.raises(AssertionError, match=LOGS[1]):
+        _check_logs(copy)
 
 
 def test_convert_writes_the_contract(converted):
