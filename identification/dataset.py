@@ -31,6 +31,15 @@ period); anything else is kept.  A single-joint device without the Omni's arm
 (``omni discrepancy --joint``) has no pose: its runs are read with ``require_pose=False``,
 which makes ``gamma1_deg``/``gamma2_deg`` optional (finite if given).
 
+Numbers no run has are refused (:func:`read_run`): ``kp`` <= 0; a negative ``frequency_hz``
+or ``amplitude_rad``, or zero for a sine or a step; ``command_limit`` <= 0; a
+``control_period_s`` outside (0, 1] s or longer than the sample period (a log cannot sample
+the device's loop faster than it runs: a period in milliseconds written as seconds shows
+here).  Whether a pose is one the arm can take is the device's question
+(``omni_sim.device.Device.check_pose``, the commands ask it).  Output folders and files are
+checked before a command's work (:func:`check_output_dir`, :func:`check_output_file`) and
+written atomically (:func:`atomic_output_dir`, :func:`atomic_write_text`).
+
 This module is numpy-only so that data from a real Omni never needs the simulator.
 """
 

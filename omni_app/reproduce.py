@@ -244,14 +244,19 @@ def reproduce_all(out: Path, force: bool = False, jobs: int | None = None,
 
 
 def _reproduce_all(out: Path, force: bool, jobs: int | None, campaign: str) -> int:
+    from tqdm import tqdm
+
     from .comparison import write_comparison
 
     results, starts = {}, {}
-    for fam in om.FRICTION_FAMILIES:
+    progress = sys.stderr.isatty()
+    families = tqdm(om.FRICTION_FAMILIES, unit="family", disable=not progress, leave=False)
+    for fam in families:  # each family's stages in a bar below this one
+        families.set_description(f"friction family {fam}")
         starts[fam] = time.perf_counter()
-        results[fam] = run_reproduce(om.scene_path(fam), jobs, progress=sys.stderr.isatty(),
-                                     campaign=campaign)
+        results[fam] = run_reproduce(om.scene_path(fam), jobs, progress=progress, campaign=campaign)
         results[fam]["bar"].close()
+    families.close()
     with atomic_output_dir(out, force=force) as tmp:
         for fam, res in results.items():
             (tmp / fam).mkdir()

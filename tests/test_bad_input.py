@@ -291,24 +291,6 @@ def test_good_dataset_passes_the_checks(tmp_path, monkeypatch, capsys):
         main(["discrepancy", "--measured", "data", "--out", "o"])
 
 
-def test_discrepancy_progress_shows_elapsed_time_between_lines():
-    """On a terminal the discrepancy log has a status line with the elapsed time, redrawn
-    between two log lines (the search can be silent for minutes); elsewhere plain lines."""
-    from omni_app.discrepancy import Progress
-
-    buf = io.StringIO()
-    with Progress(enabled=True, file=buf, tick_s=0.02) as log:
-        log("round 1: scoring 12 candidates")
-        time.sleep(0.2)
-    text = buf.getvalue()
-    assert "round 1: scoring 12 candidates\n" in text
-    assert text.count("elapsed]") >= 3  # redrawn by the ticker, not only at each line
-    plain = io.StringIO()
-    with Progress(enabled=False, file=plain) as log:
-        log("gap before 1e-3 rad")
-    assert plain.getvalue() == "gap before 1e-3 rad\n"
-
-
 class _ClosedPipe(io.StringIO):
     """A stdout whose reader has left (``omni ... | head``)."""
 

@@ -14,13 +14,17 @@ def test_failed_reproduction_leaves_nothing(tmp_path, monkeypatch):
     created and no temporary folder is left."""
     from omni_sim import experiments as ex
 
-    step = ex.campaign("step")
+    step = ex.campaign("step")[:1]  # one run: the failure comes after it was simulated
     monkeypatch.setattr(ex, "campaign", lambda name: step)
 
     def fail(runs, **kwargs):
         raise UserError("identification failed (test)")
 
     monkeypatch.setattr(rp, "identify_runs", fail)
+    # the workers as threads: the same jobs (the dataset written while identification runs),
+    # without two processes started and matplotlib imported in them (~2 s)
+    from concurrent.futures import ThreadPoolExecutor
+    monkeypatch.setattr(rp, "worker_pool", lambda: ThreadPoolExecutor(max_workers=2))
     out = tmp_path / "results"
     args = argparse.Namespace(out=str(out), model=None, friction=None, jobs=1, force=False)
     with pytest.raises(UserError, match="test"):
