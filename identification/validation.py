@@ -64,7 +64,8 @@ class Params:
                     "I_base", "I1", "I2", "I3", "gamma_offs_deg", "C0_bar")})
             except (KeyError, TypeError, ValueError) as exc:
                 raise UserError(f"{source}: malformed inertia_model ({exc})") from None
-        return cls(inertia, AlphaModel.from_dict(d["alpha_model"]), list(d["poses"]))
+            _check_inertia(inertia, source)
+        return cls(inertia, AlphaModel.from_dict(d["alpha_model"]), _checked_poses(d["poses"], source))
 
     def fitted_pose(self, run: Run) -> dict | None:
         """The identification pose of a run, if its actual angles match one."""
@@ -84,6 +85,32 @@ class Params:
             raise UserError(f"{run.name}: pose ({run.gamma1_deg:.2f}, {run.gamma2_deg:.2f}) deg was "
                             "not identified and params has no inertia model to predict it")
         return 1.0 / pose["beta_tilde_linear"], pose["C_linear"], pose["beta_tilde_linear"]
+
+
+def _check_inertia(inertia: InertiaParameters, source: str) -> None:
+    """The inertia model's values inside the fit's bounds (:func:`identification.inertia.
+    fit_inertia_model`: ``I_base, I1, I2, I3 >= 0``, ``C0_bar > 0``), all finite."""
+    values = inertia.to_dict()
+    bad = [k for k, v in values.items() if not math.isfinite(v)]
+    bad += [k for k in ("I_base", "I1", "I2", "I3") if values[k] < 0]
+    bad += ["C0_bar"] if not values["C0_bar"] > 0 else []
+    if bad:
+        raise UserError(f"{source}: inertia_model: {bad[0]} = {values[bad[0]]!r} is not a value the "
+                        "fit gives (finite; I_base, I1, I2, I3 >= 0; C0_bar > 0)")
+
+
+def _checked_poses(poses, source: str) -> list:
+    """``params["poses"]``: a list of objects whose angles and linear coefficients are numbers."""
+    if not isinstance(poses, list):
+        raise UserError(f"{source}: poses must be a list of pose objects, got {type(poses).__name__}")
+    for i, p in enumerate(poses):
+        if not isinstance(p, dict):
+            raise UserError(f"{source}: poses[{i}] must be an object, got {p!r}")
+        for k in ("gamma1_deg", "gamma2_deg", "C_linear", "beta_tilde_linear"):
+            v = p.get(k)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise UserError(f"{source}: poses[{i}].{k} must be a finite number, got {v!r}")
+    return list(poses)
 
 
 def read_params(path) -> Params:

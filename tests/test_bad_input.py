@@ -101,7 +101,21 @@ def data(csv: str | None = None, folder: str = "data", **meta_changes) -> dict:
 
 GOOD = data()
 #: A params.json that omni validate accepts: the committed identification of the lugre family.
-PARAMS = {"params.json": (ROOT / "docs" / "friction" / "lugre" / "params.json").read_text()}
+PARAMS_DICT = json.loads((ROOT / "docs" / "friction" / "lugre" / "params.json").read_text())
+PARAMS = {"params.json": json.dumps(PARAMS_DICT)}
+
+
+def params(**changes) -> dict:
+    """That params.json with top-level keys or ``inertia_model`` values (``im_KEY``) changed."""
+    d = json.loads(json.dumps(PARAMS_DICT))
+    for k, v in changes.items():
+        if k.startswith("im_"):
+            d["inertia_model"][k[3:]] = v
+        else:
+            d[k] = v
+    return {"params.json": json.dumps(d)}
+
+
 CAMPAIGN = """[sine]
 poses_deg = [[65, 90]]
 frequencies_hz = [2.0]
@@ -177,6 +191,14 @@ CASES = [
      "shoulder angle -90 deg is outside"),
     ("validate data --params params.json --out o", {**data(csv=""), **PARAMS}, "a.csv: empty file"),
     ("validate data --params params.json --out afile", {**GOOD, **PARAMS, **A_FILE}, "exists and is not a folder"),
+    ("validate data --params params.json --out o", {**GOOD, **params(poses=5)}, "poses must be a list"),
+    ("validate data --params params.json --out o", {**GOOD, **params(poses=[1])}, "poses[0] must be an object"),
+    ("validate data --params params.json --out o", {**GOOD, **params(poses=[{"gamma1_deg": 60}])},
+     "poses[0].gamma2_deg must be a finite number"),
+    ("validate data --params params.json --out o", {**GOOD, **params(im_I_base=math.nan)},
+     "inertia_model: I_base = nan"),
+    ("validate data --params params.json --out o", {**GOOD, **params(im_C0_bar=-1.0)},
+     "inertia_model: C0_bar = -1.0"),
     # -- reproduce
     ("reproduce --out afile", A_FILE, "afile: exists and is not a folder"),
     ("reproduce --friction all --out afile", A_FILE, "afile: exists and is not a folder"),
