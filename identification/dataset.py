@@ -386,21 +386,29 @@ def _check_parent(out: Path) -> Path:
     return parent
 
 
-def check_output_dir(out: str | os.PathLike, force: bool = False) -> Path:
+def check_output_dir(out: str | os.PathLike, force: bool = False, inputs=()) -> Path:
     """Check that the output folder ``out`` can be written, before any long work; returns its
-    parent folder.
+    parent folder.  ``inputs``: the files and folders the command reads (None entries
+    ignored), which the output must not replace.
 
     Raises
     ------
     UserError
         ``out`` exists and is not a folder; it is a non-empty folder and ``force`` is not given;
-        its parent folder does not exist, is not a folder or is not writable.
+        it is the current folder, holds it, or is or holds one of ``inputs`` (replacing it would
+        remove them); its parent folder does not exist, is not a folder or is not writable.
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UserError(f"{out}: exists and is not a folder")
     if out.is_dir() and any(out.iterdir()) and not force:
         raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
+    where = out.resolve()
+    for kept, what in [(Path.cwd(), "the current folder")] + [(Path(p), str(p)) for p in inputs if p is not None]:
+        kept = kept.resolve()
+        if where == kept or where in kept.parents:
+            raise UserError(f"{out}: is or holds {what}, which the output would replace; give an "
+                            "output folder of its own")
     return _check_parent(out)
 
 

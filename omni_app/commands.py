@@ -52,7 +52,8 @@ def generate(args: argparse.Namespace) -> int:
     model = model_arg(args)
     settings = _settings(args)
     out = Path(args.out)
-    check_output_dir(out, args.force)
+    campaign_file = None if args.reference is not None or args.campaign in ex.CAMPAIGNS else args.campaign
+    check_output_dir(out, args.force, inputs=(args.reference, campaign_file, model))
     if args.reference is not None:
         if Path(args.reference).is_file():
             read_table(args.reference, ("t", "r"))  # one clear line for an empty or malformed file
@@ -104,7 +105,7 @@ def discrepancy(args: argparse.Namespace) -> int:
 
 def identify(args: argparse.Namespace) -> int:
     """``omni identify DATA --out DIR [--force]``: writes params.json, report.md, figures."""
-    check_output_dir(args.out, getattr(args, "force", False))
+    check_output_dir(args.out, getattr(args, "force", False), inputs=(args.data,))
     runs = read_dataset(args.data)
     check_run_poses(runs, args.data)
     ident = identify_runs(runs)
@@ -150,7 +151,7 @@ def fit_inertia(args: argparse.Namespace) -> int:
 
 def validate(args: argparse.Namespace) -> int:
     """``omni validate DATA --params FILE --out DIR [--force]``."""
-    check_output_dir(args.out, getattr(args, "force", False))
+    check_output_dir(args.out, getattr(args, "force", False), inputs=(args.data, args.params))
     params = read_params(args.params)
     runs = read_dataset(args.data)
     check_run_poses(runs, args.data)

@@ -95,7 +95,7 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     # the nominal model: --model, or the --friction family's built-in scene (both: an error)
     model = args.model if friction is None else str(om.model_path(args.model, friction))
     out = Path(args.out)
-    check_output_dir(out, args.force)
+    check_output_dir(out, args.force, inputs=(args.measured, model))
     # the pose keys are checked against the model (needed only with the Omni's arm)
     runs = read_dataset(args.measured, require_pose=False, uniform=False)  # compared at the logged times
     if target == om.OMNI:  # the arm's actual angles too (the replay reads the set points)

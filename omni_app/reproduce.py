@@ -213,7 +213,7 @@ def reproduce_command(args) -> int:
             om.model_path(args.model, friction)  # raises: a model file and a family
         return reproduce_all(out, force=args.force, jobs=args.jobs)
     model_path = None if (args.model is None and friction is None) else om.model_path(args.model, friction)
-    check_output_dir(out, args.force)
+    check_output_dir(out, args.force, inputs=(model_path,))
     Device(om.load_model(model_path))  # a bad model file: refused before the workers start
     t0 = time.perf_counter()
     # the pool is left first: its jobs end before a failure removes the temporary folder
