@@ -306,16 +306,24 @@ def test_version(capsys):
     assert out.strip() == f"omni {version('omni-alpha')}"
 
 
-def test_good_dataset_passes_the_checks(tmp_path, monkeypatch, capsys):
-    """The table's dataset without its damage reaches the identification (patched to raise):
-    each case above fails on its damage, not on the rest of the files."""
+@pytest.mark.parametrize("argv, files, reached", [
+    ("identify data --out o", GOOD, "identify_runs"),
+    ("validate data --params params.json --out o", {**GOOD, **PARAMS}, "validate_runs"),
+    ("discrepancy --measured data --out o", GOOD, "Replayer"),
+    ("generate --campaign c.toml --out o", {"c.toml": CAMPAIGN}, "omni_sim.experiments.run_"),
+    ("fit-inertia t.csv --out fit.json", {"t.csv": TABLE_HEAD + TABLE9}, "_profile_minima"),
+    ("sweep s.toml --out o", {"s.toml": STUDY + "[grid]\nkp = [1, 2]\n"}, "_client"),
+    ("reproduce --out o", {}, "worker_pool"),
+    ("bench --out b.json", {}, "run_bench"),
+])
+def test_the_undamaged_inputs_reach_the_work(argv, files, reached, tmp_path, monkeypatch):
+    """The table's files without their damage pass every check and reach the long work
+    (patched to raise): each case above is refused for its damage, not for the rest."""
     monkeypatch.chdir(tmp_path)
-    _make(GOOD)
+    _make(files)
     _forbid_long_work(monkeypatch)
-    with pytest.raises(LongWorkReached, match="identify_runs"):
-        main(["identify", "data", "--out", "o"])
-    with pytest.raises(LongWorkReached, match="Replayer"):
-        main(["discrepancy", "--measured", "data", "--out", "o"])
+    with pytest.raises(LongWorkReached, match=reached):
+        main(argv.split())
 
 
 class _ClosedPipe(io.StringIO):
