@@ -11,7 +11,23 @@ Poses whose global linear model is non-physical (C_linear or β_linear ≤ 0) ar
 ``poses`` but left out of the inertia fit.  With fewer than
 :data:`identification.inertia.MIN_POSES` usable poses the inertia model is not fitted:
 ``"inertia_model": null`` and the reason is in ``"warnings"`` (per-pose results are still
-written).  Step and other runs are ignored by ``identify``.
+written); likewise ``"alpha_model": null`` when the α model cannot be fitted (``omni validate``
+then scores the linear model alone).  Step and other runs are ignored by ``identify``.
+
+Minimum record: a sine run is fitted on its steady state (:mod:`identification.sine_fit`): the
+first ``max(SETTLE_S, SETTLE_FRACTION x the run)`` is discarded (2 s, half the run) and at least
+``MIN_CYCLES`` (3) whole cycles must follow, so the shortest run at f Hz lasts
+:func:`minimum_sine_record_s` (6 s at 1 Hz, 3.5 s at 2 Hz).  :func:`check_sine_record` refuses
+a shorter run with that minimum, before any fit.
+
+Servo logs: the paper's model (13) and the quasilinear α model close the P loop once per
+sample with the actuator always on.  A run with torque-off samples (column ``enabled`` 0) or a
+``control_period_s`` other than its sample period is a different closed loop (a free swing; a
+loop running several times between samples), which this method does not represent: fitting (19)
+-(22) to it gives wrong coefficients without any sign.  :func:`check_closed_loop_runs` refuses
+such runs with one line that names the run, the reason and the command that handles them
+(``omni discrepancy`` replays torque-off spans and runs the device's loop at its control period).
+``identify`` checks the runs it fits (sine runs), ``validate`` every run it simulates.
 """
 
 from __future__ import annotations
@@ -23,12 +39,18 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import Run
+from .dataset import UNIFORM_RTOL, Run
 from .errors import UserError
 from .inertia import MIN_POSES, InertiaFit, fit_inertia_model
 from .linear import PoseLinearModel, fit_pose
 from .nonlinear import AlphaModel, fit_alpha_model
-from .sine_fit import fit_run
+from .sine_fit import MIN_CYCLES, SETTLE_FRACTION, SETTLE_S, fit_run, steady_state_window
+
+#: Relative difference [-] within which a run's ``control_period_s`` counts as its sample
+#: period: the dataset's tolerance on the sample spacing itself (``UNIFORM_RTOL``, 1e-3), far
+#: above text round-off (times written with 3 decimals at 1 kHz: ~1e-13 relative) and far
+#: below any real loop-to-log ratio (a 1 kHz loop logged at 200 Hz: a factor of 5).
+CONTROL_PERIOD_RTOL = UNIFORM_RTOL
 
 
 @dataclass
@@ -63,7 +85,7 @@ class Identification:
             "poses": [p.to_dict() for p in self.poses],
             "inertia_model": self.inertia.params.to_dict() if self.inertia else None,
             "inertia_fit": self.inertia.diagnostics() if self.inertia else None,
-            "alpha_model": self.alpha_model.to_dict() if self.alpha_model else {},
+            "alpha_model": self.alpha_model.to_dict() if self.alpha_model else None,
             "warnings": list(self.warnings),
         }
 
@@ -76,6 +98,68 @@ def _pose_key(run: Run):
         except (TypeError, ValueError):
             raise UserError(f"{run.name}: gamma1_set_deg/gamma2_set_deg must be numbers") from None
     return ("actual", round(run.gamma1_deg, 2), round(run.gamma2_deg, 2))
+
+
+def minimum_sine_record_s(frequency_hz: float) -> float:
+    """The shortest sine run [s] the steady-state rule accepts at ``frequency_hz`` [Hz]: the
+    discarded start ``max(SETTLE_S, SETTLE_FRACTION * D)`` plus ``MIN_CYCLES`` periods must fit
+    in the record D, so ``D >= SETTLE_S + MIN_CYCLES / f`` and
+    ``D >= MIN_CYCLES / (f (1 - SETTLE_FRACTION))``."""
+    cycles_s = MIN_CYCLES / frequency_hz
+    return max(SETTLE_S + cycles_s, cycles_s / (1.0 - SETTLE_FRACTION))
+
+
+def check_sine_record(run: Run) -> None:
+    """Refuse a sine run too short for the steady-state fit, naming the minimum record.
+
+    Raises
+    ------
+    UserError
+        Fewer than ``MIN_CYCLES`` whole cycles after the discarded start (the message of
+        :func:`identification.sine_fit.steady_state_window` with :func:`minimum_sine_record_s`).
+    """
+    try:
+        steady_state_window(run.t, run.frequency_hz, name=run.name)
+    except UserError as exc:
+        f = run.frequency_hz
+        if not (f > 0 and math.isfinite(f)):
+            raise
+        raise UserError(f"{exc}: at {f:g} Hz the minimum record is {minimum_sine_record_s(f):.4g} s "
+                        f"(the first max({SETTLE_S:g} s, {SETTLE_FRACTION:g} of the run) is discarded, "
+                        f"then {MIN_CYCLES} whole cycles are fitted)") from None
+
+
+def check_closed_loop_runs(runs: list[Run], command: str, source=None) -> None:
+    """Refuse runs the paper's closed loop does not describe (module docstring, "Servo logs").
+
+    ``command``: the command's name for the message (``"identify"``, ``"validate"``);
+    ``source``: the dataset folder, to name the run's file (else the run's name).
+
+    Raises
+    ------
+    UserError
+        A run whose ``enabled`` column holds a 0 (torque off), or whose ``control_period_s``
+        differs from its sample period by more than :data:`CONTROL_PERIOD_RTOL`.
+    """
+    def where(run, ext):
+        return f"{Path(source) / run.name}.{ext}" if source is not None else f"run {run.name}"
+
+    for run in runs:
+        on = run.enabled
+        if on is not None and not on.all():
+            k = int(np.argmin(on))
+            raise UserError(
+                f"{where(run, 'csv')}: torque off (column 'enabled' 0) at {int((~on).sum())} of "
+                f"{on.size} samples, first at t = {run.t[k]:.6g} s; omni {command} models the P loop "
+                "closed at every sample and cannot simulate a free swing: leave torque-off runs "
+                "out of the dataset (omni discrepancy replays them)")
+        cp = run.meta.get("control_period_s")
+        if cp is not None and abs(cp - run.dt) > CONTROL_PERIOD_RTOL * run.dt:
+            raise UserError(
+                f"{where(run, 'json')}: control_period_s {cp:g} s is not the sample period "
+                f"{run.dt:.6g} s; omni {command} models the P loop closed once per sample: give a "
+                "log sampled at the control period (omni discrepancy runs the loop at "
+                "control_period_s)")
 
 
 def identify_runs(runs: list[Run], linear_only: bool = False) -> Identification:
@@ -91,13 +175,17 @@ def identify_runs(runs: list[Run], linear_only: bool = False) -> Identification:
     Raises
     ------
     UserError
-        No sine runs, too few steady-state cycles, mixed kp within a pose, a pose with too
-        few frequencies.
+        No sine runs, a sine run with torque off or another control period
+        (:func:`check_closed_loop_runs`), too few steady-state cycles
+        (:func:`check_sine_record`), mixed kp within a pose, a pose with too few frequencies.
     """
     sines = [r for r in runs if r.kind == "sine"]
     ignored = [r.name for r in runs if r.kind != "sine"]
     if not sines:
         raise UserError("dataset has no sine runs (kind \"sine\"); identify needs sine sweeps")
+    check_closed_loop_runs(sines, "identify")
+    for r in sines:
+        check_sine_record(r)
     groups: dict = {}
     for r in sines:
         groups.setdefault(_pose_key(r), []).append(r)

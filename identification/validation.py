@@ -12,6 +12,17 @@
 3. ``summary.json`` (contract keys plus details) and ``predictions/NAME.csv`` (``t, theta,
    theta_linear, theta_alpha``) are written.
 
+Without an α model (``params.json``'s ``alpha_model`` null or empty: what ``omni identify``
+writes when it cannot fit one) the linear model is scored alone: every α score in
+``summary.json`` and ``scores.json`` is null, ``summary["alpha_not_scored"]`` says why (the
+identification's own warning when the file has it), ``alpha_simulation`` is null, and the
+predictions keep their ``theta_alpha`` column, filled with ``nan``.
+
+Runs the paper's closed loop does not describe (torque-off samples, a control period other
+than the sample period) are refused, and so are sine runs too short for the steady-state fit,
+before any simulation (:func:`identification.identify.check_closed_loop_runs`,
+:func:`identification.identify.check_sine_record`).
+
 The inertia of a run is the identified inertia model (6) at the run's actual angles; without an
 inertia model, runs at an identified pose use that pose's 1/beta_tilde_linear, and other runs
 are an error.  Step-run poses that were not among the identification poses are marked
@@ -31,6 +42,7 @@ from . import paper, scoring
 from .csvformat import format_rows
 from .dataset import Run
 from .errors import UserError
+from .identify import check_closed_loop_runs, check_sine_record
 from .inertia import InertiaParameters
 from .nonlinear import AlphaModel
 from .simulate import simulate_alpha_batch, simulate_linear
@@ -42,20 +54,20 @@ POSE_MATCH_DEG = 0.5
 
 @dataclass
 class Params:
-    """The parts of ``params.json`` that validation needs."""
+    """The parts of ``params.json`` that validation needs.
+
+    ``alpha`` None: no α model (the linear model is scored alone); ``alpha_missing``: why."""
 
     inertia: InertiaParameters | None
-    alpha: AlphaModel
+    alpha: AlphaModel | None
     poses: list = field(default_factory=list)
+    alpha_missing: str = "params has no alpha_model"
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "params") -> "Params":
         if not isinstance(d, dict) or "poses" not in d or "alpha_model" not in d:
             raise UserError(f"{source}: not a params.json written by omni identify "
                             "(needs keys poses, inertia_model, alpha_model)")
-        if not d["alpha_model"]:
-            raise UserError(f"{source}: has no alpha_model (identify could not fit it; see its "
-                            "warnings)")
         im = d.get("inertia_model")
         inertia = None
         if im:
@@ -65,7 +77,8 @@ class Params:
             except (KeyError, TypeError, ValueError) as exc:
                 raise UserError(f"{source}: malformed inertia_model ({exc})") from None
             _check_inertia(inertia, source)
-        return cls(inertia, AlphaModel.from_dict(d["alpha_model"]), _checked_poses(d["poses"], source))
+        alpha = AlphaModel.from_dict(d["alpha_model"]) if d["alpha_model"] else None
+        return cls(inertia, alpha, _checked_poses(d["poses"], source), _alpha_missing(d, source))
 
     def fitted_pose(self, run: Run) -> dict | None:
         """The identification pose of a run, if its actual angles match one."""
@@ -85,6 +98,13 @@ class Params:
             raise UserError(f"{run.name}: pose ({run.gamma1_deg:.2f}, {run.gamma2_deg:.2f}) deg was "
                             "not identified and params has no inertia model to predict it")
         return 1.0 / pose["beta_tilde_linear"], pose["C_linear"], pose["beta_tilde_linear"]
+
+
+def _alpha_missing(d: dict, source: str) -> str:
+    """Why a params file has no α model: identify's own warning if it wrote one."""
+    warnings = d.get("warnings") if isinstance(d.get("warnings"), list) else []
+    said = [w for w in warnings if isinstance(w, str) and w.startswith("alpha-invariant model not fitted")]
+    return f"{source}: " + (said[0] if said else "has no alpha_model")
 
 
 def _check_inertia(inertia: InertiaParameters, source: str) -> None:
@@ -151,6 +171,7 @@ def simulate_runs(runs: list[Run], params: Params) -> dict[str, dict]:
     The linear model is batched over runs of equal length, dt and gain; the α model runs all
     runs of one dt in one time loop (:func:`simulate_alpha_batch`), with those same batches as
     its ``groups`` so that every number is the one of a per-batch :func:`simulate_alpha` call.
+    Without an α model (``params.alpha`` None) ``theta_alpha`` is ``nan`` throughout.
     """
     out: dict[str, dict] = {}
     groups: dict = {}
@@ -165,6 +186,11 @@ def simulate_runs(runs: list[Run], params: Params) -> dict[str, dict]:
         for j, run in enumerate(group):
             out[run.name] = {"theta_linear": lin.theta[j], "I": float(I[j])}
             by_dt.setdefault(dt, []).append((run, gid, I[j], Cl[j], bl[j], th0[j], ph0[j], kp))
+    if params.alpha is None:  # the linear model alone: theta_alpha kept as a column of nan
+        by_dt = {}
+        for run in runs:
+            out[run.name].update(theta_alpha=np.full(len(run.t), np.nan), n_not_converged=0,
+                                 n_bracketed=0)
     for dt, items in by_dt.items():
         rs, gids, I, Cl, bl, th0, ph0, kp = zip(*items)
         derivs = [_reference_derivatives(run) for run in rs]
@@ -187,49 +213,78 @@ def _pose_key(run: Run) -> tuple[float, float]:
     return round(float(g1), 2), round(float(g2), 2)
 
 
-def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict:
-    """Tables 8 and 11 for both models, and the summary (contract keys plus details)."""
-    sine_rows, step_rows = [], []
+def _sine_rows(runs: list[Run], predictions: dict[str, dict], models: tuple) -> list[dict]:
+    """Table 8 per pose for each of ``models`` (``"linear"``, ``"alpha"``); a model left out
+    of ``models`` gets ``None``."""
+    rows = []
     by_pose: dict = {}
     for run in runs:
         if run.kind == "sine":
             by_pose.setdefault(_pose_key(run), []).append(run)
     for key, group in sorted(by_pose.items()):
         group.sort(key=lambda r: r.frequency_hz)
-        fits = [fundamentals(r, (r.theta, predictions[r.name]["theta_linear"],
-                                 predictions[r.name]["theta_alpha"])) for r in group]
-        data, lin, alp = ([f[i] for f in fits] for i in range(3))
+        fits = [fundamentals(r, (r.theta, *(predictions[r.name][f"theta_{m}"] for m in models)))
+                for r in group]
         ar = np.array([r.amplitude_rad for r in group])
-        d1, d2 = np.array(data).T
+        d1, d2 = np.array([f[0] for f in fits]).T
         row = {"gamma1_set_deg": key[0], "gamma2_set_deg": key[1],
-               "frequencies_hz": [r.frequency_hz for r in group]}
-        for label, model in (("linear", lin), ("alpha", alp)):
-            m1, m2 = np.array(model).T
-            s = scoring.sine_pose_scores(d1, d2, m1, m2, ar)
+               "frequencies_hz": [r.frequency_hz for r in group], "linear": None, "alpha": None}
+        for i, label in enumerate(models, start=1):
+            m1, m2 = np.array([f[i] for f in fits]).T
+            sc = scoring.sine_pose_scores(d1, d2, m1, m2, ar)
             mag, ph = scoring.magnitude_phase(m1, m2, ar)
-            row[label] = {**s, "magnitude": mag.tolist(), "phase_deg": ph.tolist()}
+            row[label] = {**sc, "magnitude": mag.tolist(), "phase_deg": ph.tolist()}
         mag, ph = scoring.magnitude_phase(d1, d2, ar)
         row["data"] = {"magnitude": mag.tolist(), "phase_deg": ph.tolist()}
-        sine_rows.append(row)
+        rows.append(row)
+    return rows
+
+
+def _without_alpha(d: dict) -> dict:
+    """``d`` with every α score and linear/α ratio set to None (the linear model alone)."""
+    return {k: (None if "alpha" in k or k.startswith("ratio_") else v) for k, v in d.items()}
+
+
+def _step_rows(runs: list[Run], params: Params, predictions: dict[str, dict]) -> tuple[list, dict | None]:
+    """Table 11 per step run and its summary (:func:`scoring.step_summary`); without an α
+    model the linear column stands in for the α one and every α entry is then set to None."""
+    rows = []
     for run in runs:
         if run.kind != "step":
             continue
         p = predictions[run.name]
-        s = scoring.step_scores(run.t, run.theta, p["theta_linear"], p["theta_alpha"], r=run.r)
-        s.update(name=run.name, gamma1_set_deg=run.meta.get("gamma1_set_deg"),
-                 gamma2_set_deg=run.meta.get("gamma2_set_deg"), gamma1_deg=run.gamma1_deg,
-                 gamma2_deg=run.gamma2_deg, fitted_pose=params.fitted_pose(run) is not None)
-        step_rows.append(s)
+        alpha = p["theta_linear"] if params.alpha is None else p["theta_alpha"]
+        sc = scoring.step_scores(run.t, run.theta, p["theta_linear"], alpha, r=run.r)
+        sc.update(name=run.name, gamma1_set_deg=run.meta.get("gamma1_set_deg"),
+                  gamma2_set_deg=run.meta.get("gamma2_set_deg"), gamma1_deg=run.gamma1_deg,
+                  gamma2_deg=run.gamma2_deg, fitted_pose=params.fitted_pose(run) is not None)
+        rows.append(sc)
+    if not rows:
+        return rows, None
+    st = scoring.step_summary(rows)
+    if params.alpha is None:
+        st = {w: _without_alpha(v) for w, v in st.items()}
+        for row in rows:
+            row.update({w: _without_alpha(row[w]) for w in scoring.STEP_WINDOWS})
+    return rows, st
+
+
+def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict:
+    """Tables 8 and 11 for both models (the linear one alone without an α model), and the
+    summary (contract keys plus details)."""
+    models = ("linear",) if params.alpha is None else ("linear", "alpha")
+    sine_rows = _sine_rows(runs, predictions, models)
+    step_rows, st = _step_rows(runs, params, predictions)
     summary: dict = {"inertia": None, "sine": None, "step": None}
     if sine_rows:
         avg = {}
         for label in ("linear", "alpha"):
-            avg[f"magnitude_p90_{label}"] = float(np.mean([r[label]["magnitude_p90"] for r in sine_rows]))
-            avg[f"phase_p90_{label}_deg"] = float(np.mean([r[label]["phase_p90_deg"] for r in sine_rows]))
+            rows = [r[label] for r in sine_rows if r[label] is not None]
+            avg[f"magnitude_p90_{label}"] = float(np.mean([r["magnitude_p90"] for r in rows])) if rows else None
+            avg[f"phase_p90_{label}_deg"] = float(np.mean([r["phase_p90_deg"] for r in rows])) if rows else None
         summary["sine"] = {**avg, "n_poses": len(sine_rows), "statistic": "mean over poses of the "
                            "per-pose 90th percentile over frequencies (Table 8 'Average')"}
     if step_rows:
-        st = scoring.step_summary(step_rows)
         whole = st["whole_record"]
         summary["step"] = {
             "median_abs_error_linear_rad": whole["median_abs_error_linear_rad"],
@@ -251,11 +306,15 @@ def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict
             "paper_table11": paper.table11_summary(),
             "windows": st,
         }
-    n_bad = sum(p["n_not_converged"] for p in predictions.values())
-    n_steps = sum(len(r.t) for r in runs)
-    n_brk = sum(p.get("n_bracketed", 0) for p in predictions.values())
-    summary["alpha_simulation"] = {"steps": n_steps, "steps_not_converged": n_bad,
-                                   "steps_solved_by_bisection": n_brk}
+    if params.alpha is None:
+        summary["alpha_simulation"] = None
+        summary["alpha_not_scored"] = params.alpha_missing
+    else:
+        n_bad = sum(p["n_not_converged"] for p in predictions.values())
+        n_steps = sum(len(r.t) for r in runs)
+        n_brk = sum(p.get("n_bracketed", 0) for p in predictions.values())
+        summary["alpha_simulation"] = {"steps": n_steps, "steps_not_converged": n_bad,
+                                       "steps_solved_by_bisection": n_brk}
     return {"summary": summary, "sine": sine_rows, "step": step_rows}
 
 
@@ -270,9 +329,20 @@ def write_predictions(folder: Path, runs: list[Run], predictions: dict[str, dict
 
 
 def validate_runs(runs: list[Run], params: Params) -> tuple[dict, dict]:
-    """Simulate and score; returns (scores, predictions)."""
+    """Simulate and score; returns (scores, predictions).
+
+    Raises
+    ------
+    UserError
+        No sine or step run; a run refused by :func:`check_closed_loop_runs` or a sine run by
+        :func:`check_sine_record` (both before any simulation); a run at a pose the params
+        cannot predict."""
     scored = [r for r in runs if r.kind in ("sine", "step")]
     if not scored:
         raise UserError("dataset has no sine or step runs to score")
+    check_closed_loop_runs(runs, "validate")
+    for r in runs:
+        if r.kind == "sine":
+            check_sine_record(r)
     predictions = simulate_runs(runs, params)
     return score(runs, params, predictions), predictions

@@ -14,7 +14,7 @@ from pathlib import Path
 from identification.dataset import (atomic_output_dir, atomic_write_text, check_output_dir,
                                     check_output_file, read_dataset, read_table, write_dataset)
 from identification.errors import UserError
-from identification.identify import fit_inertia_table, identify_runs
+from identification.identify import check_closed_loop_runs, fit_inertia_table, identify_runs
 from identification.inertia import InertiaFit
 from identification.validation import read_params, validate_runs, write_predictions
 from .inputs import check_run_poses, omni_pose_check
@@ -108,6 +108,7 @@ def identify(args: argparse.Namespace) -> int:
     check_output_dir(args.out, getattr(args, "force", False), inputs=(args.data,))
     runs = read_dataset(args.data)
     check_run_poses(runs, args.data)
+    check_closed_loop_runs([r for r in runs if r.kind == "sine"], "identify", args.data)
     ident = identify_runs(runs)
     params = ident.to_params()
     with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
@@ -155,21 +156,37 @@ def validate(args: argparse.Namespace) -> int:
     params = read_params(args.params)
     runs = read_dataset(args.data)
     check_run_poses(runs, args.data)
+    check_closed_loop_runs(runs, "validate", args.data)
+    for run in runs:
+        params.linear_coefficients(run)  # a run at a pose the params cannot predict: refused here
     scores, predictions = validate_runs(runs, params)
     with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
         write_predictions(tmp, runs, predictions)
         (tmp / "summary.json").write_text(json.dumps(scores["summary"], indent=2) + "\n")
         (tmp / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
-    s = scores["summary"]
-    if s["step"]:
-        st = s["step"]
+    _print_scores(scores["summary"])
+    print(f"wrote {args.out}/summary.json and predictions/")
+    return 0
+
+
+def _print_scores(s: dict) -> None:
+    """validate's printed summary: both models, or the linear one and why the α one is not
+    scored."""
+    alpha = s.get("alpha_not_scored") is None
+    st, sn = s["step"], s["sine"]
+    if st and alpha:
         print(f"step: median |error| linear {st['median_abs_error_linear_rad']:.4f} rad, alpha "
               f"{st['median_abs_error_alpha_rad']:.4f} rad (ratio {st['ratio_of_medians']:.2f}); "
               f"alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses")
-    if s["sine"]:
-        sn = s["sine"]
+    elif st:
+        print(f"step: median |error| linear {st['median_abs_error_linear_rad']:.4f} rad over "
+              f"{st['n_poses']} run(s)")
+    if sn and alpha:
         print(f"sine: magnitude p90 linear {sn['magnitude_p90_linear']:.3f}, alpha "
               f"{sn['magnitude_p90_alpha']:.3f}; phase p90 linear {sn['phase_p90_linear_deg']:.1f} deg, "
               f"alpha {sn['phase_p90_alpha_deg']:.1f} deg")
-    print(f"wrote {args.out}/summary.json and predictions/")
-    return 0
+    elif sn:
+        print(f"sine: magnitude p90 linear {sn['magnitude_p90_linear']:.3f}; phase p90 linear "
+              f"{sn['phase_p90_linear_deg']:.1f} deg")
+    if not alpha:
+        print(f"alpha model not scored (linear model only): {s['alpha_not_scored']}")

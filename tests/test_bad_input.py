@@ -187,8 +187,8 @@ CASES = [
     ("fit-inertia t.csv --out full", {"t.csv": TABLE_HEAD + TABLE9, **FULL}, "full: is a folder"),
     # -- validate
     ("validate data --params p.json --out o", {**GOOD, "p.json": "{"}, "p.json: not valid JSON"),
-    ("validate data --params p.json --out o", {**GOOD, "p.json": '{"poses": [], "alpha_model": {}}'},
-     "has no alpha_model"),
+    ("validate data --params p.json --out o", {**GOOD, "p.json": '{"poses": [], "alpha_model": null}'},
+     "was not identified and params has no inertia model"),
     ("validate data --params params.json --out o", {**data(gamma1_deg=-90), **PARAMS},
      "shoulder angle -90 deg is outside"),
     ("validate data --params params.json --out o", {**data(csv=""), **PARAMS}, "a.csv: empty file"),

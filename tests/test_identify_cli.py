@@ -54,7 +54,7 @@ def nine_pose_runs():
 def test_identify_dataset_recovers_hidden_truth(nine_pose_runs):
     truth, runs = nine_pose_runs
     params = identify_dataset(runs)
-    assert len(params["poses"]) == 9 and params["alpha_model"] == {}
+    assert len(params["poses"]) == 9 and params["alpha_model"] is None
     for pose in params["poses"]:
         inert = _own_inertia(pose["gamma1_deg"], pose["gamma2_deg"], *truth[:5])
         assert abs(pose["C_linear"] * truth[5] * inert - 1) < 0.005
