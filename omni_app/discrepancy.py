@@ -70,6 +70,22 @@ def _target(args: argparse.Namespace) -> om.Target:
     return om.Target(joint, actuator)
 
 
+def _corrections(args: argparse.Namespace):
+    """``--corrections``: a keyword (auto, default, none) or a tuple of library names, checked
+    before any work."""
+    from omni_sim.discrepancy import effects as fx
+
+    text = (getattr(args, "corrections", None) or "auto").strip()
+    if text in ("auto", "default", "none"):
+        return text
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n not in fx.NAMES]
+    if unknown or not names:
+        raise UserError(f"discrepancy: --corrections: unknown effect(s) {', '.join(unknown) or text!r} "
+                        f"(auto, default, none, or names of the library: {', '.join(fx.NAMES)})")
+    return names
+
+
 def discrepancy_command(args: argparse.Namespace) -> int:
     """Entry point of ``omni discrepancy`` (see ``omni discrepancy --help``)."""
     target = _target(args)
@@ -96,12 +112,14 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     model = args.model if friction is None else str(om.model_path(args.model, friction))
     out = Path(args.out)
     check_output_dir(out, args.force, inputs=(args.measured, model))
+    corrections = _corrections(args)
     # the pose keys are checked against the model (needed only with the Omni's arm)
     runs = read_dataset(args.measured, require_pose=False, uniform=False)  # compared at the logged times
     if target == om.OMNI:  # the arm's actual angles too (the replay reads the set points)
         check_run_poses(runs, args.measured, model)
     with Progress() as log:
-        outcome = run_discrepancy(runs, model, log=log, target=target)
+        outcome = run_discrepancy(runs, model, log=log, target=target,
+                                  folds=getattr(args, "folds", "blocked"), corrections=corrections)
     with atomic_output_dir(out, force=args.force) as tmp:
         rp.write(outcome, tmp)
     _summary(outcome, out)

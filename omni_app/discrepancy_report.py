@@ -168,12 +168,19 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
     L = [f"# {title}", ""]
     if intro:
         L += [intro, ""]
-    L += _md_named(rep) + _md_where(rep) + _md_candidates(rep) + _md_worst(rep) + _md_sampling(rep)
+    L += (_md_named(rep) + _md_corrections(rep) + _md_gaps(rep) + _md_where(rep) + _md_candidates(rep)
+          + _md_worst(rep) + _md_sampling(rep))
     for f in figs:
         L += [f"![{f}]({f})", ""]
     t = rep["timings"]
+    per = t.get("physics_steps_per_stage", {})
     L += ["## Timings", "", f"total {t['total_s']:.1f} s; naming {t['naming_s']:.1f} s; "
-          f"{t['physics_steps']:,} physics steps ({t['steps_per_s'] / 1e3:.0f} k steps/s).", ""]
+          f"{t['physics_steps']:,} physics steps ({t['steps_per_s'] / 1e3:.0f} k steps/s); "
+          f"{rep['mujoco_warnings']['unstable_simulations']} replays went unstable (excluded, never scored).", ""]
+    if per:
+        L += ["| stage | seconds | physics steps |", "|---|---|---|"]
+        L += [f"| {k.replace('_', ' ')} | {t.get(k + '_s', 0.0):.1f} | {v:,} |" for k, v in per.items()]
+        L.append("")
     L += ["The patched model is `model.xml` (nominal + named effects at their all-runs fit). "
           "`report.json` holds every number of this page.", ""]
     return "\n".join(L)
@@ -235,6 +242,41 @@ def _md_named(rep: dict) -> list[str]:
     return L
 
 
+def _md_corrections(rep: dict) -> list[str]:
+    """The nominal's constants re-estimated (apart from the named effects)."""
+    rows = rep.get("corrections") or []
+    if not rows:
+        return []
+    L = ["## Corrections to the nominal", "",
+         "Constants the nominal already had, re-estimated jointly with every candidate (not named "
+         "effects: the model had them). A named effect had to beat this corrected nominal held out.", "",
+         "| parameter | your value | fitted | ± (95 %) | x your value | note |", "|---|---|---|---|---|---|"]
+    for c in rows:
+        ratio = "-" if c["ratio_to_nominal"] is None else f"{c['ratio_to_nominal']:.3g}"
+        L.append(f"| {c['effect']}: {c['parameter']} [{c['unit']}] | {_fmt(c['nominal'], 4)} | "
+                 f"{_fmt(c['fitted'], 4)} | {_fmt(c['half_width_95'], 2)} | {ratio} | "
+                 f"{c.get('warning', 'plausible')} |")
+    return L + [""]
+
+
+def _md_gaps(rep: dict) -> list[str]:
+    """The held-out gaps under both fold schemes."""
+    gaps = rep.get("gaps") or {}
+    if not gaps:
+        return []
+    verdict = rep["settings"].get("fold_scheme", "runs")
+    L = ["## Held-out gaps under both fold schemes", "",
+         "On the samples the fits use. *blocked*: every run cut into time blocks, each fold fitted on "
+         "the other blocks of every run; *runs*: whole runs held out. The verdict used "
+         f"**{verdict}** folds.", "",
+         "| folds | nominal [rad] | corrected nominal [rad] | + named effects [rad] | share the effects remove |",
+         "|---|---|---|---|---|"]
+    for sch, g in gaps.items():
+        L.append(f"| {sch} | {_fmt(g['nominal'])} | {_fmt(g['corrected'])} | {_fmt(g['after'])} | "
+                 f"{g['share_removed_by_effects']:+.2f} |")
+    return L + [""]
+
+
 def _md_where(rep: dict) -> list[str]:
     """Where the gap lives before, in words; the nearest candidates of an unexplained gap."""
     L = []
@@ -256,17 +298,20 @@ def _md_where(rep: dict) -> list[str]:
 
 def _md_candidates(rep: dict) -> list[str]:
     """Every round's candidates: held-out gap, share removed, how the folds were fitted."""
-    L = ["## Candidates (held-out, k-fold over runs)", ""]
+    scheme = rep["settings"].get("fold_scheme", "runs")
+    L = [f"## Candidates (held-out, {scheme} folds)", ""]
     for i, rnd in enumerate(rep["candidates"]):
         L += [f"Round {i + 1} (start gap {_fmt(rep['rounds'][i]['gap_start_rad'])} rad):", "",
-              "| candidate | held-out gap [rad] | share removed | folds | parameters |", "|---|---|---|---|---|"]
+              "| candidate | held-out gap [rad] | share removed | folds | unstable replays | parameters |",
+              "|---|---|---|---|---|---|"]
         for c in rnd:
             ps = ", ".join(f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items())
             if c["method"] == "prescreen":  # not among the best on the short records
                 L.append(f"| {c['name']} | (short records {_fmt(c['prescreen_gap_rad'])}) | - | "
-                         f"prescreen | {ps} |")
+                         f"prescreen | {c.get('unstable_replays', 0)} | {ps} |")
                 continue
-            L.append(f"| {c['name']} | {_fmt(c['heldout_gap_rad'])} | {c['share']:+.2f} | {c['method']} | {ps} |")
+            L.append(f"| {c['name']} | {_fmt(c['heldout_gap_rad'])} | {c['share']:+.2f} | {c['method']} | "
+                     f"{c.get('unstable_replays', 0)} | {ps} |")
         L.append("")
     return L
 

@@ -608,6 +608,8 @@ class Engine:
             self._data = d0.start_data(float(theta0_rad[0]), _pose(gamma_set_deg[0]), data)
             self._m1 = m1
             self._vmax1 = float(self.vmax[0])
+            self._period1 = m1.opt.timestep * self.substeps
+            self.unstable = np.zeros(1, bool)  # see the batch's below
             self._own_pool = False
             self.pool = None
             return
@@ -623,6 +625,11 @@ class Engine:
         # every control period); same trajectories either way
         self.pool = rollout.Rollout(nthread=nthread if nthread > 1 else 0) if pool is None else pool
         self._datas = [mujoco.MjData(d0.model) for _ in range(nthread)]
+        # a row's simulated time advances by one control period per apply; MuJoCo resets an
+        # unstable row's data (time back to 0) and warns without saying which row: a row whose
+        # time fell behind is flagged in ``unstable`` for good (its trajectory is not physics)
+        self._period = np.array([d.model.opt.timestep * self.substeps for d in devices])
+        self.unstable = np.zeros(self.B, bool)
         self._state = np.empty((self.B, self.substeps, d0.nstate))
         self._sens = np.empty((self.B, self.substeps, d0.model.nsensordata))
         self._chunk = max(1, -(-self.B // len(self._datas)))  # one task per thread
@@ -679,6 +686,7 @@ class Engine:
         """Start rows ``rows`` again from :meth:`Device.start_state` (the others go on)."""
         for b, th0, gs in zip(rows, theta0_rad, gamma_set_deg):
             dev = self.devices[b]
+            self.unstable[b] = False
             if self._laws:
                 self._force[b] = 0.0
             if self._data is not None:
@@ -706,8 +714,11 @@ class Engine:
             if self._laws:
                 self._set_friction()
             d.ctrl[self._yaw_act] = vk
+            t_before = d.time
             for _ in range(self.substeps):
                 mujoco.mj_step(m, d)
+            if d.time < t_before + 0.5 * self._period1:
+                self.unstable[0] = True
             if self._laws and self._laws.sensor[0] >= 0:
                 self._force[0] = d.sensordata[self._laws.sensor[0]]
             return np.array([vk])
@@ -739,10 +750,12 @@ class Engine:
             self._models = [mo if (on is None or on[b]) else off[b] for b, mo in enumerate(self._on_models)]
         if self._laws:
             self._set_friction()
+        t_before = self.x[:, 0]
         self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
                           skip_checks=True, state=self._state, sensordata=self._sens,
                           chunk_size=self._chunk)
         self.x = self._state[:, -1, :].copy()
+        self.unstable |= self.x[:, 0] < t_before + 0.5 * self._period
         if self._laws and np.any(self._laws.sensor >= 0):
             adr = self._laws.sensor
             self._force = np.where(adr >= 0, self._sens[np.arange(self.B), -1, np.maximum(adr, 0)], 0.0)
@@ -790,7 +803,8 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     -------
     dict
         ``theta`` (measured, what the controller saw) and ``v`` (applied) of shape ``(B, n)``;
-        with ``record_arm`` also ``q1``, ``q2`` [rad].
+        ``unstable`` (B,) bool: rows MuJoCo found unstable and reset (:attr:`Engine.unstable`;
+        their trajectories are not physics); with ``record_arm`` also ``q1``, ``q2`` [rad].
     """
     B, n = r.shape
     kp = np.broadcast_to(np.asarray(kp, dtype=float), (B,))
@@ -810,9 +824,9 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     else:
         _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v,
                         (q1, q2) if record_arm else None, vmax, on)
-    if not np.all(np.isfinite(theta)):
+    if not np.all(np.isfinite(theta[~engine.unstable])):
         raise RuntimeError("simulation diverged (non-finite yaw angle)")
-    out = {"theta": theta, "v": v}
+    out = {"theta": theta, "v": v, "unstable": engine.unstable.copy()}
     if record_arm:
         out.update(q1=q1, q2=q2)
     return out

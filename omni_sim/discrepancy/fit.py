@@ -55,11 +55,27 @@ def rough(effects: list) -> list[int]:
     return out
 
 
+#: Weighted residual [rad] a fit sees for every sample of a replay MuJoCo found unstable
+#: (returned as NaN by the replay): a barrier that steers the fit back, never a score (the gap
+#: of such a replay is inf, :func:`gap`).  1 rad: more than any stable replay's error of a
+#: P-controlled joint (the real geared servo's nominal gap is 0.07-0.12 rad).
+UNSTABLE_PENALTY_RAD = 1.0
+
+
 def gap(residuals: list[np.ndarray]) -> float:
-    """Root of the mean over runs of each run's mean-square error [rad]."""
+    """Root of the mean over runs of each run's mean-square error [rad]; inf if any replay was
+    unstable (a NaN residual: excluded, never scored)."""
     if not residuals:
         return float("nan")
-    return float(np.sqrt(np.mean([np.mean(r**2) for r in residuals])))
+    ms = [np.mean(r**2) for r in residuals]
+    if not np.all(np.isfinite(ms)):
+        return float("inf")
+    return float(np.sqrt(np.mean(ms)))
+
+
+def unstable_count(residuals: list[np.ndarray]) -> int:
+    """Replays among ``residuals`` that MuJoCo found unstable (NaN)."""
+    return sum(1 for r in residuals if len(r) and not np.isfinite(r[0]))
 
 
 def correlation_time(residuals: list[np.ndarray], max_lag: int = 2000) -> float:
@@ -139,8 +155,12 @@ class Problem:
         Simulates models on runs (``replayer.simulate(models, runs, pairs)``).
     """
 
-    def __init__(self, builder, fixed: list, free: list, runs: list[ReplayRun], replayer):
+    def __init__(self, builder, fixed: list, free: list, runs: list[ReplayRun], replayer,
+                 masks: list | None = None):
         self.builder, self.fixed, self.free, self.runs, self.rep = builder, list(fixed), list(free), runs, replayer
+        #: per run, the samples the objective uses (bool array; None: all) -- a fold of time
+        #: blocks fits on the other blocks of every run
+        self.masks = list(masks) if masks is not None else [None] * len(runs)
         lo, hi, sc = [], [], []
         for e in self.free:
             l, h = e.bounds()
@@ -148,8 +168,10 @@ class Problem:
             hi += list(h)
             sc += list(e.scales())
         self.lower, self.upper, self.scale = np.array(lo), np.array(hi), np.array(sc)
-        self.weights = [1.0 / np.sqrt(r.n) for r in runs]
+        self.weights = [1.0 / np.sqrt(max(1, r.n if m is None else int(np.count_nonzero(m))))
+                        for r, m in zip(runs, self.masks)]
         self.nsim = 0
+        self.unstable = 0  # replays of this problem MuJoCo found unstable (excluded)
         self._cache: dict = {}
 
     # --- models and residuals --------------------------------------------------------------
@@ -174,11 +196,25 @@ class Problem:
         out = []
         for i in range(len(xs)):
             out.append([th[i * len(runs) + k] - runs[k].theta for k in range(len(runs))])
+            self.unstable += unstable_count(out[-1])
         return out
 
     def weighted(self, raw: list[np.ndarray], run_idx: list[int] | None = None) -> np.ndarray:
+        """The objective's residual vector: each run's residual on its used samples
+        (:attr:`masks`) times its weight; an unstable replay's samples at
+        :data:`UNSTABLE_PENALTY_RAD`."""
         run_idx = list(range(len(self.runs))) if run_idx is None else run_idx
-        return np.concatenate([raw[k] * self.weights[j] for k, j in enumerate(run_idx)])
+        parts = []
+        for k, j in enumerate(run_idx):
+            r = raw[k] if self.masks[j] is None else raw[k][self.masks[j]]
+            if len(r) and not np.isfinite(r[0]):
+                r = np.full(len(r), UNSTABLE_PENALTY_RAD)
+            parts.append(r * self.weights[j])
+        return np.concatenate(parts)
+
+    def used(self, raw: list[np.ndarray]) -> list[np.ndarray]:
+        """Each run's residual on the samples the objective uses (all runs, in order)."""
+        return [r if m is None else r[m] for r, m in zip(raw, self.masks)]
 
     def _key(self, x):
         return tuple(np.round(np.asarray(x, float), 15))
@@ -233,7 +269,7 @@ class Problem:
             pts.append(xp)
         pts.append(np.clip(x0, self.lower, self.upper))
         raws = self.simulate(pts)
-        scores = [gap(raw) for raw in raws]
+        scores = [gap(self.used(raw)) for raw in raws]
         return pts[int(np.argmin(scores))]
 
     def fit(self, x0: np.ndarray, grid_effect_index: int | None = None, max_nfev: int = 20) -> FitResult:
@@ -249,7 +285,7 @@ class Problem:
                             xtol=1e-3, ftol=1e-4, gtol=1e-8)
         x = sol.x
         f, J, raw = self.evaluate(x)
-        return FitResult(list(self.free), x, x0, gap(raw), J, f, self.nsim, raw)
+        return FitResult(list(self.free), x, x0, gap(self.used(raw)), J, f, self.nsim, raw)
 
     def _cost(self, raw: list) -> float:
         return float(np.sum(self.weighted(raw) ** 2))
@@ -345,7 +381,7 @@ class Problem:
                 x[i] = self.basin(x, i, start=basin_start)
             x = self.fit_subset(x, smooth, refit_nfev)
         f, J, raw = self.evaluate(x)
-        return FitResult(list(self.free), x, fit.x_start, gap(raw), J, f, self.nsim, raw)
+        return FitResult(list(self.free), x, fit.x_start, gap(self.used(raw)), J, f, self.nsim, raw)
 
 
 def jacobian_se(problem: Problem, fit: FitResult) -> np.ndarray:
@@ -356,7 +392,7 @@ def jacobian_se(problem: Problem, fit: FitResult) -> np.ndarray:
     residual includes any remaining model error, which makes the estimate conservative.
     """
     J = fit.jac if fit.jac is not None else problem.jac(fit.x)
-    raw = fit.raw_residuals
+    raw = problem.used(fit.raw_residuals)
     n = sum(len(r) for r in raw)
     p = len(fit.x)
     s2 = sum(float(np.sum(r**2)) for r in raw) / max(n - p, 1)

@@ -5,8 +5,10 @@ Each measured run is replayed as the device ran it (the project's time conventio
 ``gamma2_set_deg``; the actual angles if set points are absent) and the arm starts at the
 model's equilibrium for them; the yaw starts at rest at the measured ``theta[0]``; at every
 control period the model's yaw angle ``theta_k`` is read, ``v_k = kp (r_k - theta_k)`` clipped
-to the drive's ``ctrlrange`` is written to ``yaw_motor`` and held for the period (zero while
-the run's ``enabled`` column is 0: torque off).
+to the drive's ``ctrlrange`` is written to ``yaw_motor`` and held for the period; while the
+run's ``enabled`` column is 0 (torque off) the command is 0 and the drive is switched off
+(:meth:`~omni_sim.device.Device.off_model`: the actuator's gain and bias zeroed, a ``dcmotor``'s
+motor constant: no torque and no back-EMF braking, the joint swings free).
 
 The control period is the device's own (run metadata ``control_period_s``, default the sample
 period), independent of the log's: a servo logged at 200 Hz that closes its loop at 1 kHz is
@@ -178,6 +180,8 @@ class Replayer:
         self._devices: OrderedDict = OrderedDict()
         self.steps = 0  # physics steps simulated so far (for timings)
         self.unstable_warnings = 0  # MuJoCo's instability warnings during replays
+        #: replays (model, run pairs) MuJoCo found unstable: returned as NaN, never scored
+        self.unstable_replays = 0
         self.first_warning = ""
         # replayed trajectories by (model content, run content), least recently used first
         self._traj: OrderedDict = OrderedDict()
@@ -374,17 +378,22 @@ class Replayer:
         # MuJoCo reports an unstable state (and resets that row's data) through its warning
         # handler, from the rollout's threads; by default it prints and appends to
         # MUJOCO_LOG.TXT in the working folder.  A candidate's parameter can make the model
-        # unstable (a stiff cable on a light rotor): such a row's replay is wrong and scores
-        # badly, so the warnings are counted (``unstable_warnings``), not printed.
+        # unstable (a stiff cable on a light rotor): the warnings are counted
+        # (``unstable_warnings``), not printed, and the rows the engine flagged unstable are
+        # returned as NaN (``unstable_replays``): a reset trajectory is not physics, and the
+        # statistics exclude it (:func:`omni_sim.discrepancy.fit.gap` is inf) instead of scoring it.
         prev = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(self._warned)
         try:
-            theta = run_p_loop(engine, rmat, kp, noise, qstep,
-                               command_limit=None if np.all(np.isinf(limit)) else limit,
-                               enabled=on)["theta"]
+            out = run_p_loop(engine, rmat, kp, noise, qstep,
+                             command_limit=None if np.all(np.isinf(limit)) else limit,
+                             enabled=on)
         except RuntimeError:
             raise RuntimeError("replay diverged (non-finite yaw angle)") from None
         finally:
             mujoco.set_mju_user_warning(prev)
+        theta = out["theta"]
+        theta[out["unstable"]] = np.nan
+        self.unstable_replays += int(np.count_nonzero(out["unstable"]))
         self.steps += B * nmax
         return theta

@@ -116,6 +116,12 @@ class ReplayRun:
         c = self.meta.get("command_limit")
         return math.inf if c is None else float(c)
 
+    def first_seconds(self, seconds: float) -> "ReplayRun":
+        """The run's first ``seconds`` [s] (the samples logged before ``t[0] + seconds``, half a
+        sample period of tolerance; at least two samples)."""
+        n = int(np.count_nonzero(self.t - self.t[0] < seconds - 0.5 * self.dt))
+        return self.truncated(max(2, n))
+
     def truncated(self, nmax: int) -> "ReplayRun":
         """The first ``nmax`` samples of the run (the replay starts from the same state)."""
         if nmax >= self.n:

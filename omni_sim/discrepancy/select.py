@@ -3,7 +3,7 @@ removes a clear share of the gap, repeat (forward selection, up to three effects
 
 Scoring (per round):
 
-1. *prescreen* every candidate on short records (the first :data:`PRESCREEN_SAMPLES` samples
+1. *prescreen* every candidate on short records (the first :data:`PRESCREEN_S` seconds
    of each run): its grid, then a few damped Gauss-Newton steps, all candidates in lockstep so
    each iteration is one batch of rollouts (earlier accepted effects stay free so effects can
    trade off).  A candidate costs a few short batches, not a campaign;
@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fit import BASIN_SMALLEST, FitResult, Problem, gap, rough
+from .fit import BASIN_SMALLEST, FitResult, Problem, gap, rough, unstable_count
 from .runs import ReplayRun
 
 #: Least share of the round's starting held-out gap the best candidate must remove.
@@ -58,14 +58,82 @@ def share_of(g: float, gap_start: float) -> float:
     return 0.0 if g <= 0 else -math.inf
 
 
-def kfolds(runs: list[ReplayRun], k: int) -> list[list[int]]:
-    """Split run indices into ``k`` folds, interleaved after sorting by (kind, pose, frequency,
+@dataclass(frozen=True)
+class Fold:
+    """The samples one fold holds out: ``held[j]`` is run ``j``'s held-out mask (bool, one per
+    sample), or None when the fold holds out nothing of run ``j``.  The fold's parameters are
+    fitted on every other sample and predict the held-out ones (a run is always replayed
+    whole, from its start: a held-out block's prediction runs through the training blocks
+    before it, as the device did)."""
+
+    held: tuple
+
+    @property
+    def runs(self) -> list[int]:
+        """Runs with held-out samples (the ones the held-out replay simulates)."""
+        return [j for j, h in enumerate(self.held) if h is not None]
+
+    def train(self) -> tuple[list[int], list]:
+        """The runs the fold's fit uses (those with any training sample) and their masks."""
+        idx, masks = [], []
+        for j, h in enumerate(self.held):
+            if h is None:
+                idx.append(j)
+                masks.append(None)
+            elif not h.all():
+                idx.append(j)
+                masks.append(~h)
+        return idx, masks
+
+
+#: Fold schemes.  ``blocked``: every run cut into k contiguous time blocks of equal length, fold
+#: f holds out block f of every run, so every fold's fit sees every kind of experiment (four
+#: runs of four different experiments can be scored).  ``runs``: k folds of whole runs
+#: (:func:`run_folds`), each fold fitting some kinds of experiment and predicting others.
+FOLD_SCHEMES = ("blocked", "runs")
+
+
+def run_folds(runs: list[ReplayRun], k: int) -> list[Fold]:
+    """``k`` folds of whole runs, interleaved after sorting by (kind, pose, frequency,
     amplitude) so every fold holds a mix of the experiment design."""
     order = sorted(range(len(runs)), key=lambda j: (runs[j].kind, runs[j].gamma_set_deg,
                                                     runs[j].frequency_hz, runs[j].amplitude_rad,
                                                     runs[j].name))
     k = max(2, min(k, len(runs)))
-    return [[order[i] for i in range(f, len(order), k)] for f in range(k)]
+    out = []
+    for f in range(k):
+        held = set(order[i] for i in range(f, len(order), k))
+        out.append(Fold(tuple(np.ones(runs[j].n, bool) if j in held else None for j in range(len(runs)))))
+    return out
+
+
+def block_folds(runs: list[ReplayRun], k: int) -> list[Fold]:
+    """``k`` folds of time blocks: fold ``f`` holds out samples ``[f n / k, (f + 1) n / k)`` of
+    every run (n its samples)."""
+    k = max(2, k)
+    out = []
+    for f in range(k):
+        held = []
+        for r in runs:
+            h = np.zeros(r.n, bool)
+            h[(f * r.n) // k:((f + 1) * r.n) // k] = True
+            held.append(h)
+        out.append(Fold(tuple(held)))
+    return out
+
+
+def make_folds(runs: list[ReplayRun], k: int, scheme: str = "blocked") -> list[Fold]:
+    """The folds of ``scheme`` (:data:`FOLD_SCHEMES`)."""
+    if scheme == "blocked":
+        return block_folds(runs, k)
+    if scheme == "runs":
+        return run_folds(runs, k)
+    raise ValueError(f"unknown fold scheme {scheme!r} (one of {', '.join(FOLD_SCHEMES)})")
+
+
+def kfolds(runs: list[ReplayRun], k: int) -> list[list[int]]:
+    """The runs each of :func:`run_folds`' folds holds out."""
+    return [f.runs for f in run_folds(runs, k)]
 
 
 def noise_floor(residuals: list[np.ndarray]) -> float:
@@ -116,37 +184,69 @@ class Scored:
     folds: list = field(default_factory=list, repr=False)
     seconds: float = 0.0
     prescreen_gap: float = math.nan
+    unstable: int = 0  # replays MuJoCo found unstable while fitting and scoring it (excluded)
 
 
-def _heldout(problem: Problem, fold_x: list[np.ndarray], folds: list[list[int]]) -> list[np.ndarray]:
-    """Held-out residuals: each run simulated with its own fold's parameters, one batch."""
-    models = [problem.model(x) for x in fold_x]
-    pairs = [(f, j) for f, idx in enumerate(folds) for j in idx]
-    th = problem.rep.simulate(models, problem.runs, pairs)
-    problem.nsim += len(folds)
-    out: list = [None] * len(problem.runs)
+def heldout_replays(rep, models: list, runs: list[ReplayRun], folds: list[Fold]) -> list[np.ndarray]:
+    """Each run's held-out replay [rad]: every held-out sample from the replay with its own
+    fold's model (``models[f]``), all in one batch."""
+    pairs = [(f, j) for f, fold in enumerate(folds) for j in fold.runs]
+    th = rep.simulate(models, runs, pairs)
+    out = [np.full(r.n, np.nan) for r in runs]
     for (f, j), t in zip(pairs, th):
-        out[j] = t - problem.runs[j].theta
+        h = folds[f].held[j]
+        out[j][h] = t[h]
     return out
 
 
-def _onestep_folds(problem: Problem, fit: FitResult, folds: list[list[int]]) -> list[np.ndarray]:
+def _heldout(problem: Problem, fold_x: list[np.ndarray], folds: list[Fold]) -> list[np.ndarray]:
+    """Held-out residuals: each held-out sample from its own fold's parameters, one batch (an
+    unstable replay: NaN over its held-out samples)."""
+    models = [problem.model(x) for x in fold_x]
+    th = heldout_replays(problem.rep, models, problem.runs, folds)
+    problem.nsim += len(folds)
+    out = [t - r.theta for t, r in zip(th, problem.runs)]
+    problem.unstable += sum(1 for o in out if not np.all(np.isfinite(o)))
+    return out
+
+
+def _onestep_folds(problem: Problem, fit: FitResult, folds: list[Fold]) -> list[np.ndarray]:
     J = fit.jac
     r = fit.resid
     rows = np.cumsum([0] + [run.n for run in problem.runs])
     out = []
-    for idx in folds:
+    for fold in folds:
         keep = np.ones(len(r), bool)
-        for j in idx:
-            keep[rows[j]:rows[j + 1]] = False
+        for j in fold.runs:
+            keep[rows[j]:rows[j + 1]] &= ~fold.held[j]
         Js = J[keep] * problem.scale
         dz, *_ = np.linalg.lstsq(Js, -r[keep], rcond=1e-10)
         out.append(np.clip(fit.x + dz * problem.scale, problem.lower, problem.upper))
     return out
 
 
-def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start: list[np.ndarray],
-                 iterations: int = 4) -> list[np.ndarray]:
+def _fold_problem(problem: Problem, fold: Fold) -> tuple[Problem, list[int]]:
+    """``problem`` restricted to ``fold``'s training samples (its runs with any, masked), and
+    those runs' indices in ``problem.runs``."""
+    idx, masks = fold.train()
+    pf = Problem(problem.builder, problem.fixed, problem.free, [problem.runs[j] for j in idx], problem.rep,
+                 masks=masks)
+    return pf, idx
+
+
+#: Exact Gauss-Newton iterations of the per-fold refits, from each fold's one-step start (2: the
+#: one-step start is already a Gauss-Newton step from the all-runs optimum; two exact steps on
+#: the fold's own training samples take it the rest of the way on a smooth objective).
+REFIT_ITERATIONS = 2
+#: Least-squares evaluations of a confirmed candidate's all-runs fit, from the screening fit's
+#: end point (each evaluation simulates the point and its p perturbations in one batch).
+CONFIRM_NFEV = 10
+#: Candidates (best by the screen's held-out gap) confirmed with exact per-fold refits.
+N_CONFIRM = 2
+
+
+def _refit_folds(problem: Problem, fit: FitResult, folds: list[Fold], start: list[np.ndarray],
+                 iterations: int = REFIT_ITERATIONS) -> list[np.ndarray]:
     """Exact per-fold refits, all folds in lockstep.
 
     Each iteration simulates every fold's current parameters and their finite-difference
@@ -156,8 +256,10 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start
     simulated.
     """
     runs = problem.runs
-    # each fold's training runs (in run order); its held-out runs are not simulated at all
-    train = [[j for j in range(len(runs)) if j not in set(idx)] for idx in folds]
+    # each fold's training runs (in run order; a run held out whole is not simulated at all)
+    # and its objective on their training samples
+    fps = [_fold_problem(problem, fold) for fold in folds]
+    train = [idx for _, idx in fps]
     xs = [np.asarray(x, float).copy() for x in start]
     p = len(fit.x)
     lam = [1e-6] * len(folds)
@@ -179,8 +281,9 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start
                 b += len(train[f])
         for f in range(len(folds)):
             base = f * (p + 1)
-            f0 = problem.weighted(raws[base], train[f])
-            J = np.column_stack([(problem.weighted(raws[base + 1 + i], train[f]) - f0) / steps[f][i]
+            problem.unstable += sum(unstable_count(raws[base + i]) for i in range(p + 1))
+            f0 = fps[f][0].weighted(raws[base])
+            J = np.column_stack([(fps[f][0].weighted(raws[base + 1 + i]) - f0) / steps[f][i]
                                  for i in range(p)])
             r, Jt = f0, J * problem.scale
             A = Jt.T @ Jt
@@ -189,29 +292,28 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[list[int]], start
     return xs
 
 
-def _polish_folds(problem: Problem, folds: list[list[int]], start: list[np.ndarray]) -> list[np.ndarray]:
-    """Per-fold fits of a candidate with rough parameters: each fold's training runs, from its
+def _polish_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray]) -> list[np.ndarray]:
+    """Per-fold fits of a candidate with rough parameters: each fold's training samples, from its
     one-step start, by :meth:`Problem.polish` (one cycle; the basin's first bracket at its
     smallest width, as the fold's basin lies near the all-runs one)."""
     out = []
-    for idx, x0 in zip(folds, start):
-        held = set(idx)
-        train = [r for j, r in enumerate(problem.runs) if j not in held]
-        pf = Problem(problem.builder, problem.fixed, problem.free, train, problem.rep)
+    for fold, x0 in zip(folds, start):
+        pf, _ = _fold_problem(problem, fold)
         f, J, raw = pf.evaluate(x0)
-        fit = pf.polish(FitResult(list(pf.free), np.asarray(x0, float), np.asarray(x0, float), gap(raw), J, f,
-                                  pf.nsim, raw), cycles=1, basin_start=BASIN_SMALLEST)
+        fit = pf.polish(FitResult(list(pf.free), np.asarray(x0, float), np.asarray(x0, float),
+                                  gap(pf.used(raw)), J, f, pf.nsim, raw), cycles=1, basin_start=BASIN_SMALLEST)
         problem.nsim += pf.nsim
+        problem.unstable += pf.unstable
         out.append(fit.x)
     return out
 
 
 def score_round(builder, accepted: list, accepted_x: np.ndarray,
                 runs: list[ReplayRun], rep, gap_start: float, k: int = 5,
-                n_confirm: int = 3, candidates: tuple[str, ...] | None = None,
+                n_confirm: int = N_CONFIRM, candidates: tuple[str, ...] | None = None,
                 screen_nfev: int = 4, log=None,
-                n_screen: int | None = None, prescreen_samples: int | None = None,
-                bases: list | None = None) -> list[Scored]:
+                n_screen: int | None = None, prescreen_s: float | None = None,
+                bases: list | None = None, scheme: str = "runs") -> list[Scored]:
     """Fit and score every candidate not yet accepted; best first.
 
     With ``bases`` (a beam: several sets of effects with their fitted values, e.g. the pairs
@@ -229,7 +331,9 @@ def score_round(builder, accepted: list, accepted_x: np.ndarray,
     gap_start : float [rad]
         Held-out gap of the model the round starts from.
     k : int
-        Folds over runs.
+        Folds (:func:`make_folds`).
+    scheme : str
+        Fold scheme, ``"runs"`` or ``"blocked"`` (:data:`FOLD_SCHEMES`).
     n_confirm : int
         Candidates refitted exactly per fold after screening.
     screen_nfev : int
@@ -240,26 +344,26 @@ def score_round(builder, accepted: list, accepted_x: np.ndarray,
     n_screen : int
         Candidates, best on the short records (:func:`prescreen`), that are fitted on all runs
         and scored on held-out runs (default :data:`N_SCREEN`); the others keep their prescreen.
-    prescreen_samples : int
-        Samples per run of the prescreen's short records (default :data:`PRESCREEN_SAMPLES`).
+    prescreen_s : float [s]
+        Length of the prescreen's short records (default :data:`PRESCREEN_S`).
     """
     names = [n for n in (candidates or builder.names) if n not in [e.name for e in accepted]]
     n_screen = N_SCREEN if n_screen is None else n_screen
-    prescreen_samples = PRESCREEN_SAMPLES if prescreen_samples is None else prescreen_samples
-    folds = kfolds(runs, k)
+    prescreen_s = PRESCREEN_S if prescreen_s is None else prescreen_s
+    folds = make_folds(runs, k, scheme)
     jobs = None
     if bases:
         jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or builder.names)
                 if n not in [e.name for e in b]]
     pre = prescreen(builder, accepted, accepted_x, names, runs, rep,
-                    samples=prescreen_samples, log=log, jobs=jobs)
+                    seconds=prescreen_s, log=log, jobs=jobs)
     keep = {c.name for c in pre[:n_screen]}
     scored: list[Scored] = []
     for c in pre:
         if c.name not in keep:
             # not among the n_screen best on the short records: scored there only
             scored.append(Scored(c.name, c.effects, FitResult(c.effects, c.x, c.x_start, c.gap), math.inf,
-                                 -math.inf, "prescreen", prescreen_gap=c.gap))
+                                 -math.inf, "prescreen", prescreen_gap=c.gap, unstable=c.unstable))
             continue
         t0 = time.perf_counter()
         prob = Problem(builder, [], c.effects, runs, rep)
@@ -267,16 +371,19 @@ def score_round(builder, accepted: list, accepted_x: np.ndarray,
         sc = _screened(c.name, c.effects, prob, fit, folds, gap_start, t0, log,
                        width=36 if bases else 18)
         sc.prescreen_gap = c.gap
+        sc.unstable += c.unstable
         scored.append(sc)
     return _confirm_best(scored, n_confirm, builder, runs, rep, folds, gap_start, log)
 
 
-#: Samples per run of the short records on which every candidate is prescreened (1 s at 1 kHz:
-#: a step edge and its settling, or 1.5-3.5 cycles of a 1.5-3.5 Hz sine from the start; half of
-#: a bank run, a sixth of a paper-campaign sine).
-PRESCREEN_SAMPLES = 1000
+#: Length [s] of the short records on which every candidate is prescreened (1 s: a step edge and
+#: its settling, or 1.5-3.5 cycles of a 1.5-3.5 Hz sine from the start; half of an Omni bank
+#: run, a sixth of a paper-campaign sine, a fifth of a geared-servo bank run).  In seconds, not
+#: logged samples: a log at 50 Hz holds 1 s in 50 samples, and the replay's cost is its control
+#: periods.
+PRESCREEN_S = 1.0
 #: Candidates (best on the short records) that go on to the held-out screening on all samples.
-N_SCREEN = 6
+N_SCREEN = 4
 #: Lockstep Gauss-Newton iterations of the prescreen.
 PRESCREEN_ITERATIONS = 3
 
@@ -290,13 +397,14 @@ class Prescreened:
     x_start: np.ndarray
     x: np.ndarray
     gap: float
+    unstable: int = 0
 
 
 def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
               runs: list[ReplayRun], rep,
-              samples: int = PRESCREEN_SAMPLES, iterations: int = PRESCREEN_ITERATIONS,
+              seconds: float = PRESCREEN_S, iterations: int = PRESCREEN_ITERATIONS,
               log=None, jobs: list | None = None) -> list[Prescreened]:
-    """Fit every candidate coarsely on the first ``samples`` samples of each run; best first.
+    """Fit every candidate coarsely on the first ``seconds`` of each run; best first.
 
     All candidates advance together: their grid points form one batch (per group of models
     that can share one, :meth:`Replayer.simulate_grouped`), then each Gauss-Newton iteration
@@ -309,7 +417,7 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
     ``accepted``.
     """
     t0 = time.perf_counter()
-    short = [r.truncated(samples) for r in runs]
+    short = [r.first_seconds(seconds) for r in runs]
     beam = jobs is not None
     jobs = [(list(accepted), accepted_x, n) for n in names] if jobs is None else jobs
     labels = ["+".join([e.name for e in b] + [n]) if beam else n for b, _, n in jobs]
@@ -321,10 +429,11 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
         grids.append(pts)
     best_gap, starts = zip(*_grid_minima(rep, probs, grids, short))
     best_x, best_gap = _lockstep_gauss_newton(rep, probs, list(starts), list(best_gap), short, iterations)
-    out = [Prescreened(name, probs[c].free, x0s[c], best_x[c], best_gap[c]) for c, name in enumerate(labels)]
+    out = [Prescreened(name, probs[c].free, x0s[c], best_x[c], best_gap[c], probs[c].unstable)
+           for c, name in enumerate(labels)]
     out.sort(key=lambda c: c.gap)
     if log:
-        log(f"  prescreen of {len(labels)} candidates on {samples}-sample records: "
+        log(f"  prescreen of {len(labels)} candidates on {seconds:g} s records: "
             f"{time.perf_counter() - t0:.1f} s; best " + ", ".join(f"{c.name} ({c.gap:.2e})" for c in out[:N_SCREEN]))
     return out
 
@@ -360,10 +469,12 @@ def _grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
             pairs += [(len(models) - 1, j) for j in range(nr)]
     th = rep.simulate_grouped(models, runs, pairs)
     out, m = [], 0
-    for pts in grids:
+    for prob, pts in zip(probs, grids):
         gaps = []
         for _ in pts:
-            gaps.append(gap([th[m * nr + j] - runs[j].theta for j in range(nr)]))
+            res = [th[m * nr + j] - runs[j].theta for j in range(nr)]
+            prob.unstable += unstable_count(res)
+            gaps.append(gap(res))
             m += 1
         i = int(np.argmin(gaps))
         out.append((gaps[i], pts[i].copy()))
@@ -395,6 +506,7 @@ def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], 
             prob = probs[c]
             raws = [[th[(first + i) * nr + j] - runs[j].theta for j in range(nr)]
                     for i in range(len(h) + 1)]
+            prob.unstable += sum(unstable_count(raw) for raw in raws)
             g0 = gap(raws[0])
             if g0 <= best_gap[c]:
                 best_gap[c], best_x[c] = g0, xs[c].copy()
@@ -422,7 +534,7 @@ def _screened(name: str, effects, prob, fit, folds, gap_start: float, t0: float,
     raw = _heldout(prob, fold_x, folds)
     g = gap(raw)
     s = Scored(name, effects, fit, g, share_of(g, gap_start), "one-step", raw, fold_x, folds,
-               time.perf_counter() - t0)
+               time.perf_counter() - t0, unstable=prob.unstable)
     if log:
         log(f"  {name:{width}s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
             f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
@@ -446,7 +558,7 @@ def _confirm(builder, s: Scored, runs, rep, folds, gap_start: float, log=None) -
     # the screening fit already simulated its end point (same model, runs and effects): the
     # converging fit starts there without simulating it again
     prob.seed(s.fit)
-    s.fit = prob.fit(s.fit.x, None, max_nfev=20)  # converge the all-runs fit
+    s.fit = prob.fit(s.fit.x, None, max_nfev=CONFIRM_NFEV)  # converge the all-runs fit
     # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
     # minimum wherever it started; the basin search moves it to the basin's centre
     s.fit = prob.polish(s.fit)
@@ -460,13 +572,15 @@ def _confirm(builder, s: Scored, runs, rep, folds, gap_start: float, log=None) -
     s.heldout_gap = gap(s.heldout_raw)
     s.share = share_of(s.heldout_gap, gap_start)
     s.method = "refit"
+    s.unstable += prob.unstable
     s.seconds += time.perf_counter() - t0
     if log:
         log(f"  {s.name:18s} refit  held-out gap {s.heldout_gap:.3e} rad (share {s.share:+.2f})")
 
 
-#: Samples per run on which the pairs' starting grids are evaluated (a coarse start only).
-PAIR_GRID_SAMPLES = 700
+#: Length [s] of the records on which the pairs' starting grids are evaluated (a coarse start
+#: only; 0.7 s, 700 samples of the Omni's 1 kHz log).
+PAIR_GRID_S = 0.7
 #: Pairs (best by their grid) fitted and screened; the best ``n_confirm`` of them confirmed.
 PAIR_FITS = 8
 #: Points per effect of a pair's starting grid (each effect's grid thinned to this many).
@@ -483,10 +597,10 @@ def _thin(grid: np.ndarray, m: int) -> np.ndarray:
 
 
 def score_pairs(builder, runs: list[ReplayRun], rep, gap_start: float,
-                k: int = 5, n_confirm: int = 3, n_fit: int = PAIR_FITS,
-                grid_samples: int = PAIR_GRID_SAMPLES, candidates: tuple[str, ...] | None = None,
+                k: int = 5, n_confirm: int = N_CONFIRM, n_fit: int = PAIR_FITS,
+                grid_s: float = PAIR_GRID_S, candidates: tuple[str, ...] | None = None,
                 screen_nfev: int = 8, log=None,
-                grid_points: int = PAIR_GRID_POINTS) -> list[Scored]:
+                grid_points: int = PAIR_GRID_POINTS, scheme: str = "runs") -> list[Scored]:
     """Fit and score *pairs* of candidates jointly; best first.
 
     Two effects can mask each other: a loop delay takes damping away, dry friction adds it, so
@@ -494,14 +608,14 @@ def score_pairs(builder, runs: list[ReplayRun], rep, gap_start: float,
     they explain it down to the noise.  One effect at a time, as :func:`score_round` adds them,
     cannot find such a pair.  Here every pair starts from the best point of the product of the
     two effects' grids (each thinned to ``grid_points``), all pairs' grid points simulated
-    together on the first ``grid_samples`` samples of each run; the ``n_fit`` best
+    together on the first ``grid_s`` seconds of each run; the ``n_fit`` best
     pairs are fitted on all runs and screened on held-out runs like the single candidates, and
     the best ``n_confirm`` are confirmed with exact per-fold refits.
     """
     import itertools
     names = candidates or builder.names
-    folds = kfolds(runs, k)
-    grid_runs = [r.truncated(grid_samples) for r in runs]
+    folds = make_folds(runs, k, scheme)
+    grid_runs = [r.first_seconds(grid_s) for r in runs]
     t0 = time.perf_counter()
     combos = list(itertools.combinations(names, 2))
     probs, grids = [], []
@@ -573,8 +687,36 @@ def member_runner_up(best: Scored, scored: list[Scored]) -> list[tuple[str | Non
     return out
 
 
+def score_set(builder, name: str, effects: list, x0: np.ndarray, runs: list[ReplayRun], rep,
+              gap_start: float, folds: list[Fold], log=None) -> Scored:
+    """Fit a given set of effects from ``x0`` on all runs and score it held out like a
+    confirmed candidate (exact per-fold refits on ``folds``): e.g. the nominal's corrections
+    alone, the start every named effect must beat."""
+    t0 = time.perf_counter()
+    prob = Problem(builder, [], effects, runs, rep)
+    fit = prob.fit(np.asarray(x0, float), None, max_nfev=8)
+    sc = _screened(name, effects, prob, fit, folds, gap_start, t0, log, width=18)
+    _confirm(builder, sc, runs, rep, folds, gap_start, log)
+    return sc
+
+
+def rescore(builder, s: Scored, runs: list[ReplayRun], rep, folds: list[Fold], gap_start: float) -> Scored:
+    """``s``'s all-runs fit scored held out on other ``folds`` (exact per-fold refits from
+    one-step starts; the all-runs fit is kept): e.g. the named set under the fold scheme the
+    verdict did not use."""
+    prob = Problem(builder, [], s.effects, runs, rep)
+    prob.seed(s.fit)
+    fold_x = _onestep_folds(prob, s.fit, folds)
+    fold_x = (_polish_folds(prob, folds, fold_x) if rough(s.effects)
+              else _refit_folds(prob, s.fit, folds, fold_x))
+    raw = _heldout(prob, fold_x, folds)
+    g = gap(raw)
+    return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, folds,
+                  unstable=prob.unstable)
+
+
 def score_removals(builder, best: Scored, runs: list[ReplayRun], rep,
-                   gap_start: float, log=None) -> list[Scored]:
+                   gap_start: float, log=None, keep: tuple[str, ...] = ()) -> list[Scored]:
     """The backward step of floating selection: ``best`` without each of its members, refitted
     jointly from ``best``'s values and scored like a confirmed candidate (exact per-fold refits
     on the same folds); best first.
@@ -582,10 +724,13 @@ def score_removals(builder, best: Scored, runs: list[ReplayRun], rep,
     A member whose removal leaves a held-out gap that the full set lowers by less than
     :data:`MIN_SHARE` removes no clear share of the gap: a stand-in accepted early (a spring
     fitted with Coulomb friction to part of a backlash's gap) that a later member made
-    redundant.  The caller drops it."""
+    redundant.  The caller drops it.  Members named in ``keep`` (the nominal's corrections)
+    are never removed."""
     folds = best.folds
     out = []
     for m in range(len(best.effects)):
+        if best.effects[m].name in keep:
+            continue
         effects = [e for i, e in enumerate(best.effects) if i != m]
         x0 = np.concatenate([x for i, (_, x) in enumerate(best.fit.split()) if i != m])
         t0 = time.perf_counter()

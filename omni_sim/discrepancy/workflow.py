@@ -72,10 +72,51 @@ class Outcome:
     rounds: list = field(default_factory=list)
 
 
+#: The nominal's uncertain constants refitted by default (library names): rotor inertia, viscous
+#: damping, Coulomb level, torque constant and a constant drive offset (which a P loop turns into
+#: a position offset) -- what a datasheet or a CAD model gets "a little wrong everywhere".
+DEFAULT_CORRECTIONS = ("armature", "viscous_damping", "coulomb_friction", "torque_gain", "position_offset")
+#: A correction that moves its parameter by more than this factor from the user's value is
+#: flagged as implausible in the report (a 3x inertia change is a finding, not a correction).
+PLAUSIBLE_FACTOR = 2.0
+
+
+def correction_names(corrections, spec: mujoco.MjSpec, target: om.Target, own_device: bool) -> tuple[str, ...]:
+    """The library effects refitted as corrections of the nominal: ``"auto"`` is
+    :data:`DEFAULT_CORRECTIONS` on a user's own device (``--joint``/``--actuator``) and none on
+    the virtual Omni (whose calibrated scene is the nominal the bank hides effects against);
+    ``"default"`` the default set; ``"none"`` or an empty tuple none; else the names given.
+    Only those that can be written into the model are kept, and of the default set only the
+    constants the nominal states (a value other than zero): a zero means the nominal lacks
+    that structure (no dry friction, no offset), which the library names as an effect.
+
+    Raises
+    ------
+    UserError
+        An unknown name."""
+    if corrections in (None, "auto"):
+        names = DEFAULT_CORRECTIONS if own_device else ()
+    elif corrections == "default":
+        names = DEFAULT_CORRECTIONS
+    elif corrections == "none":
+        names = ()
+    else:
+        names = tuple(corrections)
+    unknown = [c for c in names if c not in fx.NAMES]
+    if unknown:
+        raise UserError(f"unknown correction(s): {', '.join(unknown)} (library: {', '.join(fx.NAMES)})")
+    writable = fx.applicable(spec, target)
+    names = tuple(c for c in names if c in writable)
+    if corrections in (None, "auto", "default"):
+        names = tuple(c for c in names if np.all(np.asarray(fx.get(c).read(spec, target), float) != 0))
+    return names
+
+
 def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None, k: int = 5,
                     max_effects: int = 3, max_fit_samples: int = MAX_FIT_SAMPLES,
                     candidates: tuple[str, ...] | None = None, log=None,
-                    target: om.Target | None = None) -> Outcome:
+                    target: om.Target | None = None, folds: str = "blocked",
+                    corrections="auto") -> Outcome:
     """Find, name, fit and check the effect(s) the model misses on these measured runs.
 
     Parameters
@@ -87,7 +128,13 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     jobs : int, optional
         Rollout threads (default: all cores).
     k : int
-        Folds over runs for held-out scoring.
+        Folds for held-out scoring.
+    folds : str
+        The verdict's fold scheme (:data:`omni_sim.discrepancy.select.FOLD_SCHEMES`): ``"blocked"``
+        (time blocks within every run) or ``"runs"`` (whole runs); the report gives the other
+        scheme's held-out gaps beside.
+    corrections : str or tuple of str
+        The nominal's constants refitted jointly with every candidate (:func:`correction_names`).
     max_effects : int
         Most effects named (rounds).
     max_fit_samples : int
@@ -114,41 +161,59 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                         "period)") from None
     replay_runs = prepare_runs(runs, device)
     effect_target = om.OMNI if target is None else target  # where the effects are written
-    candidates = _usable_candidates(candidates, spec, effect_target, path)
+    if folds not in sel.FOLD_SCHEMES:
+        raise UserError(f"unknown fold scheme {folds!r} (one of {', '.join(sel.FOLD_SCHEMES)})")
+    fixed = correction_names(corrections, spec, effect_target, target is not None and target != om.OMNI)
+    candidates = tuple(c for c in _usable_candidates(candidates, spec, effect_target, path) if c not in fixed)
     if len(replay_runs) < 2:
         raise UserError("measured data: at least 2 runs are needed (candidates are scored on runs "
                         "held out of their fit)")
     fit_runs, fit_samples = _fit_runs(replay_runs, max_fit_samples)
     builder = fx.ModelBuilder(spec, effect_target)
     log = log or (lambda s: None)
-    timings = {}
+    timings, stage_steps = {}, {}
+
+    def stage(name: str, t0: float, steps0: int) -> None:
+        timings[f"{name}_s"] = time.perf_counter() - t0
+        stage_steps[name] = rep.steps - steps0
+
     with Replayer(jobs, target, period) as rep:
-        t0 = time.perf_counter()
+        t0, s0 = time.perf_counter(), rep.steps
         nominal = replay_nominal(model, replay_runs, fit_runs, rep)
-        timings["replay_nominal_s"] = time.perf_counter() - t0
+        stage("replay_nominal", t0, s0)
         log(f"gap before {nominal.gap:.3e} rad, noise floor {nominal.noise:.2e} rad, {len(replay_runs)} runs, "
             f"{sum(r.n for r in replay_runs)} samples"
             + (f" (fits use the first {fit_samples} of each run)" if fit_samples else ""))
-        t0 = time.perf_counter()
+        t0, s0 = time.perf_counter(), rep.steps
+        start = refit_nominal(builder, fixed, fit_runs, rep, nominal.fit_gap, k, folds, log)
+        stage("corrections", t0, s0)
+        t0, s0 = time.perf_counter(), rep.steps
         selection = select_effects(builder, candidates, fit_runs, rep, nominal.fit_gap, nominal.noise,
-                                   k=k, max_effects=max_effects, log=log)
-        timings["naming_s"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
+                                   k=k, max_effects=max_effects, log=log, scheme=folds, start=start)
+        stage("naming", t0, s0)
+        t0, s0 = time.perf_counter(), rep.steps
         unc, theta_after = estimate(builder, selection.best, fit_runs, replay_runs, rep, nominal.theta)
-        timings["uncertainty_and_evaluation_s"] = time.perf_counter() - t0
+        stage("uncertainty_and_evaluation", t0, s0)
+        t0, s0 = time.perf_counter(), rep.steps
+        gaps = both_schemes(builder, selection, start, fit_runs, rep, nominal.fit_gap, k, folds, log)
+        stage("other_fold_scheme", t0, s0)
         steps = rep.steps
-        warnings = {"unstable_simulations": rep.unstable_warnings, "first": rep.first_warning}
-    settings = {"folds": k, "max_effects": max_effects, "min_share": sel.MIN_SHARE,
+        warnings = {"unstable_simulations": rep.unstable_replays, "instability_warnings": rep.unstable_warnings,
+                    "first": rep.first_warning}
+    settings = {"folds": k, "fold_scheme": folds, "corrections": list(fixed),
+                "pair_search": not fixed, "max_effects": max_effects, "min_share": sel.MIN_SHARE,
                 "noise_factor": sel.NOISE_FACTOR, "tie_margin": sel.TIE_MARGIN,
                 "fit_samples_per_run": fit_samples, "model": path, "joint": effect_target.joint,
                 "actuator": effect_target.actuator, "candidates": list(candidates),
-                "prescreen_samples": sel.PRESCREEN_SAMPLES, "n_screen": sel.N_SCREEN,
+                "prescreen_s": sel.PRESCREEN_S, "n_screen": sel.N_SCREEN,
                 "mujoco": mujoco.__version__}
-    report = assemble_report(builder, replay_runs, nominal, theta_after, selection, unc, settings)
+    report = assemble_report(builder, replay_runs, nominal, theta_after, selection, unc, settings,
+                             fixed=fixed)
+    report["gaps"] = gaps
     report["mujoco_warnings"] = warnings
     timings["total_s"] = time.perf_counter() - t_start
-    report["timings"] = {**timings, "physics_steps": steps,
-                         "steps_per_s": steps / max(timings["naming_s"] + timings["replay_nominal_s"], 1e-9)}
+    report["timings"] = {**timings, "physics_steps": steps, "physics_steps_per_stage": stage_steps,
+                         "steps_per_s": steps / max(timings["total_s"], 1e-9)}
     return Outcome(report, _patched_spec(builder, selection.best), replay_runs, nominal.theta, theta_after,
                    selection.rounds)
 
@@ -218,6 +283,49 @@ def replay_nominal(model: mujoco.MjModel, runs: list[ReplayRun], fit_runs: list[
     return NominalReplay(theta, gap(residuals), fit_gap, sel.noise_floor(residuals))
 
 
+# -- 1b. the nominal's corrections -------------------------------------------------------------
+def refit_nominal(builder: fx.ModelBuilder, names: tuple[str, ...], runs: list[ReplayRun], rep: Replayer,
+                  gap_start: float, k: int, scheme: str, log) -> Scored | None:
+    """The nominal's constants ``names`` refitted together from the user's values and scored
+    held out (None without corrections): the model every named effect must beat."""
+    if not names:
+        return None
+    effects = [builder.effect(n) for n in names]
+    x0 = np.concatenate([builder.nominal_values(e) for e in effects])
+    log(f"corrections: refitting the nominal's {', '.join(names)}")
+    sc = sel.score_set(builder, "corrections", effects, x0, runs, rep, gap_start,
+                       sel.make_folds(runs, k, scheme), log)
+    log(f"corrections: held-out gap {gap_start:.3e} -> {sc.heldout_gap:.3e} rad")
+    return sc
+
+
+def both_schemes(builder: fx.ModelBuilder, selection: "Selection", start: Scored | None,
+                 runs: list[ReplayRun], rep: Replayer, gap_nominal: float, k: int, scheme: str,
+                 log) -> dict:
+    """The held-out gaps [rad] on the fits' samples under both fold schemes: the nominal (no
+    parameter fitted: its replay gap), the corrected nominal and the final model (corrections
+    plus named effects); the verdict's scheme from the selection, the other rescored."""
+    out = {}
+    for sch in sel.FOLD_SCHEMES:
+        row = {"nominal": gap_nominal}
+        for key, sc in (("corrected", start), ("after", selection.best)):
+            if sc is None:
+                row[key] = row["corrected"] if key == "after" and "corrected" in row else gap_nominal
+                continue
+            if sch != scheme:
+                sc = sel.rescore(builder, sc, runs, rep, sel.make_folds(runs, k, sch), gap_nominal)
+            row[key] = sc.heldout_gap
+            row[f"{key}_unstable_replays"] = sc.unstable
+        if "corrected" not in row:
+            row["corrected"] = gap_nominal
+        row["share_removed_by_effects"] = sel.share_of(row["after"], row["corrected"])
+        out[sch] = row
+    if log:
+        log("held-out gaps: " + "; ".join(f"{sch} folds {r['nominal']:.3e} -> {r['corrected']:.3e} (corrected) "
+                                         f"-> {r['after']:.3e} rad" for sch, r in out.items()))
+    return out
+
+
 # -- 2. naming the effects ---------------------------------------------------------------------
 @dataclass
 class Selection:
@@ -245,6 +353,7 @@ class Selection:
     gap: float
     best: Scored | None = None
     beam: list | None = None
+    fixed: tuple = ()
     pairs_scored: list = field(default_factory=list)
     rounds: list = field(default_factory=list)
     entries: list = field(default_factory=list)
@@ -267,15 +376,25 @@ class Selection:
 
 def select_effects(builder: fx.ModelBuilder, candidates: tuple[str, ...], runs: list[ReplayRun],
                    rep: Replayer, gap_start: float, noise: float, *, k: int, max_effects: int,
-                   log) -> Selection:
+                   log, scheme: str = "runs", start: Scored | None = None) -> Selection:
     """Forward selection: each round scores the candidates not yet accepted (with the accepted
     ones free) on held-out runs and accepts the best if it removes a clear share of the gap;
     the first round also searches pairs (:func:`_search_pairs`), a round whose set reaches
     three effects takes the backward step (:func:`_backward_step`).  Rounds: one per effect,
-    plus one a backward step can free."""
+    plus one a backward step can free.
+
+    ``start``: the nominal's corrections (:func:`refit_nominal`), accepted before round 1 and
+    free in every round, so each candidate is fitted jointly with them and must beat their
+    held-out gap; they are never removed and not counted in ``max_effects``, and the pair search
+    is not run (its grid would have to span the corrections too)."""
     state = Selection(gap_start)
+    fixed = ()
+    if start is not None:
+        state.accept(start)
+        fixed = tuple(e.name for e in start.effects)
+    state.fixed = fixed
     for rnd in range(max_effects + 1):
-        if len(state.accepted) >= max_effects or not _round_due(state, rnd, noise, log):
+        if len(state.accepted) - len(fixed) >= max_effects or not _round_due(state, rnd, noise, log):
             break
         names = [c for c in candidates if c not in [e.name for e in state.accepted]]
         if not names:
@@ -285,13 +404,13 @@ def select_effects(builder: fx.ModelBuilder, candidates: tuple[str, ...], runs: 
                                  # a beam grows every confirmed pair by any candidate not in it
                                  # (the accepted pair's members included)
                                  candidates=tuple(candidates if state.beam else names), log=log,
-                                 bases=state.beam)
+                                 bases=state.beam, scheme=scheme)
         state.rounds.append(scored)
         entry = _round_entry(rnd, scored, state.gap, noise)
         state.entries.append(entry)
         best = scored[0]
-        if (rnd == 0 and max_effects >= 2 and _pair_search_due(best, state.gap, noise)
-                and _search_pairs(state, builder, names, runs, rep, entry, scored, noise, k, log)):
+        if (rnd == 0 and max_effects >= 2 and not fixed and _pair_search_due(best, state.gap, noise)
+                and _search_pairs(state, builder, names, runs, rep, entry, scored, noise, k, log, scheme)):
             continue  # forward selection goes on from the pair
         if not entry["accepted"]:
             log(f"round {rnd + 1}: best {best.name} removes {best.share:.0%} of the gap: not accepted")
@@ -354,7 +473,8 @@ def _pair_search_due(best: Scored, gap_start: float, noise: float) -> bool:
 
 
 def _search_pairs(state: Selection, builder: fx.ModelBuilder, names: list[str], runs: list[ReplayRun],
-                  rep: Replayer, entry: dict, singles: list[Scored], noise: float, k: int, log) -> bool:
+                  rep: Replayer, entry: dict, singles: list[Scored], noise: float, k: int, log,
+                  scheme: str = "runs") -> bool:
     """Round 1's pair search; True if a pair was accepted (``state`` then holds it).
 
     Effects that mask each other (a loop delay takes damping away, dry friction adds it) are
@@ -366,7 +486,7 @@ def _search_pairs(state: Selection, builder: fx.ModelBuilder, names: list[str], 
     best_single = singles[0]
     log(f"round 1: the best single candidate removes {best_single.share:.0%} and leaves "
         f"{best_single.heldout_gap / max(noise, 1e-300):.1f} x the noise floor: scoring pairs")
-    pairs = sel.score_pairs(builder, runs, rep, state.gap, k=k, candidates=tuple(names), log=log)
+    pairs = sel.score_pairs(builder, runs, rep, state.gap, k=k, candidates=tuple(names), log=log, scheme=scheme)
     best_pair = pairs[0]
     gain = sel.share_of(best_pair.heldout_gap, best_single.heldout_gap)
     pair_ok = (best_pair.share >= sel.MIN_SHARE and gain >= sel.MIN_SHARE
@@ -403,7 +523,7 @@ def _accept_round(state: Selection, rnd: int, entry: dict, scored: list[Scored],
                   runs: list[ReplayRun], rep: Replayer, log) -> None:
     """Accept round ``rnd``'s best set (after the backward step for three or more effects) and
     record one entry per accepted effect."""
-    best, removals = _backward_step(scored[0], entry, rnd, state.gap, builder, runs, rep, log)
+    best, removals = _backward_step(scored[0], entry, rnd, state.gap, builder, runs, rep, log, state.fixed)
     dropped_one = best is not scored[0]
     if state.beam or dropped_one:
         # every member's runner-up is the best scored set without it (this round's sets, the
@@ -414,6 +534,8 @@ def _accept_round(state: Selection, rnd: int, entry: dict, scored: list[Scored],
                 "the effect dropped)")
         state.effect_entries = []
         for eff, (runner_up, margin) in zip(best.effects, sel.member_runner_up(best, pool)):
+            if eff.name in state.fixed:  # a correction of the nominal, reported apart
+                continue
             member = _member_entry(rnd, best, eff.name, runner_up, margin, state.gap, note)
             state.entries.append(member)
             state.effect_entries.append(member)
@@ -424,15 +546,15 @@ def _accept_round(state: Selection, rnd: int, entry: dict, scored: list[Scored],
 
 
 def _backward_step(best: Scored, entry: dict, rnd: int, gap_start: float, builder: fx.ModelBuilder,
-                   runs: list[ReplayRun], rep: Replayer, log) -> tuple[Scored, list[Scored]]:
+                   runs: list[ReplayRun], rep: Replayer, log, fixed: tuple = ()) -> tuple[Scored, list[Scored]]:
     """Floating selection's backward step for a set of three or more effects: a member accepted
     earlier may be a stand-in the new member made redundant (a spring fitted with Coulomb
     friction to part of a backlash's gap); each member is removed in turn, the rest refitted,
     and a member whose removal the full set does not clearly improve on is dropped.  Returns
     the set kept and the scored removals (recorded in ``entry["backward_step"]``)."""
-    if len(best.effects) < 3:
+    if len([e for e in best.effects if e.name not in fixed]) < 3:
         return best, []
-    removals = sel.score_removals(builder, best, runs, rep, gap_start, log=log)
+    removals = sel.score_removals(builder, best, runs, rep, gap_start, log=log, keep=fixed)
     without = removals[0]
     contribution = sel.share_of(best.heldout_gap, without.heldout_gap)
     entry["backward_step"] = {"best_without_one": without.name,
@@ -459,15 +581,33 @@ def estimate(builder: fx.ModelBuilder, best: Scored | None, fit_runs: list[Repla
     return unc, _heldout_theta(builder, best, runs, rep)
 
 
+def whole_run_folds(folds: list[sel.Fold], runs: list[ReplayRun]) -> list[sel.Fold]:
+    """The folds of the fits' (possibly shortened, :func:`_fit_runs`) runs carried over to the
+    whole runs: a run held out whole stays held out whole; a run's samples past the fits'
+    records, which no fit saw, are cut into as many blocks as there are folds, fold ``f``
+    holding out block ``f`` (so every sample is held out by exactly one fold)."""
+    k = len(folds)
+    out = []
+    for f, fold in enumerate(folds):
+        held = []
+        for h, r in zip(fold.held, runs):
+            if h is None or len(h) >= r.n:
+                held.append(h)
+                continue
+            tail = np.zeros(r.n - len(h), bool)
+            if h.all():
+                tail[:] = True
+            else:
+                tail[(f * len(tail)) // k:((f + 1) * len(tail)) // k] = True
+            held.append(np.concatenate([h, tail]))
+        out.append(sel.Fold(tuple(held)))
+    return out
+
+
 def _heldout_theta(builder: fx.ModelBuilder, scored: Scored, runs: list[ReplayRun],
                    rep: Replayer) -> list[np.ndarray]:
     models = [builder.compile(_split(scored.effects, fold_x)) for fold_x in scored.fold_x]
-    pairs = [(f, j) for f, idx in enumerate(scored.folds) for j in idx]
-    th = rep.simulate(models, runs, pairs)
-    out: list = [None] * len(runs)
-    for (f, j), t in zip(pairs, th):
-        out[j] = t
-    return out
+    return sel.heldout_replays(rep, models, runs, whole_run_folds(scored.folds, runs))
 
 
 def _split(effects, x) -> list[tuple]:
@@ -488,7 +628,8 @@ def _patched_spec(builder: fx.ModelBuilder, best: Scored | None) -> mujoco.MjSpe
 
 # -- 4. the report -----------------------------------------------------------------------------
 def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: NominalReplay,
-                    theta_after: list, selection: Selection, unc: dict | None, settings: dict) -> dict:
+                    theta_after: list, selection: Selection, unc: dict | None, settings: dict,
+                    fixed: tuple[str, ...] = ()) -> dict:
     """The content of ``report.json`` (the run-time fields ``mujoco_warnings`` and ``timings``
     are added by :func:`run_discrepancy`)."""
     noise = nominal.noise
@@ -498,12 +639,16 @@ def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: No
     excess_after = math.sqrt(max(gap_after**2 - noise**2, 0.0))
     unexplained = excess_after / excess_before if excess_before > 0 else 0.0
     best = selection.best
-    if best is None:
+    named = [] if best is None else [e for e in best.effects if e.name not in fixed]
+    # "high" confidence needs the gap left at the noise: above it, as if nothing was explained
+    left = unexplained if gap_after <= sel.REMAINDER_FACTOR * noise else 1.0
+    if not named:
         effects = [_none_item(selection.entries, gap_before, noise)]
+        if fixed:
+            effects[0]["reason"] += " (after the nominal's corrections, which are reported apart)"
     else:
-        # "high" confidence needs the gap left at the noise: above it, as if nothing was explained
-        left = unexplained if gap_after <= sel.REMAINDER_FACTOR * noise else 1.0
-        effects = _effect_items(builder, best, selection.effect_entries, unc, left)
+        effects = _effect_items(builder, best, selection.effect_entries, unc, left, fixed)
+    corrections = _correction_items(builder, best, unc, fixed) if fixed else []
     loc_before = localise(runs, nominal.theta)
     loc_after = localise(runs, theta_after)
     rounds = selection.rounds
@@ -512,6 +657,7 @@ def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: No
                for c in (rounds[0] if rounds else []) if c.method != "prescreen"][:3]
     return {
         "effects": effects,
+        "corrections": corrections,
         "gap_before": gap_before,
         "gap_after": gap_after,
         "gap_units": "rad (root of the mean over runs of each run's mean-square replay error; "
@@ -529,6 +675,8 @@ def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: No
         "nearest_candidates": nearest,
         "rounds": selection.entries,
         "candidates": [[_candidate_row(s) for s in round_scored] for round_scored in rounds],
+        "unstable_replays_per_candidate": {s.name: s.unstable for round_scored in rounds
+                                           for s in round_scored if s.unstable},
         "localisation": {"before": loc_before, "after": loc_after},
         "sampling": [sampling(r) for r in runs],
         "settings": settings,
@@ -547,7 +695,7 @@ def sampling(run: ReplayRun) -> dict:
 def _candidate_row(s: Scored) -> dict:
     """One scored candidate as the report lists it."""
     return {"name": s.name, "heldout_gap_rad": s.heldout_gap, "share": s.share,
-            "method": s.method, "prescreen_gap_rad": s.prescreen_gap,
+            "method": s.method, "prescreen_gap_rad": s.prescreen_gap, "unstable_replays": s.unstable,
             "parameters": {p.name: float(v) for e, x in _split(s.effects, s.fit.x)
                            for p, v in zip(e.params, x)}}
 
@@ -584,16 +732,68 @@ def _by_param(effect, values) -> dict:
     return {p.name: float(v) for p, v in zip(effect.params, values)}
 
 
-def _effect_items(builder: fx.ModelBuilder, best: Scored, effect_entries: list[dict], unc: dict,
-                  unexplained: float) -> list[dict]:
-    """The report's entry of every accepted effect: fitted values, nominal values, the 95 %
-    half-width and its parts, the round's share, runner-up, margin and confidence."""
+def _parts(best: Scored) -> list[tuple]:
+    """``(effect, its values, its slice of the parameter vector)`` of every member of ``best``."""
+    out, i = [], 0
+    for eff, x in _split(best.effects, best.fit.x):
+        out.append((eff, x, slice(i, i + eff.nparam)))
+        i += eff.nparam
+    return out
+
+
+def _bound_flags(eff, x) -> dict:
+    """``{parameter: "lower"|"upper"}`` for each value within 1e-6 of its range of a bound."""
+    out = {}
+    for p, v in zip(eff.params, x):
+        tol = 1e-6 * (p.upper - p.lower) if math.isfinite(p.upper - p.lower) else 0.0
+        if v <= p.lower + tol:
+            out[p.name] = "lower"
+        elif v >= p.upper - tol:
+            out[p.name] = "upper"
+    return out
+
+
+def _correction_items(builder: fx.ModelBuilder, best: Scored, unc: dict, fixed: tuple[str, ...]) -> list[dict]:
+    """The report's ``corrections``: each refitted constant of the nominal with the user's value,
+    the fitted one, its 95 % half-width (as the effects'), the factor moved, and a warning when
+    it moved by more than :data:`PLAUSIBLE_FACTOR` or sits on a bound."""
     cover = un.coverage_factor(len(best.folds))
     se, bias = unc["se"], unc["measurement_bias"]
-    items, i = [], 0
-    for (eff, x), entry in zip(_split(best.effects, best.fit.x), effect_entries):
-        part = slice(i, i + eff.nparam)
-        i += eff.nparam
+    out = []
+    for eff, x, part in _parts(best):
+        if eff.name not in fixed:
+            continue
+        nominal = builder.nominal_values(eff)
+        bounds = _bound_flags(eff, x)
+        for p, v, v0, s_, b_ in zip(eff.params, x, nominal, se[part], bias[part]):
+            ratio = float(v / v0) if v0 != 0 else None
+            item = {"effect": eff.name, "parameter": p.name, "unit": p.unit, "nominal": float(v0),
+                    "fitted": float(v), "half_width_95": float(cover * s_ + abs(b_)),
+                    "ratio_to_nominal": ratio, "bounds": [p.lower, p.upper]}
+            notes = []
+            if ratio is not None and (ratio > PLAUSIBLE_FACTOR or ratio < 1 / PLAUSIBLE_FACTOR):
+                notes.append(f"moved x{ratio:.2g} from your value: more than a factor {PLAUSIBLE_FACTOR:g}, "
+                             "check the nominal (or a missing effect it stands in for)")
+            if p.name in bounds:
+                notes.append(f"on its {bounds[p.name]} bound: the interval is not a confidence interval")
+            item["plausible"] = not notes
+            item["at_bound"] = bounds.get(p.name)
+            if notes:
+                item["warning"] = "; ".join(notes)
+            out.append(item)
+    return out
+
+
+def _effect_items(builder: fx.ModelBuilder, best: Scored, effect_entries: list[dict], unc: dict,
+                  unexplained: float, fixed: tuple[str, ...] = ()) -> list[dict]:
+    """The report's entry of every named effect (the corrections apart): fitted values, nominal
+    values, the 95 % half-width and its parts, the round's share, runner-up, margin and
+    confidence."""
+    cover = un.coverage_factor(len(best.folds))
+    se, bias = unc["se"], unc["measurement_bias"]
+    items = []
+    named = [(eff, x, part) for eff, x, part in _parts(best) if eff.name not in fixed]
+    for (eff, x, part), entry in zip(named, effect_entries):
         item = {
             "name": eff.name,
             "description": eff.description,
@@ -621,6 +821,7 @@ def _effect_items(builder: fx.ModelBuilder, best: Scored, effect_entries: list[d
             "runner_up_share": entry["runner_up_share"],
             "margin": entry["margin"],
             "confidence": _confidence(entry["margin"], unexplained),
+            "at_bound": _bound_flags(eff, x),
         }
         if entry.get("tie"):
             item["indistinguishable_from"] = entry["runner_up"]

@@ -14,7 +14,15 @@ transmitted torque or the direction of motion, so the effects write the law's co
   lower efficiency (the friction moment adds to the load instead of the motor), so ``mu_back``
   is larger, 0.2-1 (estimate; actuator-model work on Dynamixel and Feetech servos finds the
   back-driven efficiency markedly lower than the forward one, docs/servo-actuators.md).
-  Bounds 0-2 (2: firmly self-locking).  The nominal model holds 0 (no such law).
+  Bounds from the efficiencies they stand for (:class:`omni_sim.device.DriveFriction`: ``F = Fc +
+  mu |tau|`` with ``tau`` the motor's transmitted torque): driving, the load gets ``tau - F``, a
+  forward efficiency ``1 - mu_drive``; back-driven, the load must supply ``tau + F``, a back-driven
+  efficiency ``1 / (1 + mu_back)``.  ``mu_drive`` 0-0.9 (forward efficiency down to 0.1: a servo
+  that delivers less is not a working drive); ``mu_back`` 0-9 (back-driven efficiency down to
+  0.1: a self-locking train, ``mu_back >= 1`` in this law, that a load can still move; stiffer
+  than that the load never back-drives the motor and the logs cannot tell the coefficient
+  apart).  A bound of 2 was reached by the fit on a Dynamixel-class servo's logs: the bound, not
+  the data, set that value.  The nominal model holds 0 (no such law).
 (The engine's direction-dependent Coulomb law, ``friction_asymmetry``, is not a library
 effect: its case on the independent bank, ``asymmetric_friction`` (the geared servo with
 a = 7.5 mN*m, 25 % of its Coulomb level), failed with the effect in the library (commit
@@ -89,6 +97,6 @@ def _load_grid(x0):
 LOAD_FRICTION_EFFECT = Effect(
     "load_friction",
     "gear friction rising with the transmitted torque, larger when the load back-drives the motor",
-    (Param("mu_drive", "-", 0.0, 2.0, 0.02),
-     Param("mu_back", "-", 0.0, 2.0, 0.02)),
+    (Param("mu_drive", "-", 0.0, 0.9, 0.02),
+     Param("mu_back", "-", 0.0, 9.0, 0.02)),
     _read_load, _write_load, _load_grid, applies=lambda spec, target=OMNI: _geared(spec, target))
