@@ -175,15 +175,22 @@ def _add_zwidth(sub) -> None:
     p.add_argument("--ideal", action="store_true",
                    help="dry friction and encoder quantisation removed, viscous damping kept")
     p.add_argument("--stiffness", default=None, metavar="START:STOP:N|K1,K2,..",
-                   help="wall stiffnesses [N*m/rad] (default: 20 from 0 to 3 b/T, 1.5x Colgate's B=0 bound)")
+                   help="wall stiffnesses [N*m/rad], sorted, duplicates dropped; 0 up to what the "
+                        "drive holds at the start press (default: 20 from 0 to 3 b/T, 1.5x "
+                        "Colgate's B=0 bound)")
     p.add_argument("--damping", default=None, metavar="START:STOP:N|B1,B2,..",
-                   help="wall dampings [N*m*s/rad] (default: 20 from 0 to 1.25 b)")
+                   help="wall dampings [N*m*s/rad], sorted, duplicates dropped; |B| up to what "
+                        "saturates the drive at the probe's speed (default: 20 from 0 to 1.25 b)")
     p.add_argument("--no-quantize", action="store_true", help="exact encoder (default: 15000 counts/rev)")
-    p.add_argument("--delay", type=_nonnegative_int, default=0, help="loop delay [servo periods]")
-    p.add_argument("--substeps", type=_positive_int, default=20, help="physics steps per servo period")
+    p.add_argument("--delay", type=_nonnegative_int, default=0,
+                   help="loop delay [servo periods], below the 300 periods before the energy "
+                        "window (default 0)")
+    p.add_argument("--substeps", type=_positive_int, default=20,
+                   help="physics steps per servo period, 1 to 1000 (default 20)")
     p.add_argument("--probe-speed", type=float, default=0.02, metavar="RAD_PER_S",
                    help="speed of the Nyquist square-wave probe (default 0.02 rad/s: corners of "
-                        "+-1e-5 rad, below one encoder count)")
+                        "+-1e-5 rad, below one encoder count); speed x substeps >= 0.4, and the "
+                        "slowest probe must stay inside the wall (< 1.25 rad/s)")
     p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
     p.add_argument("--out", required=True, metavar="DIR", help="writes DIR/zwidth.json and DIR/zwidth.png")
     p.add_argument("--force", action="store_true", help="replace a non-empty DIR")

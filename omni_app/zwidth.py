@@ -28,15 +28,25 @@ dry, LuGre) minus what the wall generated; it is divided by the viscous damping'
 ``D_b`` over the same steps: ``index = W / D_b``.  A cell is passive iff ``index >= -TOL``
 under every probe (an input that draws net energy out of device and wall proves them active)
 and every run stayed finite and inside the yaw range; for the ideal linear device ``index`` is
-``1 - (K T / 2 + |B|) / b`` (measured: its boundary within 0.2 % of Colgate & Schenkel's at
-every damping row up to 0.99 b).  The largest passive K of a damping row is interpolated where
-``index`` crosses ``-TOL`` (:func:`boundary`).
+``1 - (K T / 2 + |B|) / b`` (measured, ``docs/haptics/zwidth_ideal.json``: its boundary
+lies above Colgate & Schenkel's by at most 1.3 % up to 0.92 b (+0.05 to +1.3 % on those rows),
+7.6 % at 0.99 b).
+The largest passive K of a damping row is interpolated where ``index`` crosses ``-TOL``
+(:func:`boundary`).  A passive cell past a row's first active one (a row that is not monotone)
+is marked ``beyond_boundary`` and explained in the map's ``notes`` (:func:`map_notes`): with
+quantisation and a probe below one encoder count it is not a result.
 
 The physics step is refined to ``T / substeps`` (default 20) for this tool: Colgate & Schenkel's
 plant is continuous between samples, while the model's own 1 ms step equals the servo period.
 
 The hand's torque goes to the yaw through the motor's own channel (the same joint torque,
 held over the period like the wall's); the wall's part alone is clipped to the drive's limit.
+
+**What a map refuses** (:func:`check_map`, before anything runs; each bound's reason is at its
+constant): a stiffness the drive cannot hold at the start press, a damping that saturates the
+drive at the probe's speed, a device without viscous damping (the index is ``W / D_b``), a
+delay reaching into the energy window, a probe leaving the wall, a probe too slow for the
+physics step, more substeps than change a verdict, and a map larger than the memory budget.
 """
 
 from __future__ import annotations
@@ -44,6 +54,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -60,8 +71,9 @@ START_PENETRATION = 0.01
 #: Nyquist response is reached within a few periods, the 0.3 s covers the slower transients).
 DURATION_S = 1.0
 SETTLE_FRACTION = 0.3
-#: Tolerance of the energy test (fraction of the viscous dissipation; our choice, 2 %: the
-#: numerical energy error of the ideal device is far below it).
+#: Tolerance of the energy test (fraction of the viscous dissipation; our choice, 0.1 %: it
+#: moves the boundary by TOL * 2 b / T, 0.014 N*m/rad on the Omni; the method's own error at
+#: the default probe is 0.65 TOL at K = 10 N*m/rad, see MIN_SPEED_X_SUBSTEPS).
 TOL = 1e-3
 #: Half-periods of the probes' velocity square waves [servo periods] (our choice): 1 is the
 #: Nyquist frequency (Colgate & Schenkel's worst case for B >= 0 without delay), 4 and 16 lower
@@ -70,6 +82,23 @@ PROBE_PERIODS = (1, 4, 16)
 #: Physics steps per servo period for the map (the probe's impulse takes one: 1/20 of the
 #: period, so the velocity square wave is within ~3 % of ideal).
 SUBSTEPS = 20
+#: Most physics steps per servo period: the index's error against the ideal device's exact
+#: value ``1 - K T / (2 b)`` falls as 1 / substeps (measured at K = 10 N*m/rad, B = 0, the Nyquist
+#: probe at 0.02 rad/s: -6.5e-4 at 20 substeps, -1.6e-4 at 80, -1.2e-5 at 1000;
+#: tests/test_zwidth.py checks the law), so beyond 1000 it is below 1/80 of TOL and changes no
+#: verdict, while the run time grows in proportion (50 x the default's at 1000).
+MAX_SUBSTEPS = 1000
+#: Least probe speed x substeps [rad/s]: the same error grows as 1 / (V x substeps) (it grows
+#: with START_PENETRATION: a cross-term of the press and the probe; measured as above: -6.1e-4 at
+#: 0.005 rad/s with 80 substeps, against -1.6e-4 at 0.02 rad/s), so the product is held at the
+#: default's, 0.02 x 20, where the error is 0.65 TOL at K = 10; a slower probe needs
+#: proportionally more substeps.
+MIN_SPEED_X_SUBSTEPS = PROBE_SPEED * SUBSTEPS
+#: Memory budget [bytes] of one map: 2 GB, the project's peak-memory target for one command on
+#: the 2-core machine (docs/performance.md).  :func:`map_memory_bytes` estimates a map before it
+#: runs; a larger one is refused (an unbounded 10^8-column grid was killed for its memory
+#: without a message).
+MEMORY_BUDGET_BYTES = 2.0e9
 
 
 def physical_damping(device) -> float:
@@ -84,6 +113,10 @@ def map_device(path=None, friction=None, ideal=False, control_period_s=1e-3, sub
     from omni_sim import model as om
     from omni_sim.device import Device
 
+    if not 1 <= substeps <= MAX_SUBSTEPS:
+        raise UserError(f"--substeps must be 1 to {MAX_SUBSTEPS}, got {substeps}: beyond "
+                        f"{MAX_SUBSTEPS} no verdict changes (the index's step error falls as "
+                        f"1/substeps) and the run time grows in proportion")
     model = om.load_model(path, friction)
     dev0 = Device(model, control_period_s)
     act = dev0.ix.yaw_act
@@ -97,33 +130,138 @@ def map_device(path=None, friction=None, ideal=False, control_period_s=1e-3, sub
     return dev, torque_limit
 
 
+def require_damping(device) -> float:
+    """The yaw's viscous damping b [N*m*s/rad]; a :class:`UserError` if it is not > 0."""
+    b = physical_damping(device)
+    if not b > 0:
+        raise UserError(f"the yaw has no viscous damping (b = {b:g} N*m*s/rad): the map's energy "
+                        f"index W / D_b divides by the viscous dissipation D_b, and Colgate & "
+                        f"Schenkel's bound b > K T/2 + |B| passes no wall; give the yaw joint a "
+                        f"damping > 0")
+    return b
+
+
+def map_memory_bytes(device, n_cells: int, n_probes: int, n_periods: int, delay: int = 0,
+                     record: bool = False) -> float:
+    """Estimated peak memory [bytes] of :func:`passivity_map`: per rollout row (cell x probe)
+    the probes' impulse table (``n_periods`` floats; 3 x that with ``record``'s traces), the
+    engine's state, control and sensor buffers and the period's work arrays (``substeps`` x
+    (nstate + nu + nsensordata + 8) floats), the delay line (``delay`` floats) and 100 more; plus
+    a copy of the model per row where the drive has friction laws (:class:`Engine` steps each
+    row's own).  Measured peak growth on the ideal device: 73.9 MB for 6000 rows of 1000
+    periods (estimate 75.3), 125 MB for 30000 rows of 50 periods (estimate 148)."""
+    m = device.model
+    floats = (n_periods * (3 if record else 1) + device.substeps * (device.nstate + m.nu
+              + m.nsensordata + 8) + device.nstate + delay + 100)
+    per_row = 8.0 * floats + (m.nbuffer if device.drive_friction is not None else 0)
+    return float(n_cells) * n_probes * per_row
+
+
+def check_map(device, stiffness, damping, torque_limit=math.inf, quantize=False, delay=0,
+              probe_speed=PROBE_SPEED, probe_periods=PROBE_PERIODS, duration_s=DURATION_S,
+              record=False) -> None:
+    """Refuse (:class:`UserError`) a map that would test no wall, or not fit in memory, before
+    anything runs; the reasons are at the module's constants."""
+    from omni_sim.device import ENCODER_STEP_RAD
+
+    K, B = np.asarray(stiffness, dtype=float), np.asarray(damping, dtype=float)
+    if K.size < 1 or B.size < 1 or not (np.isfinite(K).all() and np.isfinite(B).all()):
+        raise UserError("stiffness and damping: give finite numbers")
+    if K.min() < 0:
+        raise UserError(f"--stiffness: values must be >= 0, got {K.min():g}")
+    require_damping(device)
+    T, sub = device.control_period_s, device.substeps
+    periods = [int(m) for m in probe_periods]
+    if not periods or min(periods) < 1:
+        raise UserError(f"probe periods must be whole numbers >= 1, got {probe_periods!r}")
+    if not (probe_speed > 0 and math.isfinite(probe_speed)):
+        raise UserError(f"--probe-speed must be a finite speed > 0 [rad/s], got {probe_speed}")
+    v_out = 2.0 * START_PENETRATION / (max(periods) * T)
+    if probe_speed >= v_out:
+        raise UserError(f"--probe-speed {probe_speed:g} rad/s: the slowest probe's triangle "
+                        f"(+-V {max(periods)} T/2) would leave the wall, pressed "
+                        f"{START_PENETRATION} rad deep; give less than {v_out:g} rad/s")
+    if probe_speed * sub < MIN_SPEED_X_SUBSTEPS * (1 - 1e-12):
+        raise UserError(f"--probe-speed {probe_speed:g} rad/s with {sub} substeps: the energy "
+                        f"test's own error grows as 1/(speed x substeps) and would pass its "
+                        f"tolerance near Colgate's bound; give speed x substeps >= "
+                        f"{MIN_SPEED_X_SUBSTEPS:g} rad/s (e.g. --substeps "
+                        f"{math.ceil(MIN_SPEED_X_SUBSTEPS / probe_speed)})")
+    if math.isfinite(torque_limit):
+        k_max = torque_limit / START_PENETRATION
+        if K.max() > k_max:
+            raise UserError(f"--stiffness {K.max():g} N*m/rad: the drive's {torque_limit:g} N*m "
+                            f"cannot hold the start press ({START_PENETRATION} rad) beyond "
+                            f"{k_max:g} N*m/rad, the hand would push through the wall")
+        v_wall = max(probe_speed, ENCODER_STEP_RAD / T) if quantize else probe_speed
+        b_max = torque_limit / v_wall
+        if np.abs(B).max() > b_max:
+            raise UserError(f"--damping {B[np.argmax(np.abs(B))]:g} N*m*s/rad: at {v_wall:g} rad/s "
+                            f"(the {'encoder count per period' if v_wall > probe_speed else 'probe'}"
+                            f"'s speed) the damper alone saturates the drive's {torque_limit:g} "
+                            f"N*m: the map would test the clip; give |B| <= {b_max:g}")
+    n = int(round(duration_s / T))
+    k0 = int(round(SETTLE_FRACTION * n))
+    if not 0 <= delay < k0:
+        raise UserError(f"--delay must be 0 to {k0 - 1} servo periods, got {delay}: the wall must "
+                        f"act before the energy window opens ({SETTLE_FRACTION} of the "
+                        f"{duration_s:g} s run)")
+    need = map_memory_bytes(device, K.size * B.size, len(periods), n, delay, record)
+    if need > MEMORY_BUDGET_BYTES:
+        raise UserError(f"{B.size} x {K.size} walls x {len(periods)} probes need about "
+                        f"{need / 1e9:.1f} GB, above the {MEMORY_BUDGET_BYTES / 1e9:g} GB budget: "
+                        f"give fewer stiffness or damping values")
+
+
 def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=False, delay=0,
                   probe_speed=PROBE_SPEED, probe_periods=PROBE_PERIODS, duration_s=DURATION_S,
-                  gamma_set_deg=(65.0, 90.0), nthread=None, record=False):
-    """Run every (K, B) cell under every probe and decide passivity (see the module doc).
+                  gamma_set_deg=(65.0, 90.0), nthread=None, record=False, progress=False):
+    """Run every (K, B) cell under every probe and decide passivity (see the module doc), after
+    :func:`check_map`.  ``progress``: a bar of the servo periods on stderr (tqdm).
 
     Returns a dict: ``passive`` (len(damping) x len(stiffness) bools), ``index`` (the smallest
     W / D_b over the probes), ``index_per_probe`` (probes x damping x stiffness),
     ``diverged``; with ``record`` also the rows' traces (row = probe-major, then cell)."""
-    from omni_sim.device import ENCODER_STEP_RAD, Engine, encoder_reader
-    from omni_sim.wall_env import wall_torque
-
+    check_map(device, stiffness, damping, torque_limit, quantize, delay, probe_speed,
+              probe_periods, duration_s, record)
     K = np.asarray(stiffness, dtype=float)
     Bv = np.asarray(damping, dtype=float)
     KK, BB = np.meshgrid(K, Bv)  # rows = damping, columns = stiffness
     periods = [int(m) for m in probe_periods]
-    if not periods or min(periods) < 1:
-        raise UserError(f"probe periods must be whole numbers >= 1, got {probe_periods!r}")
     P = len(periods)
     k_row, b_row = np.tile(KK.ravel(), P), np.tile(BB.ravel(), P)
+    W, S, bad, rec = _run_rows(device, k_row, b_row, periods, torque_limit, quantize, delay,
+                               probe_speed, duration_s, gamma_set_deg, nthread, record, progress)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        index = np.where(S > 0, W / np.where(S > 0, S, 1.0), 0.0)
+    index[bad] = -1.0
+    per = index.reshape((P,) + KK.shape)
+    worst = per.min(axis=0)
+    diverged = bad.reshape((P,) + KK.shape).any(axis=0)
+    out = {"passive": (worst >= -TOL) & ~diverged, "index": worst, "index_per_probe": per,
+           "diverged": diverged, "probe_periods": periods}
+    if record:
+        out["trace"] = rec
+    return out
+
+
+def _run_rows(device, k_row, b_row, periods, torque_limit, quantize, delay, probe_speed,
+              duration_s, gamma_set_deg, nthread, record, progress):
+    """Run the rows (cell x probe) of a map: returns the hand's work ``W`` over the energy
+    window less the energy stored at its ends, the viscous dissipation ``S`` [J], the rows that
+    diverged or left the yaw's range, and the traces (with ``record``)."""
+    from tqdm import tqdm
+
+    from omni_sim.device import ENCODER_STEP_RAD, Engine, encoder_reader
+    from omni_sim.wall_env import wall_torque
+
     n_rows = k_row.size
-    T = device.control_period_s
-    kt = device.torque_constant
-    sub = device.substeps
+    T, kt, sub = device.control_period_s, device.torque_constant, device.substeps
     h = T / sub
     wall = 0.0
     theta0 = wall + START_PENETRATION
-    lo, hi = device.model.jnt_range[device.joint_id]
+    jid = device.joint_id
+    lo, hi = device.model.jnt_range[jid] if device.model.jnt_limited[jid] else (-math.inf, math.inf)
     n = int(round(duration_s / T))
     k0 = int(round(SETTLE_FRACTION * n))
     read = encoder_reader(ENCODER_STEP_RAD if quantize else 0.0)
@@ -134,17 +272,20 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
     # alternates about zero)
     inertia = device.inertia(*device.equilibrium(*gamma_set_deg))
     J = 2.0 * probe_speed * inertia
-    imp_row = np.repeat(_probe_impulses(periods, n, J / h), KK.size, axis=0)  # (rows, n)
+    imp_row = np.repeat(_probe_impulses(periods, n, J / h), n_rows // len(periods), axis=0)
     bphys = physical_damping(device)
     eng = Engine([device] * n_rows, [theta0] * n_rows, [gamma_set_deg] * n_rows, nthread=nthread)
+    bar = tqdm(total=n, desc="zwidth", unit="period", disable=not progress, leave=False)
     try:
         y_prev = read(np.full(n_rows, theta0), 0.0)
         queue = [np.zeros(n_rows)] * delay
         W = np.zeros(n_rows)  # the hand's work (probe and push) over the window
         S = np.zeros(n_rows)
         bad = np.zeros(n_rows, dtype=bool)
-        if record:
-            rec = {"theta": np.empty((n_rows, n)), "tau_wall": np.empty((n_rows, n))}
+        rec = ({"theta": np.empty((n_rows, n)), "tau_wall": np.empty((n_rows, n))}
+               if record else None)
+        # the window's start (reset at k0; a batch whose rows all fail before it sums nothing)
+        x_start, v_start = eng.yaw(), eng.yaw_velocity()
         for k in range(n):
             th = eng.yaw()
             if k == k0:
@@ -172,6 +313,7 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
             if record:
                 rec["theta"][:, k], rec["tau_wall"][:, k] = th, tau
             bad |= ~np.isfinite(th1) | (th1 <= lo + 1e-3) | (th1 >= hi - 1e-3)
+            bar.update()
             if bad.all():
                 break
         # the energies stored at the window's ends, taken out of the hand's work: the yaw's
@@ -180,18 +322,9 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
         W -= 0.5 * inertia * (v_end**2 - v_start**2)
         W -= 0.5 * k_row * (np.maximum(x_end - wall, 0.0)**2 - np.maximum(x_start - wall, 0.0)**2)
     finally:
+        bar.close()
         eng.close()
-    with np.errstate(invalid="ignore", divide="ignore"):
-        index = np.where(S > 0, W / np.where(S > 0, S, 1.0), 0.0)
-    index[bad] = -1.0
-    per = index.reshape((P,) + KK.shape)
-    worst = per.min(axis=0)
-    diverged = bad.reshape((P,) + KK.shape).any(axis=0)
-    out = {"passive": (worst >= -TOL) & ~diverged, "index": worst, "index_per_probe": per,
-           "diverged": diverged, "probe_periods": periods}
-    if record:
-        out["trace"] = rec
-    return out
+    return W, S, bad, rec
 
 
 def _probe_impulses(periods, n: int, torque: float) -> np.ndarray:
@@ -215,8 +348,11 @@ def colgate_limit(b: float, B, T: float) -> np.ndarray:
 def boundary(stiffness, index) -> np.ndarray:
     """Per damping row, the stiffness [N*m/rad] where the energy index first falls below
     ``-TOL`` along the row (linear interpolation between grid points; NaN if the first column
-    is already not passive, the last column if the whole row is passive)."""
+    is already not passive, the last column if the whole row is passive).  ``stiffness`` must
+    increase (a ValueError otherwise: along an unsorted row the first crossing is no boundary)."""
     K = np.asarray(stiffness, dtype=float)
+    if np.any(np.diff(K) <= 0):
+        raise ValueError(f"boundary: the stiffness must increase, got {K.tolist()}")
     idx = np.asarray(index, dtype=float) + TOL
     out = np.full(idx.shape[0], np.nan)
     for i, row in enumerate(idx):
@@ -231,53 +367,144 @@ def boundary(stiffness, index) -> np.ndarray:
     return out
 
 
+def beyond_boundary(passive) -> np.ndarray:
+    """The passive cells past their row's first cell that is not passive (the row is not
+    monotone there): same shape as ``passive`` (rows = damping, columns = increasing K)."""
+    P = np.asarray(passive, dtype=bool)
+    past_active = np.cumsum(~P, axis=1) > 0
+    return P & past_active
+
+
+def probe_amplitude_counts(probe_speed: float, probe_periods, T: float) -> dict:
+    """Each probe's corner amplitude ``V m T / 2`` in encoder counts (15000 counts/rev), keyed
+    by its half-period m [servo periods]."""
+    from omni_sim.device import ENCODER_STEP_RAD
+
+    return {str(int(m)): probe_speed * int(m) * T / 2 / ENCODER_STEP_RAD for m in probe_periods}
+
+
+def map_notes(doc: dict) -> list[str]:
+    """What a reader of the map must know that its cells do not say: passive cells beyond the
+    boundary and why, a probe the encoder does not see, a loop delay the probes miss."""
+    s = doc["settings"]
+    beyond = np.array(doc["beyond_boundary"], dtype=bool)
+    counts = max(doc["probe_amplitude_counts"].values())
+    sub_count = s["quantize"] and counts < 1
+    notes = []
+    if beyond.any():
+        rows = [f"{doc['damping'][i]:.3g}" for i in np.flatnonzero(beyond.any(axis=1))]
+        if sub_count:
+            why = ("they come with quantisation and a probe below one encoder count (docs/haptics.md: "
+                   "the exact-encoder maps and the quantised map with a one-count probe have none)")
+        elif s["delay_periods"]:
+            why = "with a loop delay the probes miss the worst frequency (docs/haptics.md)"
+        else:
+            why = "the probes' verdict is not monotone in K there"
+        notes.append(f"{int(beyond.sum())} passive cell(s) lie beyond their row's boundary, past "
+                     f"a wall found active at a lower K (B = {', '.join(rows)}): marked in "
+                     f"beyond_boundary, they are not a result: {why}")
+    if sub_count:
+        notes.append(f"every probe moves less than one encoder count (at most {counts:.2f} counts): "
+                     f"the encoder hardly sees the probe, and the boundary is the quantised loop's, "
+                     f"not Colgate & Schenkel's (docs/haptics.md); the Nyquist probe reaches one "
+                     f"count at --probe-speed {_one_count_speed(doc):.3g} rad/s")
+    if s["delay_periods"]:
+        notes.append(f"a loop delay of {s['delay_periods']} period(s): the probes miss the delayed "
+                     f"wall's worst frequency, so the map is optimistic (docs/haptics.md, delay "
+                     f"caveat)")
+    return notes
+
+
+def _one_count_speed(doc: dict) -> float:
+    """The probe speed [rad/s] at which the Nyquist probe's corners are one count from the
+    centre (``V T / 2`` = one count)."""
+    from omni_sim.device import ENCODER_STEP_RAD
+
+    return 2 * ENCODER_STEP_RAD / doc["sample_period_s"]
+
+
 # --- the command --------------------------------------------------------------------------------
-def _parse_range(text: str, what: str) -> list[float]:
-    """``START:STOP:N`` (N evenly spaced values) or a comma-separated list."""
+def _parse_range(text: str, what: str, max_count: int) -> list[float]:
+    """``START:STOP:N`` (N evenly spaced values) or a comma-separated list; sorted, duplicates
+    dropped; at most ``max_count`` values (checked before any array is made)."""
     try:
         if ":" in text:
             a, b, m = text.split(":")
             m = int(m)
             if m < 1:
                 raise ValueError
-            vals = np.linspace(float(a), float(b), m).tolist()
+            a, b = float(a), float(b)
         else:
             vals = [float(x) for x in text.split(",") if x.strip()]
+            m = len(vals)
     except ValueError:
         raise UserError(f"--{what}: expected START:STOP:N or a comma-separated list of numbers, "
                         f"got {text!r}") from None
+    if m > max_count:
+        raise UserError(f"--{what}: {m} values; a map holds at most {max_count} along one axis "
+                        f"(the {MEMORY_BUDGET_BYTES / 1e9:g} GB memory budget)")
+    if ":" in text:
+        vals = np.linspace(a, b, m).tolist()
     if not vals or not all(math.isfinite(v) for v in vals):
         raise UserError(f"--{what}: values must be finite numbers, got {text!r}")
-    return vals
+    return sorted(set(vals))
+
+
+def _check_out(out: str, force: bool) -> None:
+    """Refuse an output folder :func:`atomic_output_dir` would refuse, before the work."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"{out}: exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise UserError(f"{out}: output folder exists and is not empty (use --force to replace it)")
+    if not out.resolve().parent.is_dir():
+        raise UserError(f"{out}: parent folder {out.resolve().parent} does not exist")
 
 
 def zwidth_command(args) -> int:
-    from identification.dataset import atomic_output_dir
-
     if args.ideal and (args.model or args.friction):
         raise UserError("--ideal uses the built-in scene: not with --model or --friction")
     if args.model and args.friction:
         raise UserError("--model and --friction are exclusive")
+    _check_out(args.out, args.force)
     dev, tlim = map_device(args.model, args.friction, ideal=args.ideal, substeps=args.substeps)
-    b = physical_damping(dev)
+    b = require_damping(dev)
     T = dev.control_period_s
-    K = (_parse_range(args.stiffness, "stiffness") if args.stiffness
+    # one axis may hold all the budget's cells (the other one value); checked before the values
+    # are made
+    n = int(round(DURATION_S / T))
+    max_axis = int(MEMORY_BUDGET_BYTES // map_memory_bytes(dev, 1, len(PROBE_PERIODS), n))
+    K = (_parse_range(args.stiffness, "stiffness", max_axis) if args.stiffness
          else np.linspace(0.0, 3.0 * b / T, 20).tolist())
-    B = (_parse_range(args.damping, "damping") if args.damping
+    B = (_parse_range(args.damping, "damping", max_axis) if args.damping
          else np.linspace(0.0, 1.25 * b, 20).tolist())
     if len(K) < 2:
-        raise UserError("--stiffness: give at least two values")
-    if min(K) < 0:
-        raise UserError(f"--stiffness: values must be >= 0, got {min(K)}")
+        raise UserError("--stiffness: give at least two different values")
     quantize = not args.ideal and not args.no_quantize
     t0 = time.perf_counter()
-    if not (args.probe_speed > 0 and math.isfinite(args.probe_speed)):
-        raise UserError(f"--probe-speed must be a finite speed > 0 [rad/s], got {args.probe_speed}")
     res = passivity_map(dev, K, B, torque_limit=tlim, quantize=quantize, delay=args.delay,
-                        probe_speed=args.probe_speed, nthread=args.jobs)
+                        probe_speed=args.probe_speed, nthread=args.jobs,
+                        progress=sys.stderr.isatty())
     elapsed = time.perf_counter() - t0
+    doc = _map_doc(args, dev, K, B, res, quantize, tlim, elapsed)
+    from identification.dataset import atomic_output_dir
+
+    with atomic_output_dir(args.out, force=args.force) as tmp:
+        (tmp / "zwidth.json").write_text(json.dumps(doc, indent=1) + "\n")
+        plot_map(doc, tmp / "zwidth.png")
+    print(f"zwidth: {len(B)} x {len(K)} walls in {elapsed:.1f} s; b = {b:.4g} N*m*s/rad, "
+          f"T = {T:g} s; wrote {Path(args.out) / 'zwidth.json'}, zwidth.png")
+    for note in doc["notes"]:
+        print(f"note: {note}")
+    return 0
+
+
+def _map_doc(args, dev, K, B, res, quantize, tlim, elapsed) -> dict:
+    """The map's JSON document (the contract's keys first, then the extras and the notes)."""
+    from omni_sim.device import ENCODER_STEP_RAD
     from omni_sim.model import model_path
 
+    b, T = physical_damping(dev), dev.control_period_s
     family = "ideal" if args.ideal else dev.friction_family(
         None if args.model else model_path(None, args.friction))
     doc = {
@@ -290,33 +517,39 @@ def zwidth_command(args) -> int:
                      "probe_periods": list(PROBE_PERIODS),
                      "start_penetration_rad": START_PENETRATION, "duration_s": DURATION_S,
                      "settle_fraction": SETTLE_FRACTION, "tolerance": TOL,
-                     "torque_limit": tlim, "elapsed_s": round(elapsed, 2)},
+                     "torque_limit": tlim, "encoder_step_rad": ENCODER_STEP_RAD,
+                     "elapsed_s": round(elapsed, 2)},
         "energy_index": res["index"].round(6).tolist(),
         "energy_index_per_probe": {str(m): x.round(6).tolist()
                                    for m, x in zip(res["probe_periods"], res["index_per_probe"])},
         "boundary_stiffness": [None if not np.isfinite(x) else x for x in boundary(K, res["index"])],
         "colgate_stiffness": colgate_limit(b, B, T).tolist(),
+        "beyond_boundary": beyond_boundary(res["passive"]).tolist(),
+        "probe_amplitude_counts": probe_amplitude_counts(args.probe_speed, PROBE_PERIODS, T),
     }
-    with atomic_output_dir(args.out, force=args.force) as tmp:
-        (tmp / "zwidth.json").write_text(json.dumps(doc, indent=1) + "\n")
-        plot_map(doc, tmp / "zwidth.png")
-    print(f"zwidth: {len(B)} x {len(K)} walls in {elapsed:.1f} s; b = {b:.4g} N*m*s/rad, "
-          f"T = {T:g} s; wrote {Path(args.out) / 'zwidth.json'}, zwidth.png")
-    return 0
+    doc["notes"] = map_notes(doc)
+    return doc
 
 
 def plot_map(doc: dict, path: Path) -> None:
+    """The map's figure: passive and active cells, the cells beyond the boundary (not a result),
+    Colgate & Schenkel's line, the measured boundary, and the map's notes in short."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     K, B = np.array(doc["stiffness"]), np.array(doc["damping"])
     P = np.array(doc["passive"], dtype=bool)
+    X = beyond_boundary(P)
     b, T = doc["physical_damping"], doc["sample_period_s"]
-    fig, ax = plt.subplots(figsize=(6, 4.5))
+    short = _figure_note(doc)
+    fig, ax = plt.subplots(figsize=(6, 4.9 if short else 4.5))
     KK, BB = np.meshgrid(K, B)
-    ax.scatter(KK[P], BB[P], s=18, c="tab:green", marker="o", label="passive")
+    ax.scatter(KK[P & ~X], BB[P & ~X], s=18, c="tab:green", marker="o", label="passive")
     ax.scatter(KK[~P], BB[~P], s=18, c="tab:red", marker="x", label="not passive")
+    if X.any():
+        ax.scatter(KK[X], BB[X], s=40, facecolors="none", edgecolors="tab:orange", marker="o",
+                   linewidths=1.5, label="passive beyond the boundary: not a result")
     bb = np.linspace(min(B.min(), 0), B.max(), 200)
     ax.plot(colgate_limit(b, bb, T), bb, "k-", label="Colgate & Schenkel: b = K T/2 + |B|")
     kb = np.array([np.nan if x is None else x for x in doc["boundary_stiffness"]], dtype=float)
@@ -327,6 +560,28 @@ def plot_map(doc: dict, path: Path) -> None:
     ax.set_title(f"Z-width, {s['friction']}, T = {T * 1e3:g} ms, b = {b:.3g}, "
                  f"q={'on' if s['quantize'] else 'off'}, delay {s['delay_periods']}", fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
+    if short:
+        fig.text(0.01, 0.01, short, fontsize=7, color="tab:orange", va="bottom", wrap=True)
+        fig.tight_layout(rect=(0, 0.06, 1, 1))
+    else:
+        fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _figure_note(doc: dict) -> str:
+    """The figure's footnote: the notes that change how the map reads, in short (from the map's
+    cells and settings, so that a record written before the notes plots the same way)."""
+    s = doc["settings"]
+    counts = max(probe_amplitude_counts(s["probe_speed"], s["probe_periods"],
+                                        doc["sample_period_s"]).values())
+    n_beyond = int(beyond_boundary(doc["passive"]).sum())
+    parts = []
+    if s["quantize"] and counts < 1:
+        parts.append(f"every probe below one encoder count (at most {counts:.2f} counts): the "
+                     f"boundary is the quantised loop's")
+    if n_beyond:
+        parts.append(f"{n_beyond} passive cell(s) beyond the boundary (orange) are not a result")
+    if s["delay_periods"]:
+        parts.append("loop delay: the map is optimistic")
+    return "; ".join(parts)
