@@ -138,6 +138,16 @@ def _add_discrepancy(sub) -> None:
                    help="the actuator driving --joint, whose control is the P law's command "
                         "kp*(r - theta) clipped to the metadata's command_limit if given and to the "
                         "actuator's ctrlrange (default: yaw_motor)")
+    p.add_argument("--folds", default="blocked", choices=("blocked", "runs"),
+                   help="how candidates are scored held out: 'blocked' (default) fits on time blocks "
+                        "of every run and predicts the others, so four runs of four different "
+                        "experiments suffice; 'runs' holds out whole runs. The report gives both")
+    p.add_argument("--corrections", default="auto", metavar="auto|default|none|NAME,..",
+                   help="the nominal's constants refitted jointly with every candidate and reported "
+                        "apart from the named effects: 'default' = armature, viscous_damping, "
+                        "coulomb_friction, torque_gain, position_offset; 'auto' (default) = 'default' "
+                        "with --joint/--actuator (your own device), 'none' on the virtual Omni; or a "
+                        "comma-separated list of library names")
     p.add_argument("--out", default=None, help="output folder")
     p.add_argument("--demo", action="store_true", help="hide an effect in a copy of the virtual Omni and find it")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
@@ -148,6 +158,9 @@ def _add_bench(sub) -> None:
     p.add_argument("--out", default=None, help="write the figures as JSON to this file")
     _friction_option(p, what="the campaign and reproduce figures on: ")
     p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
+    p.add_argument("--only", default=None, choices=("discrepancy_servo",),
+                   help="measure this one figure alone (discrepancy_servo: omni discrepancy on the "
+                        "geared-servo bank case with its nominal off, 12 runs of 6 s)")
     p.add_argument("--discrepancy-campaign", action="store_true",
                    help="also time omni discrepancy on the whole paper campaign (106 runs) with the "
                         "whole effect library (takes minutes)")

@@ -85,7 +85,8 @@ def bench(args: argparse.Namespace) -> int:
     if args.out:
         check_output_file(args.out)
     figures = run_bench(jobs=jobs, friction=getattr(args, "friction", None),
-                        discrepancy_campaign=getattr(args, "discrepancy_campaign", False))
+                        discrepancy_campaign=getattr(args, "discrepancy_campaign", False),
+                        only=getattr(args, "only", None))
     text = json.dumps(figures, indent=2, sort_keys=True)
     print(text)
     if args.out:

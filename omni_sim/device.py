@@ -543,6 +543,27 @@ def _pose(gamma_set_deg):
     return None if gamma_set_deg is None else tuple(gamma_set_deg)
 
 
+#: MuJoCo's warnings of an unstable state (it resets the data when it issues one).
+_INSTABILITY = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
+                mujoco.mjtWarning.mjWARN_BADQPOS)
+
+
+def _instability_warnings(datas) -> int:
+    """How many instability warnings these ``MjData`` have issued so far."""
+    return sum(int(d.warning[w].number) for d in datas for w in _INSTABILITY)
+
+
+def _warns(model: mujoco.MjModel, state: np.ndarray, ctrl: np.ndarray) -> bool:
+    """Whether one control period from ``state`` under ``ctrl`` (substeps x nu) makes MuJoCo
+    reset the data (a fresh ``MjData``; the same steps as the rollout's)."""
+    d = mujoco.MjData(model)
+    mujoco.mj_setState(model, d, state, STATE_SPEC)
+    for u in ctrl:
+        d.ctrl[:] = u
+        mujoco.mj_step(model, d)
+    return _instability_warnings([d]) > 0
+
+
 class Engine:
     """The closed loop of B virtual devices, advanced one control period at a time.
 
@@ -608,7 +629,6 @@ class Engine:
             self._data = d0.start_data(float(theta0_rad[0]), _pose(gamma_set_deg[0]), data)
             self._m1 = m1
             self._vmax1 = float(self.vmax[0])
-            self._period1 = m1.opt.timestep * self.substeps
             self.unstable = np.zeros(1, bool)  # see the batch's below
             self._own_pool = False
             self.pool = None
@@ -714,10 +734,10 @@ class Engine:
             if self._laws:
                 self._set_friction()
             d.ctrl[self._yaw_act] = vk
-            t_before = d.time
+            warned = _instability_warnings([d])
             for _ in range(self.substeps):
                 mujoco.mj_step(m, d)
-            if d.time < t_before + 0.5 * self._period1:
+            if _instability_warnings([d]) > warned:
                 self.unstable[0] = True
             if self._laws and self._laws.sensor[0] >= 0:
                 self._force[0] = d.sensordata[self._laws.sensor[0]]
@@ -750,12 +770,27 @@ class Engine:
             self._models = [mo if (on is None or on[b]) else off[b] for b, mo in enumerate(self._on_models)]
         if self._laws:
             self._set_friction()
-        t_before = self.x[:, 0]
-        self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
-                          skip_checks=True, state=self._state, sensordata=self._sens,
-                          chunk_size=self._chunk)
+        x_before = self.x
+        first = x_before[:, 0] < 0.5 * self._period
+        warnings = []
+        if first.any():  # count MuJoCo's warnings of this period (the handler chains to the caller's)
+            prev = mujoco.get_mju_user_warning()
+            mujoco.set_mju_user_warning(lambda msg: (warnings.append(msg), prev and prev(msg)))
+        try:
+            self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
+                              skip_checks=True, state=self._state, sensordata=self._sens,
+                              chunk_size=self._chunk)
+        finally:
+            if first.any():
+                mujoco.set_mju_user_warning(prev)
         self.x = self._state[:, -1, :].copy()
-        self.unstable |= self.x[:, 0] < t_before + 0.5 * self._period
+        self.unstable |= self.x[:, 0] < x_before[:, 0] + 0.5 * self._period
+        if warnings:
+            # a reset at a row's very first physics step leaves its time as expected: the rows
+            # in their first period are stepped again one by one, each on its own MjData, to see
+            # which of them warned
+            self.unstable[first] |= [_warns(self._models[b], x_before[b], self._ctrl[b])
+                                     for b in np.flatnonzero(first)]
         if self._laws and np.any(self._laws.sensor >= 0):
             adr = self._laws.sensor
             self._force = np.where(adr >= 0, self._sens[np.arange(self.B), -1, np.maximum(adr, 0)], 0.0)

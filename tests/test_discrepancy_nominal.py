@@ -1,0 +1,224 @@
+"""The discrepancy workflow on a nominal that is uncertain too (docs/discrepancy.md, "Your own
+robot"): the corrections of the nominal's constants, the folds of time blocks beside folds of
+runs, replays that go unstable (excluded and counted, never scored), parameters on their bounds,
+and the bank's check of the corrections.  The whole geared-servo cases run in the bank
+(tests/test_discrepancy_bank.py, slow)."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from identification.errors import UserError
+from omni_app.cli import main
+from omni_sim import model as om
+from omni_sim.device import Device, Engine, run_p_loop
+from omni_sim.discrepancy import effects as fx
+from omni_sim.discrepancy import hidden
+from omni_sim.discrepancy import select as sel
+from omni_sim.discrepancy.fit import UNSTABLE_PENALTY_RAD, Problem, gap
+from omni_sim.discrepancy.replay import Replayer
+from omni_sim.discrepancy.runs import ReplayRun
+from omni_sim.discrepancy.workflow import (DEFAULT_CORRECTIONS, _bound_flags, correction_names,
+                                           whole_run_folds)
+
+PENDULUM = om.Target("pivot", "servo")
+
+
+def _run(n: int, name: str = "r", period: float = 1e-3) -> ReplayRun:
+    t = np.arange(n) * period
+    r = 0.1 * np.sin(2 * np.pi * t)
+    return ReplayRun(name, "other", t, r, r.copy(), np.zeros(n), period, 10.0, (), 0.0, 0.1, {}, period)
+
+
+# -- folds ----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("scheme", sel.FOLD_SCHEMES)
+@pytest.mark.parametrize("lengths", [(100, 100, 100, 100), (37, 1000, 251), (10, 11)])
+def test_every_sample_is_held_out_exactly_once(scheme, lengths):
+    """Whatever the scheme, each sample of each run is held out by exactly one fold, and a fold
+    never trains on what it holds out."""
+    runs = [_run(n, f"r{i}") for i, n in enumerate(lengths)]
+    folds = sel.make_folds(runs, 5, scheme)
+    for j, r in enumerate(runs):
+        count = np.zeros(r.n, int)
+        for f in folds:
+            if f.held[j] is not None:
+                count += f.held[j]
+        assert np.all(count == 1), (scheme, j)
+    for f in folds:
+        idx, masks = f.train()
+        for j, m in zip(idx, masks):
+            if m is not None:
+                assert not np.any(m & f.held[j])
+
+
+def test_blocked_folds_train_on_every_run():
+    """Four runs of four kinds: every blocked fold's fit sees all four (a fold of runs sees three)."""
+    runs = [_run(200, f"r{i}") for i in range(4)]
+    assert all(len(f.train()[0]) == 4 for f in sel.block_folds(runs, 5))
+    assert all(len(f.train()[0]) == 3 for f in sel.run_folds(runs, 4))
+
+
+def test_block_folds_are_contiguous_blocks():
+    held = sel.block_folds([_run(10)], 5)[2].held[0]
+    assert held.tolist() == [False] * 4 + [True] * 2 + [False] * 4
+
+
+@pytest.mark.parametrize("scheme", sel.FOLD_SCHEMES)
+def test_whole_run_folds_extend_the_fits_records(scheme):
+    """Folds made on the fits' shortened records, carried to the whole runs: still every sample
+    held out once, and the fits' samples held out by the same fold as before."""
+    whole = [_run(500, "a"), _run(300, "b"), _run(400, "c")]
+    short = [r.truncated(120) for r in whole]
+    folds = sel.make_folds(short, 3, scheme)
+    ext = whole_run_folds(folds, whole)
+    for j, r in enumerate(whole):
+        count = sum(f.held[j].astype(int) for f in ext if f.held[j] is not None)
+        assert np.all(count == 1)
+        for f, g in zip(folds, ext):
+            if f.held[j] is not None:
+                assert np.array_equal(g.held[j][:120], f.held[j])
+
+
+def test_first_seconds_counts_time_not_samples():
+    """The prescreen's short records are one second of the run whatever the log rate: 1000
+    samples at 1 kHz (the Omni's 1000), 50 at 50 Hz."""
+    assert _run(3000).first_seconds(1.0).n == 1000
+    assert _run(300, period=0.02).first_seconds(1.0).n == 50
+
+
+# -- unstable replays -----------------------------------------------------------------------------
+_UNSTABLE_XML = """<mujoco><option timestep="0.001" integrator="Euler"/><worldbody><body>
+<joint name="pivot" type="hinge" axis="0 1 0" stiffness="{k}"/><geom size="0.02" mass="0.01" pos="0 0 -0.1"/>
+</body></worldbody><actuator><motor name="servo" joint="pivot" ctrlrange="-1 1"/></actuator></mujoco>"""
+
+
+def _models():
+    stable = mujoco.MjModel.from_xml_string(_UNSTABLE_XML.format(k=1.0))
+    unstable = mujoco.MjModel.from_xml_string(_UNSTABLE_XML.format(k=1e9))  # explodes at 1 ms
+    return stable, unstable
+
+
+def test_engine_flags_the_rows_mujoco_reset():
+    """MuJoCo resets an unstable row and warns without naming it; the engine flags exactly that
+    row (its time fell back), whether it steps a batch or one row."""
+    stable, unstable = _models()
+    devs = [Device(m, target=PENDULUM) for m in (stable, unstable, stable)]
+    warned = []
+    prev = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(warned.append)
+    try:
+        eng = Engine(devs, [0.05] * 3, [()] * 3, nthread=1)
+        out = run_p_loop(eng, np.zeros((3, 50)), 10.0)
+        one = Engine([devs[1]], [0.05], [()])
+        out1 = run_p_loop(one, np.zeros((1, 50)), 10.0)
+    finally:
+        mujoco.set_mju_user_warning(prev)
+    assert warned  # MuJoCo did find the instability
+    assert out["unstable"].tolist() == [False, True, False]
+    assert out1["unstable"].tolist() == [True]
+
+
+def test_unstable_replays_are_excluded_never_scored():
+    """The replay returns an unstable row as NaN and counts it; its gap is inf (never a score);
+    a fit sees the barrier UNSTABLE_PENALTY_RAD instead of NaN."""
+    stable, unstable = _models()
+    run = _run(60)
+    with Replayer(1, PENDULUM, 1e-3) as rep:
+        th = rep.simulate([stable, unstable], [run])
+        assert rep.unstable_replays == 1
+    assert np.all(np.isfinite(th[0])) and np.all(np.isnan(th[1]))
+    assert math.isfinite(gap([th[0] - run.theta])) and gap([th[1] - run.theta]) == math.inf
+    prob = Problem(None, [], [], [run], None)
+    assert np.all(prob.weighted([th[1] - run.theta]) == UNSTABLE_PENALTY_RAD * prob.weights[0])
+
+
+# -- corrections ----------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def servo_spec():
+    return mujoco.MjSpec.from_file(str(hidden.servo_truth.model_path()))
+
+
+def test_correction_names(servo_spec):
+    """auto: the default set on a user's device, none on the virtual Omni; only constants the
+    nominal states (the servo pendulum has no offset: position_offset is a candidate effect);
+    an explicit list is honoured; an unknown name is a user error."""
+    omni = mujoco.MjSpec.from_file(str(om.DEFAULT_SCENE))
+    assert correction_names("auto", omni, om.OMNI, own_device=False) == ()
+    auto = correction_names("auto", servo_spec, PENDULUM, own_device=True)
+    assert auto == ("armature", "viscous_damping", "coulomb_friction", "torque_gain")
+    assert set(auto) < set(DEFAULT_CORRECTIONS)
+    assert correction_names("default", servo_spec, PENDULUM, own_device=False) == auto
+    assert correction_names("none", servo_spec, PENDULUM, own_device=True) == ()
+    assert correction_names(("armature", "position_offset"), servo_spec, PENDULUM, True) == (
+        "armature", "position_offset")
+    with pytest.raises(UserError, match="unknown correction"):
+        correction_names(("inertia",), servo_spec, PENDULUM, True)
+
+
+def test_bound_flags():
+    eff = fx.get("load_friction")
+    assert _bound_flags(eff, [0.2, 9.0]) == {"mu_back": "upper"}
+    assert _bound_flags(eff, [0.0, 0.5]) == {"mu_drive": "lower"}
+    assert _bound_flags(eff, [0.2, 0.5]) == {}
+
+
+def test_load_friction_bounds_admit_self_locking():
+    """mu_back above 1 (a self-locking train in this law) is inside the bounds, up to a back-driven
+    efficiency of 0.1; mu_drive below 1 (a drive that passes some torque)."""
+    lo, hi = fx.get("load_friction").bounds()
+    assert hi[1] == pytest.approx(1 / 0.1 - 1) and hi[1] > 1
+    assert hi[0] == pytest.approx(1 - 0.1) and lo.tolist() == [0.0, 0.0]
+
+
+def test_cli_refuses_an_unknown_correction_before_work(tmp_path, capsys):
+    assert main(["discrepancy", "--measured", str(tmp_path), "--model", str(hidden.servo_truth.model_path()),
+                 "--joint", "pivot", "--actuator", "servo", "--corrections", "armature,inertia",
+                 "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "inertia" in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+# -- the bank's check of the corrections ----------------------------------------------------------
+def _report(fitted: dict, half: float, named=("load_friction",)) -> dict:
+    truth = dict(hidden.case("load_friction_nominal_off").effects)
+    effects = [{"name": n, "confidence": "high",
+                "parameters": {"mu_drive": truth[n][0], "mu_back": truth[n][1]},
+                "uncertainty": {"mu_drive": 0.05, "mu_back": 0.05}} for n in named]
+    corrections = [{"effect": hidden.CORRECTED_BY[a][0], "parameter": hidden.CORRECTED_BY[a][1],
+                    "fitted": v, "half_width_95": half} for a, v in fitted.items()]
+    return {"effects": effects or [{"name": "none"}], "corrections": corrections, "shrink_factor": 10.0}
+
+
+def test_assess_checks_the_corrections_against_the_truth():
+    """The truth of the nominal's wrong constants is read from the truth's own model file (2.5e-3
+    kg*m^2, 0.03 N*m); a correction must cover it with its 95 % half-width."""
+    case = hidden.case("load_friction_nominal_off")
+    assert hidden.truth_joint(case) == {"armature": 2.5e-3, "frictionloss": 0.03}
+    good = {"armature": 2.6e-3, "frictionloss": 0.031}
+    assert hidden.assess(case, _report(good, 2e-3))[0]
+    ok, why = hidden.assess(case, _report({"armature": 5.6e-3, "frictionloss": 0.031}, 1e-3))
+    assert not ok and "armature" in why
+    ok, why = hidden.assess(case, _report({"armature": 2.5e-3}, 1e-3))
+    assert not ok and "frictionloss" in why
+    null = hidden.case("nominal_off")
+    assert hidden.assess(null, _report(good, 2e-3, named=()))[0]
+    assert not hidden.assess(null, _report(good, 2e-3))[0]  # an effect named where none is hidden
+
+
+def test_nominal_off_is_the_truth_with_the_stated_constants():
+    """The model the workflow is given differs from the truth's file in the two stated joint
+    attributes only."""
+    case = hidden.case("load_friction_nominal_off")
+    path, target = hidden.nominal(case)
+    off = mujoco.MjModel.from_xml_path(str(path))
+    truth = mujoco.MjModel.from_xml_path(str(hidden.servo_truth.model_path()))
+    assert target == PENDULUM
+    assert off.dof_armature.tolist() == [5.6e-3] and off.dof_frictionloss.tolist() == [0.018]
+    for field in ("dof_damping", "body_mass", "actuator_gainprm", "actuator_biasprm", "opt.timestep"):
+        a, b = (np.asarray(eval(f"m.{field}")) for m in (off, truth))
+        assert np.array_equal(a, b), field
