@@ -86,8 +86,12 @@ CACHE_SAMPLES = 4_000_000
 #: grid of thousands of models on long runs is stepped in batches of this size, so that its
 #: command, angle and reference arrays (8 bytes each) stay near 32 MB each.
 BATCH_SAMPLES = 4_000_000
-#: Devices (compiled models with their start-state caches) a :class:`Replayer` keeps.
-MAX_DEVICES = 512
+#: Devices (compiled models with their start-state caches) a :class:`Replayer` keeps: 64, the
+#: models of a few batches (a fit's point and its perturbations, a fold's).  Each holds its
+#: compiled model, a scratch ``MjData`` and its torque-off copy: 0.66 MB measured for the
+#: geared-servo pendulum, so the former 512 held 340 MB; a device evicted is rebuilt (its model
+#: is compiled already; the start state is a few ``mj_forward`` calls).
+MAX_DEVICES = 64
 
 
 def prepare_runs(runs: list[Run], device: Device, source: str = "measured data") -> list[ReplayRun]:

@@ -355,9 +355,11 @@ def score_round(builder, accepted: list, accepted_x: np.ndarray,
     if bases:
         jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or builder.names)
                 if n not in [e.name for e in b]]
+    if accepted and not bases:  # the set so far, fitted and scored exactly as every candidate
+        jobs = [(list(accepted), accepted_x, n) for n in names] + [(list(accepted), accepted_x, None)]
     pre = prescreen(builder, accepted, accepted_x, names, runs, rep,
                     seconds=prescreen_s, log=log, jobs=jobs)
-    keep = {c.name for c in pre[:n_screen]}
+    keep = {c.name for c in [c for c in pre if c.name != NULL][:n_screen]} | {NULL}
     scored: list[Scored] = []
     for c in pre:
         if c.name not in keep:
@@ -373,9 +375,22 @@ def score_round(builder, accepted: list, accepted_x: np.ndarray,
         sc.prescreen_gap = c.gap
         sc.unstable += c.unstable
         scored.append(sc)
-    return _confirm_best(scored, n_confirm, builder, runs, rep, folds, gap_start, log)
+    null = [sc for sc in scored if sc.name == NULL]
+    if not null:
+        return _confirm_best(scored, n_confirm, builder, runs, rep, folds, gap_start, log)
+    # the set so far is always confirmed, and each share is against its held-out gap: a candidate
+    # must beat the set re-fitted with the same effort, not the set as the last round left it
+    _confirm(builder, null[0], runs, rep, folds, gap_start, log)
+    out = _confirm_best([sc for sc in scored if sc.name != NULL], n_confirm, builder, runs, rep, folds,
+                        gap_start, log)
+    for sc in out + null:
+        sc.share = share_of(sc.heldout_gap, null[0].heldout_gap)
+    return sorted(out + null, key=lambda sc: sc.heldout_gap)
 
 
+#: The candidate of a round that adds no effect: the set accepted so far, fitted and scored like
+#: every candidate, the reference of the round's shares (:func:`score_round`).
+NULL = "(no new effect)"
 #: Length [s] of the short records on which every candidate is prescreened (1 s: a step edge and
 #: its settling, or 1.5-3.5 cycles of a 1.5-3.5 Hz sine from the start; half of an Omni bank
 #: run, a sixth of a paper-campaign sine, a fifth of a geared-servo bank run).  In seconds, not
@@ -418,9 +433,10 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
     """
     t0 = time.perf_counter()
     short = [r.first_seconds(seconds) for r in runs]
-    beam = jobs is not None
+    beam = jobs is not None and not any(n is None for _, _, n in jobs)
     jobs = [(list(accepted), accepted_x, n) for n in names] if jobs is None else jobs
-    labels = ["+".join([e.name for e in b] + [n]) if beam else n for b, _, n in jobs]
+    labels = ["+".join([e.name for e in b] + [n]) if beam and n is not None else (n or NULL)
+              for b, _, n in jobs]
     probs, x0s, grids = [], [], []
     for base, base_x, name in jobs:
         prob, x0, pts = _candidate_grid(builder, base, base_x, name, short, rep)
@@ -442,7 +458,12 @@ def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: li
                     rep) -> tuple[Problem, np.ndarray, list[np.ndarray]]:
     """The problem of ``base`` + candidate ``name`` on ``runs``, its start (``base_x``, the
     candidate at its nominal values) and its starting grid: the candidate's grid with the base
-    at ``base_x``, then the start itself."""
+    at ``base_x``, then the start itself.  ``name`` None: the base alone (:data:`NULL`), from
+    ``base_x``."""
+    if name is None:
+        prob = Problem(builder, [], list(base), runs, rep)
+        x0 = np.clip(np.asarray(base_x, float), prob.lower, prob.upper)
+        return prob, x0, [x0]
     eff = builder.effect(name)
     prob = Problem(builder, [], list(base) + [eff], runs, rep)
     x0 = np.clip(np.concatenate([np.asarray(base_x, float), builder.nominal_values(eff)]),
@@ -551,14 +572,15 @@ def _confirm_best(scored: list[Scored], n_confirm: int, builder, runs, rep, fold
     return confirmed + scored[n_confirm:]
 
 
-def _confirm(builder, s: Scored, runs, rep, folds, gap_start: float, log=None) -> None:
+def _confirm(builder, s: Scored, runs, rep, folds, gap_start: float, log=None,
+             nfev: int | None = None) -> None:
     """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
     t0 = time.perf_counter()
     prob = Problem(builder, [], s.effects, runs, rep)
     # the screening fit already simulated its end point (same model, runs and effects): the
     # converging fit starts there without simulating it again
     prob.seed(s.fit)
-    s.fit = prob.fit(s.fit.x, None, max_nfev=CONFIRM_NFEV)  # converge the all-runs fit
+    s.fit = prob.fit(s.fit.x, None, max_nfev=nfev or CONFIRM_NFEV)  # converge the all-runs fit
     # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
     # minimum wherever it started; the basin search moves it to the basin's centre
     s.fit = prob.polish(s.fit)

@@ -406,6 +406,7 @@ def select_effects(builder: fx.ModelBuilder, candidates: tuple[str, ...], runs: 
                                  candidates=tuple(candidates if state.beam else names), log=log,
                                  bases=state.beam, scheme=scheme)
         state.rounds.append(scored)
+        _take_null(state, scored)
         entry = _round_entry(rnd, scored, state.gap, noise)
         state.entries.append(entry)
         best = scored[0]
@@ -419,6 +420,19 @@ def select_effects(builder: fx.ModelBuilder, candidates: tuple[str, ...], runs: 
             f"{entry['runner_up']}, margin {entry['margin']:.2f})")
         _accept_round(state, rnd, entry, scored, builder, runs, rep, log)
     return state
+
+
+def _take_null(state: Selection, scored: list[Scored]) -> None:
+    """The round's :data:`~omni_sim.discrepancy.select.NULL` candidate is the accepted set fitted
+    again with the round's effort: it becomes the accepted set (its fit and folds) and its
+    held-out gap the round's start, against which the candidates' shares were taken."""
+    null = [s for s in scored if s.name == sel.NULL]
+    if null and state.best is not None:
+        n = null[0]
+        state.best.fit, state.best.fold_x, state.best.folds = n.fit, n.fold_x, n.folds
+        state.best.heldout_raw, state.best.heldout_gap = n.heldout_raw, n.heldout_gap
+        state.best.unstable += n.unstable
+        state.gap = n.heldout_gap
 
 
 def _round_due(state: Selection, rnd: int, noise: float, log) -> bool:
@@ -444,7 +458,7 @@ def _round_entry(rnd: int, scored: list[Scored], gap_start: float, noise: float)
              "runner_up_share": runner.share if runner else None, "margin": margin,
              "gap_start_rad": gap_start, "gap_heldout_rad": best.heldout_gap,
              "accepted": bool(ok)}
-    if runner and margin < sel.TIE_MARGIN:
+    if runner and margin < sel.TIE_MARGIN and sel.NULL not in (best.name, runner.name):
         entry["tie"] = True
         entry["separating_experiment"] = fx.separating_experiment(best.name, runner.name)
     return entry
@@ -654,7 +668,7 @@ def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: No
     rounds = selection.rounds
     # the library's nearest candidates (round 1, held-out share), for a gap left unexplained
     nearest = [{"name": c.name, "share": c.share, "confidence": "low"}
-               for c in (rounds[0] if rounds else []) if c.method != "prescreen"][:3]
+               for c in (rounds[0] if rounds else []) if c.method != "prescreen" and c.name != sel.NULL][:3]
     return {
         "effects": effects,
         "corrections": corrections,
