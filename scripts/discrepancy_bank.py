@@ -224,6 +224,49 @@ def _fmt_fit(e: dict) -> str:
     return ", ".join(f"{p} {v:.4g} ± {e['uncertainty'][p]:.2g}" for p, v in e["parameters"].items())
 
 
+def _efficiency_rounds(rep: dict) -> list[str]:
+    """The search on the gear_efficiency case in words: each round's best and runner-up, the
+    pair search, and where load_friction stood in the first round's prescreen."""
+    lines = []
+    for r in rep["rounds"]:
+        line = (f"- round {r['round']}: best `{r['best']}` (share {r['share']:.3f} of the round's held-out gap "
+                f"{r['gap_start_rad']:.3g} rad), runner-up `{r.get('runner_up') or '—'}`"
+                + (f" ({r['runner_up_share']:.3f})" if r.get("runner_up_share") is not None else "")
+                + f"; {'accepted' if r['accepted'] else 'not accepted'}")
+        ps = r.get("pair_search")
+        if ps:
+            line += (f"; pair search: best `{ps['best']}` (share {ps['share']:.3f}, "
+                     f"{'accepted' if ps['accepted'] else 'not accepted'})")
+        lines.append(line)
+    first = rep["candidates"][0]
+    scored = [c for c in first if c["method"] != "prescreen"]
+    screen = sorted(first, key=lambda c: c["prescreen_gap_rad"])
+    rank = next(i for i, c in enumerate(screen) if c["name"] == "load_friction") + 1
+    lf = screen[rank - 1]
+    lines.append("- round 1's held-out shares: " + ", ".join(f"`{c['name']}` {c['share']:.3f}" for c in scored)
+                 + f"; `load_friction` was {rank}th of {len(screen)} on the prescreen (first second of each "
+                 f"run: gap {lf['prescreen_gap_rad']:.3g} rad at mu_drive {lf['parameters']['mu_drive']:.3g}, "
+                 f"mu_back {lf['parameters']['mu_back']:.3g}), "
+                 + ("so it was fitted on all runs" if lf["method"] != "prescreen" else
+                    f"below the {len(scored)} fitted on all runs"))
+    return lines
+
+
+def _efficiency_restricted(rec: dict) -> list[str]:
+    """The diagnostic run restricted to load_friction, if the record holds it."""
+    diag = rec.get("load_friction_only")
+    if not diag:
+        return []
+    rep, meta = diag["report"], diag["meta"]
+    named = ", ".join(e["name"] + (f" ({e['confidence']})" if "confidence" in e else "") for e in rep["effects"])
+    fitted = "; ".join(_fmt_fit(e) for e in _named(rep)) or "—"
+    return ["", "**Diagnostic: `load_friction` alone** (the workflow with `load_friction` its only "
+            f"candidate, `--only-load-friction`; commit {meta['commit']}, {meta['started']}, "
+            f"{meta['seconds']:.0f} s): named {named}; {fitted}; held-out gap {rep['gap_before']:.3g} -> "
+            f"{rep['gap_after']:.3g} rad (×{rep['shrink_factor']:.3g})"
+            + ("; gap flagged unexplained" if rep.get("unexplained") else "") + "."]
+
+
 def efficiency_section(rec: dict) -> str:
     """The bank page's section on the gear_efficiency case, from its record (the JSON
     ``--gear-efficiency`` writes)."""
@@ -262,6 +305,8 @@ def efficiency_section(rec: dict) -> str:
         f"| {named} | {fitted} | {rep['gap_before']:.3g} rad | {rep['gap_after']:.3g} rad | "
         f"×{rep['shrink_factor']:.3g} | {rep['noise_floor_rad']:.3g} rad | {runner} | "
         f"{'PASS' if rec['pass'] else 'FAIL'} ({rec['why']}) | {meta['seconds']:.0f} s |", "",
+        "The search, round by round (from the report):", "", *_efficiency_rounds(rep),
+        *_efficiency_restricted(rec), "",
         f"Run at commit {meta['commit']}, {meta['started']} to {meta['finished']}, with "
         f"`{meta['command'].split(' --note')[0]}` on {meta['cpus']} CPU cores shared with other jobs (load average "
         f"{meta['load_start']:.2f} at the start, {meta['load_after']:.2f} at the end; nice "
