@@ -222,3 +222,18 @@ def test_nominal_off_is_the_truth_with_the_stated_constants():
     for field in ("dof_damping", "body_mass", "actuator_gainprm", "actuator_biasprm", "opt.timestep"):
         a, b = (np.asarray(eval(f"m.{field}")) for m in (off, truth))
         assert np.array_equal(a, b), field
+
+
+def test_docs_fold_figures_are_the_examples_record():
+    """docs/discrepancy.md's figures on the two fold schemes are the Feetech example's record."""
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    rep = json.loads((root / "examples/real_servo/report/report.json").read_text())
+    g = rep["gaps"]
+    phrase = (f"{g['runs']['corrected'] / g['runs']['nominal']:.1f} times worse, {g['runs']['corrected']:.2e} "
+              f"against the nominal's {g['runs']['nominal']:.2e} rad, where blocked folds find them "
+              f"{100 * (1 - g['blocked']['corrected'] / g['blocked']['nominal']):.0f} %").replace("e-0", "e-")
+    text = " ".join((root / "docs/discrepancy.md").read_text().split())
+    assert phrase in text, phrase
