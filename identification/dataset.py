@@ -31,8 +31,9 @@ period); anything else is kept.  A single-joint device without the Omni's arm
 (``omni discrepancy --joint``) has no pose: its runs are read with ``require_pose=False``,
 which makes ``gamma1_deg``/``gamma2_deg`` optional (finite if given).
 
-Numbers no run has are refused (:func:`read_run`): ``kp`` <= 0; a negative ``frequency_hz``
-or ``amplitude_rad``, or zero for a sine or a step; ``command_limit`` <= 0; a
+Numbers no run has are refused (:func:`read_run`): ``kp`` <= 0; a negative ``frequency_hz``;
+a ``frequency_hz`` or ``amplitude_rad`` that is not positive for a sine or a step (an "other"
+run's amplitude is free: a move to -1.0 rad may say -1.0); ``command_limit`` <= 0; a
 ``control_period_s`` outside (0, 1] s or longer than the sample period (a log cannot sample
 the device's loop faster than it runs: a period in milliseconds written as seconds shows
 here).  Whether a pose is one the arm can take is the device's question
@@ -245,8 +246,9 @@ def _read_meta(json_path: Path, require_pose: bool) -> dict:
     rules = (("kp", meta["kp"] > 0, "must be > 0 (the P gain)"),
              ("frequency_hz", meta["frequency_hz"] > 0 if periodic else meta["frequency_hz"] >= 0,
               f"must be {'> 0 for a ' + meta['kind'] if periodic else '>= 0'}"),
-             ("amplitude_rad", meta["amplitude_rad"] > 0 if periodic else meta["amplitude_rad"] >= 0,
-              f"must be {'> 0 for a ' + meta['kind'] if periodic else '>= 0'}"),
+             # an "other" run's amplitude is a description (a move to -1.0 rad may say -1.0)
+             ("amplitude_rad", meta["amplitude_rad"] > 0 if periodic else True,
+              f"must be > 0 for a {meta['kind']}"),
              ("command_limit", meta.get("command_limit") is None or meta["command_limit"] > 0,
               "must be > 0 (the P law's saturation, in the actuator's control units)"),
              ("control_period_s", meta.get("control_period_s") is None or 0 < meta["control_period_s"] <= 1.0,

@@ -237,3 +237,16 @@ def test_docs_fold_figures_are_the_examples_record():
               f"{100 * (1 - g['blocked']['corrected'] / g['blocked']['nominal']):.0f} %").replace("e-0", "e-")
     text = " ".join((root / "docs/discrepancy.md").read_text().split())
     assert phrase in text, phrase
+
+
+def test_written_servo_runs_read_back(tmp_path):
+    """The geared-servo bank's runs, written as a dataset, read back as ``omni discrepancy`` reads
+    them: an "other" run's amplitude may be negative (a move to -1.0 rad)."""
+    from identification.dataset import read_dataset, write_dataset
+
+    runs = hidden.servo_truth.generate(experiments=[e for e in hidden.servo_truth.EXPERIMENTS
+                                                    if e.name == "slow_up_am100"])
+    assert runs[0].meta["amplitude_rad"] < 0
+    write_dataset(runs, tmp_path / "d")
+    back = read_dataset(tmp_path / "d", require_pose=False, uniform=False)
+    assert back[0].meta["amplitude_rad"] == runs[0].meta["amplitude_rad"]
