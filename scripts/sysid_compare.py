@@ -801,8 +801,15 @@ def _verdict(cases: list, verdicts: dict) -> list[str]:
                 "changes a friction level during a rollout; its hook can, by running our loop); " if not_open else "")
              + "close the P loop (its rollout replays the logged command open loop: see the drift figures); "
              "switch the torque off (a back-EMF bias keeps braking at 0 V; the replay zeroes gain and bias)"
-             + (f"; differentiate a closed loop with stick friction at its default step of 1.5e-8 "
-                f"({', '.join(default_off)}: the fit stays at its start with an interval of nothing)" if default_off else "")
+             + (f"; differentiate the closed loop at its default step of 1.5e-8 on "
+                + ", ".join(f"{cid} (the fit moved at most {g(verdicts[cid]['sysid_closed']['moved'], 2)} library "
+                            f"scales from its start, its gap {g(verdicts[cid]['sysid_closed']['gap_ratio'], 2)}x ours)"
+                            for cid in default_off)
+                + ", where the device engine's friction law sets the joint's friction every control period, "
+                "switching on the sign of the velocity near rest (`omni_sim/device.py` `DriveFriction`)"
+                + ("; with steps of 0.05 library scales the same optimizer does the job there"
+                   if all(verdicts[cid]["sysid_closed_scaled"].get("same_job") for cid in default_off) else "")
+                if default_off else "")
              + "; and its intervals take the logged samples of a closed loop as independent.")
     return L + [""]
 
