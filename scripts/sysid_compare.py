@@ -157,11 +157,10 @@ def make_case(cid: str, feetech_data: Path | None) -> Case:
         hc = hidden.case({"servo_off": "nominal_off"}.get(cid, "load_friction"))
         runs = hidden.generate(hc)
         path, target = hidden.nominal(hc)
-        m = mujoco.MjModel.from_xml_path(str(servo_truth.model_path()))
-        j, a = m.joint(servo_truth.JOINT).id, m.actuator(servo_truth.ACTUATOR).id
-        dof = int(m.jnt_dofadr[j])
-        mjcf_truth = [float(m.dof_armature[dof]), float(m.dof_damping[dof]),
-                      float(m.dof_frictionloss[dof]), float(m.actuator_gear[a, 0])]
+        # the truth's values as its file states them (the MJCF attributes themselves)
+        ts = mujoco.MjSpec.from_file(str(servo_truth.model_path()))
+        tj, ta = ts.joint(servo_truth.JOINT), ts.actuator(servo_truth.ACTUATOR)
+        mjcf_truth = [float(tj.armature), float(tj.damping[0]), float(tj.frictionloss), float(ta.gear[0])]
         if cid == "servo_off":
             return Case(cid, "geared servo, nothing hidden, nominal off (bank case nominal_off)", runs,
                         path, target, MJCF_SET, mjcf_truth,

@@ -206,7 +206,7 @@ def test_bench_friction(campaigns, monkeypatch):
 
     seen = {}
 
-    def fake_bench(jobs=None, friction=None, discrepancy_campaign=False):
+    def fake_bench(jobs=None, friction=None, discrepancy_campaign=False, only=None):
         seen["friction"] = friction
         seen["discrepancy_campaign"] = discrepancy_campaign
         return {}
