@@ -238,18 +238,27 @@ def _efficiency_rounds(rep: dict) -> list[str]:
             line += (f"; pair search: best `{ps['best']}` (share {ps['share']:.3f}, "
                      f"{'accepted' if ps['accepted'] else 'not accepted'})")
         lines.append(line)
-    first = rep["candidates"][0]
+    first = [c for c in rep["candidates"][0] if "prescreen_gap_rad" in c]
     scored = [c for c in first if c["method"] != "prescreen"]
-    screen = sorted(first, key=lambda c: c["prescreen_gap_rad"])
+    screen = sorted((c for c in first if not c["name"].startswith("(")), key=lambda c: c["prescreen_gap_rad"])
     rank = next(i for i, c in enumerate(screen) if c["name"] == "load_friction") + 1
     lf = screen[rank - 1]
-    lines.append("- round 1's held-out shares: " + ", ".join(f"`{c['name']}` {c['share']:.3f}" for c in scored)
-                 + f"; `load_friction` was {rank}th of {len(screen)} on the prescreen (first second of each "
+    nth = {1: "1st", 2: "2nd", 3: "3rd"}.get(rank, f"{rank}th")
+    lines.append("- round 1's held-out shares (of the round's gap): "
+                 + ", ".join(f"`{c['name']}` {c['share']:.3f}" for c in scored)
+                 + f"; `load_friction` was {nth} of {len(screen)} candidates on the prescreen (first second of each "
                  f"run: gap {lf['prescreen_gap_rad']:.3g} rad at mu_drive {lf['parameters']['mu_drive']:.3g}, "
                  f"mu_back {lf['parameters']['mu_back']:.3g}), "
                  + ("so it was fitted on all runs" if lf["method"] != "prescreen" else
                     f"below the {len(scored)} fitted on all runs"))
     return lines
+
+
+def _fmt_corrections(rep: dict) -> str:
+    """The nominal's corrections of a report (nominal -> fitted ± 95 %), or '' if none."""
+    cs = rep.get("corrections") or []
+    return "; ".join(f"{c['parameter']} {c['nominal']:.4g} -> {c['fitted']:.4g} ± {c['half_width_95']:.2g}"
+                     + ("" if c.get("plausible", True) else " (implausible)") for c in cs)
 
 
 def _efficiency_restricted(rec: dict) -> list[str]:
@@ -259,12 +268,19 @@ def _efficiency_restricted(rec: dict) -> list[str]:
         return []
     rep, meta = diag["report"], diag["meta"]
     named = ", ".join(e["name"] + (f" ({e['confidence']})" if "confidence" in e else "") for e in rep["effects"])
-    fitted = "; ".join(_fmt_fit(e) for e in _named(rep)) or "—"
+    fitted = "; ".join(_fmt_fit(e) for e in _named(rep))
+    lf = [c for c in rep["candidates"][0] if c["name"] == "load_friction"]
+    if lf:
+        p = lf[0]["parameters"]
+        fitted += ("; " if fitted else "") + (
+            f"load_friction's held-out share {lf[0]['share']:.3f} of the gap the corrections leave, "
+            f"at mu_drive {p['mu_drive']:.3g}, mu_back {p['mu_back']:.3g}")
     return ["", "**Diagnostic: `load_friction` alone** (the workflow with `load_friction` its only "
             f"candidate, `--only-load-friction`; commit {meta['commit']}, {meta['started']}, "
             f"{meta['seconds']:.0f} s): named {named}; {fitted}; held-out gap {rep['gap_before']:.3g} -> "
             f"{rep['gap_after']:.3g} rad (×{rep['shrink_factor']:.3g})"
-            + ("; gap flagged unexplained" if rep.get("unexplained") else "") + "."]
+            + ("; gap flagged unexplained" if rep.get("unexplained") else "")
+            + (f"; the nominal's corrections: {_fmt_corrections(rep)}" if _fmt_corrections(rep) else "") + "."]
 
 
 def efficiency_section(rec: dict) -> str:
@@ -279,6 +295,9 @@ def efficiency_section(rec: dict) -> str:
     first = rep["effects"][0]
     mg = first.get("margin")
     runner = f"{first.get('runner_up') or '—'}" + ("" if mg is None else f" (margin {mg:.2f})")
+    if first["name"] == "none" and first.get("best_candidate"):
+        runner = (f"best candidate {first['best_candidate']} (share {first['best_share']:.3f}), "
+                  f"runner-up {runner}")
     text = [
         "## A truth of another form: the gear's efficiency law (`gear_efficiency`)", "",
         "The geared-servo cases above hide the device engine's own law (a Coulomb level "
@@ -298,15 +317,25 @@ def efficiency_section(rec: dict) -> str:
         "`models/servo_pendulum.xml`; the load_friction case's 12 runs of 5 s, log and encoder. "
         "`tests/test_servo_truth.py` checks the truth against steady speeds in closed form "
         "(driving and back-driven) and the law step by step.", "",
+        "Where the two forms differ (by construction, whatever the workflow does): the truth does not "
+        "stick (its loss vanishes at rest, where the engine's law holds the joint up to `Fc + mu |tau|`); "
+        "its mesh carries the back-EMF's torque, so the torque-off falls (0 V, the winding shorted) "
+        "lose `(1/eta_back - 1) c_e |w|` in the mesh, which the engine's law (`tau = g u = 0` there) "
+        "cannot give, and a part of every loss is proportional to the speed, as a viscous damping is; "
+        "the rotor's inertia torque passes the mesh too.", "",
         f"What a correct workflow should do (stated before the run): {case['expect']}.", "",
         "| named (confidence) | fitted ± 95 % | gap before | gap after | shrink | noise floor | "
-        "runner-up | result | time |",
+        "candidates | result | time |",
         "|---|---|---|---|---|---|---|---|---|",
         f"| {named} | {fitted} | {rep['gap_before']:.3g} rad | {rep['gap_after']:.3g} rad | "
         f"×{rep['shrink_factor']:.3g} | {rep['noise_floor_rad']:.3g} rad | {runner} | "
         f"{'PASS' if rec['pass'] else 'FAIL'} ({rec['why']}) | {meta['seconds']:.0f} s |", "",
+        *([f"The nominal's corrections (refitted with the named effects, reported apart): "
+           f"{_fmt_corrections(rep)}.", ""] if _fmt_corrections(rep) else []),
         "The search, round by round (from the report):", "", *_efficiency_rounds(rep),
         *_efficiency_restricted(rec), "",
+        *([] if rec["pass"] else ["`tests/test_discrepancy_bank.py` runs the case as a strict expected "
+                                  "failure (`test_bank_gear_efficiency`) with these figures in its reason.", ""]),
         f"Run at commit {meta['commit']}, {meta['started']} to {meta['finished']}, with "
         f"`{meta['command'].split(' --note')[0]}` on {meta['cpus']} CPU cores shared with other jobs (load average "
         f"{meta['load_start']:.2f} at the start, {meta['load_after']:.2f} at the end; nice "
