@@ -250,3 +250,20 @@ def test_written_servo_runs_read_back(tmp_path):
     write_dataset(runs, tmp_path / "d")
     back = read_dataset(tmp_path / "d", require_pose=False, uniform=False)
     assert back[0].meta["amplitude_rad"] == runs[0].meta["amplitude_rad"]
+
+
+def test_performance_page_stage_figures_are_the_bench_record():
+    """docs/performance.md's physics steps per stage of the geared-servo figure are
+    docs/bench.json's."""
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    srv = json.loads((root / "docs/bench.json").read_text())["discrepancy_servo"]
+    per = srv["physics_steps_per_stage"]
+    text = " ".join((root / "docs/performance.md").read_text().split())
+    for phrase in (f"{srv['physics_steps'] / 1e6:.1f} M physics steps, {per['naming'] / 1e6:.1f} M of them naming",
+                   f"{per['uncertainty_and_evaluation'] / 1e6:.1f} M the uncertainty",
+                   f"{per['other_fold_scheme'] / 1e6:.1f} M the other fold scheme, "
+                   f"{per['corrections'] / 1e6:.1f} M the corrections"):
+        assert phrase in text, phrase
