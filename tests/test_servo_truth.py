@@ -328,7 +328,7 @@ def test_the_asymmetric_friction_case():
     assert np.max(np.abs(runs[1].theta - nominal[1].theta)) > 2 * st.ENCODER_STEP_RAD
 
 
-# --- the efficiency truth: a gear efficiency law with a smooth sign (issue 34) ----------------
+# --- the efficiency truth: a gear efficiency law with a smooth sign ---------------------------
 def _variant(tmp_path, load_nm: float = 0.0) -> str:
     """The nominal model without gravity and, if ``load_nm``, with a constant load torque on the
     pivot (a ``general`` actuator of gain 0 and affine bias ``load_nm``): a file for ``path=``."""

@@ -384,7 +384,7 @@ def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK)),), seed: int = 1, e
                     exact=exact) for e in experiments]
 
 
-# -- a truth of another form: the gear's efficiency law with a smooth sign (issue 34) ------------
+# -- a truth of another form: the gear's efficiency law with a smooth sign -----------------------
 # The geared-servo cases above hide the engine's own law (a Coulomb level mu |tau| set into
 # MuJoCo's frictionloss, a hard stick).  This truth writes the same servo's gearbox losses in
 # another form, in plain code of its own (neither omni_sim.device.DriveFriction nor MuJoCo's
