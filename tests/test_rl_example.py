@@ -154,7 +154,14 @@ def test_without_stable_baselines3_one_error_line_naming_the_extra(train, capsys
     assert not (tmp_path / "out").exists()
 
 
-def test_default_output_is_outside_the_tracked_files_and_bad_input_is_refused(train, capsys, tmp_path):
+def test_default_output_is_outside_the_tracked_files_and_bad_input_is_refused(train, capsys, tmp_path,
+                                                                             monkeypatch):
+    # the options are checked with the rl extra taken as installed (the README's test command
+    # runs without it; its absence is the test above)
+    real_find_spec = train.importlib.util.find_spec
+    monkeypatch.setattr(train.importlib.util, "find_spec",
+                        lambda name, *a: object() if name in ("stable_baselines3", "torch")
+                        else real_find_spec(name, *a))
     out = train.parse_args([]).out
     assert not out.is_absolute() and HERE.resolve() not in (Path.cwd() / out).resolve().parents
     assert (Path.cwd() / out).resolve() != HERE.resolve()
