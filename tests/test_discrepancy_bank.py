@@ -587,6 +587,12 @@ def test_assess_outside_effects_are_checked_against_expect():
 #: Cases the workflow fails, by the bank's criteria, on record (docs/discrepancy/bank.md): run
 #: as strict xfails, so each still runs, and a change of its outcome either way is reported.
 KNOWN_FAILURES = {
+    "load_friction": "with the nominal's constants refitted jointly (the corrections, default on a "
+                     "user's device) the workflow names load_friction with high confidence and the "
+                     "gap shrinks x16.3, but mu_back 0.386 +- 0.029 misses the truth 0.45 (mu_drive "
+                     "0.170 +- 0.028 covers 0.15; the gear is fitted 0.308 +- 0.010 against 0.30): "
+                     "the gear and mu_back trade off on these 5 s runs; measured at 8f25b5c (the 6 s "
+                     "nominal-off case of omni bench passes, docs/bench.json)",
     "end_stop": "names presliding_friction with low confidence (x2.3), a stand-in not on the "
                 "case's expect list (none, torque_saturation, joint_stiffness); the list was set "
                 "before any run and is not widened to the result (docs/discrepancy/bank.md)",
