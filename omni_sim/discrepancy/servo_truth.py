@@ -340,14 +340,24 @@ def measure(e: Experiment, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BA
             asymmetry_nm: float = 0.0, seed: int = 1, exact: bool = False, path=None) -> Run:
     """One run of the truth, logged as the host logs it (irregular times, goal held, encoder
     counts and noise; ``exact``: neither noise nor rounding, on the loop or in the log)."""
+    def run(t_log, r, en, noise, step):
+        return simulate(t_log, r, en, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry_nm,
+                        noise=noise, step_rad=step, path=path)
+    return _logged_run(e, run, seed, exact, "models/servo_pendulum.xml + load-dependent or "
+                       "direction-dependent gearbox friction")
+
+
+def _logged_run(e: Experiment, run, seed: int, exact: bool, law: str) -> Run:
+    """The run of experiment ``e`` as the host logs it: log times, goal and switch, the loop
+    ``run(t_log, r, enabled, loop noise, encoder step)`` (a truth's 1 kHz trajectory), then the
+    positions read at the log times (same random streams for the same seed and run name)."""
     t_log = log_times(e.duration_s, _rng(seed, e.name, "clock"))
     r, en = e.goal(t_log), e.enabled(t_log)
     n = int(math.floor(t_log[-1] / CONTROL_PERIOD_S + 1e-9)) + 1
     noise_rad = 0.0 if exact else NOISE_RAD
     step = 0.0 if exact else ENCODER_STEP_RAD
     loop_noise = _rng(seed, e.name, "loop").normal(0.0, noise_rad, n) if noise_rad else None
-    traj = simulate(t_log, r, en, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry_nm,
-                    noise=loop_noise, step_rad=step, path=path)
+    traj = run(t_log, r, en, loop_noise, step)
     theta_true, v = at_log_times(traj, t_log)
     log_noise = _rng(seed, e.name, "log").normal(0.0, noise_rad, len(t_log)) if noise_rad else 0.0
     theta = read_encoder(theta_true, log_noise, step)
@@ -358,9 +368,7 @@ def measure(e: Experiment, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BA
             "encoder_quantized": not exact, "encoder_step_rad": step, "encoder_noise_rad": noise_rad,
             "units": {"r": "rad", "theta": "rad", "v": "V (motor voltage command)", "kp": "V/rad",
                       "command_limit": "V", "enabled": "torque enable (0: 0 V)"},
-            "device": "pendulum on a geared servo (models/servo_pendulum.xml + load-dependent "
-                      "or direction-dependent gearbox friction, "
-                      "omni_sim/discrepancy/servo_truth.py)"}
+            "device": f"pendulum on a geared servo ({law}, omni_sim/discrepancy/servo_truth.py)"}
     return Run(e.name, t_log, r, theta, v, meta, {"enabled": en})
 
 
@@ -516,27 +524,11 @@ def measure_efficiency(e: Experiment, *, eta_drive: float = ETA_DRIVE, eta_back:
                        exact: bool = False, path=None) -> Run:
     """One run of the efficiency truth, logged as :func:`measure` logs the other cases' (the
     same log times, goal, encoder and noise streams for the same seed and run)."""
-    t_log = log_times(e.duration_s, _rng(seed, e.name, "clock"))
-    r, en = e.goal(t_log), e.enabled(t_log)
-    n = int(math.floor(t_log[-1] / CONTROL_PERIOD_S + 1e-9)) + 1
-    noise_rad = 0.0 if exact else NOISE_RAD
-    step = 0.0 if exact else ENCODER_STEP_RAD
-    loop_noise = _rng(seed, e.name, "loop").normal(0.0, noise_rad, n) if noise_rad else None
-    traj = simulate_efficiency(t_log, r, en, eta_drive=eta_drive, eta_back=eta_back,
-                               smooth_speed=smooth_speed, noise=loop_noise, step_rad=step, path=path)
-    theta_true, v = at_log_times(traj, t_log)
-    log_noise = _rng(seed, e.name, "log").normal(0.0, noise_rad, len(t_log)) if noise_rad else 0.0
-    theta = read_encoder(theta_true, log_noise, step)
-    meta = {"kind": e.kind, "kp": KP, "command_limit": COMMAND_LIMIT,
-            "frequency_hz": e.frequency_hz, "amplitude_rad": e.amplitude_rad,
-            "offset_rad": e.offset_rad, "control_period_s": CONTROL_PERIOD_S,
-            "log_period_s": LOG_PERIOD_S, "theta0_rad": 0.0,
-            "encoder_quantized": not exact, "encoder_step_rad": step, "encoder_noise_rad": noise_rad,
-            "units": {"r": "rad", "theta": "rad", "v": "V (motor voltage command)", "kp": "V/rad",
-                      "command_limit": "V", "enabled": "torque enable (0: 0 V)"},
-            "device": "pendulum on a geared servo (models/servo_pendulum.xml + a gear efficiency "
-                      "law with a smooth sign, omni_sim/discrepancy/servo_truth.py)"}
-    return Run(e.name, t_log, r, theta, v, meta, {"enabled": en})
+    def run(t_log, r, en, noise, step):
+        return simulate_efficiency(t_log, r, en, eta_drive=eta_drive, eta_back=eta_back,
+                                   smooth_speed=smooth_speed, noise=noise, step_rad=step, path=path)
+    return _logged_run(e, run, seed, exact, "models/servo_pendulum.xml + a gear efficiency law with a "
+                       "smooth sign")
 
 
 def generate_efficiency(eta_drive: float = ETA_DRIVE, eta_back: float = ETA_BACK,
