@@ -625,11 +625,9 @@ def _write_friction(values: dict, family: str, path: Path) -> Path:
 CAMPAIGN_FILE = Path(ex.__file__).resolve().parent / "campaigns" / "paper.toml"
 
 
-def write_amplitude(amplitude_rad: float, path: Path = CAMPAIGN_FILE) -> float:
-    """Set the ``amplitude_rad`` of the campaign file's ``[sine]`` table to the calibrated A_r
-    (that one line's value; its comment and everything else stay); returns the value as
-    written (checked by parsing the new file: tomllib reads TOML but does not write it)."""
-    lines = path.read_text().split("\n")
+def sine_amplitude_line(lines: list[str], path) -> int:
+    """The index of the one ``amplitude_rad`` line of the ``[sine]`` table among a campaign
+    file's ``lines`` (RuntimeError unless there is exactly one)."""
     table, hits = None, []
     for i, line in enumerate(lines):
         if line.startswith("["):
@@ -638,8 +636,17 @@ def write_amplitude(amplitude_rad: float, path: Path = CAMPAIGN_FILE) -> float:
             hits.append(i)
     if len(hits) != 1:
         raise RuntimeError(f"calibration: {path}: {len(hits)} 'amplitude_rad' lines in [sine], expected one")
-    comment = lines[hits[0]].partition("#")[2]
-    lines[hits[0]] = f"amplitude_rad = {_fmt(amplitude_rad)}" + (f"  #{comment}" if comment else "")
+    return hits[0]
+
+
+def write_amplitude(amplitude_rad: float, path: Path = CAMPAIGN_FILE) -> float:
+    """Set the ``amplitude_rad`` of the campaign file's ``[sine]`` table to the calibrated A_r
+    (that one line's value; its comment and everything else stay); returns the value as
+    written (checked by parsing the new file: tomllib reads TOML but does not write it)."""
+    lines = path.read_text().split("\n")
+    i = sine_amplitude_line(lines, path)
+    comment = lines[i].partition("#")[2]
+    lines[i] = f"amplitude_rad = {_fmt(amplitude_rad)}" + (f"  #{comment}" if comment else "")
     new = "\n".join(lines)
     written = ex.parse_campaign(new, str(path)).sine[0]["amplitude_rad"]
     if abs(written - amplitude_rad) > 1e-5 * abs(amplitude_rad):

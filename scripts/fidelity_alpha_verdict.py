@@ -92,15 +92,7 @@ def campaign_file(amplitude_rad: float, folder: Path) -> Path:
     from omni_sim import experiments as ex
 
     lines = cal.CAMPAIGN_FILE.read_text().split("\n")
-    table, hits = None, []
-    for i, line in enumerate(lines):
-        if line.startswith("["):
-            table = line.strip()
-        elif table == "[sine]" and line.split("=")[0].strip() == "amplitude_rad":
-            hits.append(i)
-    if len(hits) != 1:
-        raise RuntimeError(f"{cal.CAMPAIGN_FILE}: {len(hits)} 'amplitude_rad' lines in [sine]")
-    lines[hits[0]] = f"amplitude_rad = {amplitude_rad!r}"
+    lines[cal.sine_amplitude_line(lines, cal.CAMPAIGN_FILE)] = f"amplitude_rad = {amplitude_rad!r}"
     path = folder / "paper_campaign.toml"
     path.write_text("\n".join(lines))
     if ex.load_campaign(path).sine[0]["amplitude_rad"] != amplitude_rad:
