@@ -309,15 +309,15 @@ def both_schemes(builder: fx.ModelBuilder, selection: "Selection", start: Scored
     for sch in sel.FOLD_SCHEMES:
         row = {"nominal": gap_nominal}
         for key, sc in (("corrected", start), ("after", selection.best)):
-            if sc is None:
-                row[key] = row["corrected"] if key == "after" and "corrected" in row else gap_nominal
+            if sc is None or (key == "after" and sc is start):  # nothing fitted, or nothing named
+                row[key] = row.get("corrected", gap_nominal)
+                if sc is not None:  # the corrected nominal is the final model: scored once
+                    row["after_unstable_replays"] = row["corrected_unstable_replays"]
                 continue
             if sch != scheme:
                 sc = sel.rescore(builder, sc, runs, rep, sel.make_folds(runs, k, sch), gap_nominal)
             row[key] = sc.heldout_gap
             row[f"{key}_unstable_replays"] = sc.unstable
-        if "corrected" not in row:
-            row["corrected"] = gap_nominal
         row["share_removed_by_effects"] = sel.share_of(row["after"], row["corrected"])
         out[sch] = row
     if log:
