@@ -131,11 +131,6 @@ def make_folds(runs: list[ReplayRun], k: int, scheme: str = "blocked") -> list[F
     raise ValueError(f"unknown fold scheme {scheme!r} (one of {', '.join(FOLD_SCHEMES)})")
 
 
-def kfolds(runs: list[ReplayRun], k: int) -> list[list[int]]:
-    """The runs each of :func:`run_folds`' folds holds out."""
-    return [f.runs for f in run_folds(runs, k)]
-
-
 def noise_floor(residuals: list[np.ndarray]) -> float:
     """Measurement noise std [rad] from the residual's roughness.
 
