@@ -23,20 +23,26 @@ DEMO_CASE = "time_delay"
 
 
 class Progress:
-    """The workflow's log: each line on ``file`` (stderr); on a terminal, below them, a status
-    line with the last step and the elapsed time, redrawn every ``tick_s`` seconds (the search
-    runs for minutes between two lines on long logs).  A context manager; call it with a line.
+    """The workflow's log: each line on ``file`` (stderr); on a terminal, below them, a bar over
+    the workflow's stages (:data:`~omni_sim.discrepancy.workflow.STAGES`) with the current one,
+    the physics steps so far, the last log line and the elapsed time, redrawn every ``tick_s``
+    seconds (the search runs for minutes between two lines on long logs).  A context manager;
+    call it with a line, pass :meth:`stage` as the workflow's ``progress``.
     """
 
     def __init__(self, enabled: bool | None = None, file=None, tick_s: float = 1.0):
         from tqdm import tqdm
 
+        from omni_sim.discrepancy.workflow import STAGES
+
         self.file = file or sys.stderr
         if enabled is None:
             enabled = self.file.isatty()
-        self.bar = tqdm(total=None, bar_format="{desc} [{elapsed} elapsed]", file=self.file,
-                        disable=not enabled, leave=False, desc="discrepancy: starting")
+        self.bar = tqdm(total=len(STAGES), file=self.file, disable=not enabled, leave=False,
+                        bar_format="{desc} {bar:12} stage {n_fmt}/{total_fmt} [{elapsed} elapsed]{postfix}",
+                        desc="discrepancy: starting")
         self.tick_s = tick_s
+        self._stage = "starting"
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._tick, daemon=True) if enabled else None
 
@@ -45,7 +51,14 @@ class Progress:
             self.file.write(msg + "\n")
             return
         self.bar.write(msg, file=self.file)
-        self.bar.set_description_str("discrepancy: " + msg.strip()[:60])
+        self.bar.set_postfix_str(msg.strip()[:50], refresh=True)
+
+    def stage(self, index: int, name: str, steps: int) -> None:
+        """The workflow entered stage ``index`` (``name``) after ``steps`` physics steps."""
+        self.bar.n = index
+        self.bar.set_description_str(f"discrepancy: {name.replace('_', ' ')} ({steps / 1e6:.1f} M steps)",
+                                     refresh=False)
+        self.bar.refresh()
 
     def _tick(self) -> None:
         while not self._stop.wait(self.tick_s):
@@ -118,7 +131,7 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     if target == om.OMNI:  # the arm's actual angles too (the replay reads the set points)
         check_run_poses(runs, args.measured, model)
     with Progress() as log:
-        outcome = run_discrepancy(runs, model, log=log, target=target,
+        outcome = run_discrepancy(runs, model, log=log, target=target, progress=log.stage,
                                   folds=getattr(args, "folds", "blocked"), corrections=corrections)
     with atomic_output_dir(out, force=args.force) as tmp:
         rp.write(outcome, tmp)
@@ -139,7 +152,7 @@ def demo(out: Path, force: bool = False, case_name: str = DEMO_CASE, log=None) -
     check_output_dir(out, force)
     case = hidden.case(case_name)
     runs = hidden.generate(case)
-    outcome = run_discrepancy(runs, None, log=log)
+    outcome = run_discrepancy(runs, None, log=log, progress=getattr(log, "stage", None))
     outcome.report["hidden"] = {"case": case.name, "effects": {n: list(v) for n, v in case.effects},
                                 "note": case.note}
     intro = (f"Demo: the virtual Omni with a hidden effect -- **{case.name}** "

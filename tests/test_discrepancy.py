@@ -116,11 +116,19 @@ def test_fast_unexplained_gap_is_flagged(tmp_path):
     """An effect outside the (here restricted) library leaves a large gap: ``none`` is named and
     report.json/report.md say the gap is unexplained, not that the model is fine."""
     from omni_app import discrepancy_report as rp
+    from omni_sim.discrepancy.workflow import STAGES
     case = hidden.case("cogging")
     runs = hidden.generate(case, _one_pose_exps(), jobs=JOBS)
+    seen = []
     out = run_discrepancy(runs, None, k=5, jobs=JOBS, max_effects=1,
-                          candidates=("viscous_damping", "armature", "time_delay"))
+                          candidates=("viscous_damping", "armature", "time_delay"),
+                          progress=lambda i, name, steps: seen.append((i, name, steps)))
     rep = out.report
+    # the stage bar's feed: every stage in order, then "done", the physics steps non-decreasing
+    # and ending at the report's count
+    assert [(i, n) for i, n, _ in seen] == [*enumerate(STAGES), (len(STAGES), "done")]
+    assert [s for *_, s in seen] == sorted(s for *_, s in seen)
+    assert seen[-1][2] == rep["timings"]["physics_steps"]
     assert [e["name"] for e in rep["effects"]] == ["none"]
     assert rep["unexplained"] is True and "UNEXPLAINED" in rep["effects"][0]["reason"]
     rp.write(out, tmp_path)

@@ -593,6 +593,18 @@ KNOWN_FAILURES = {
                      "0.170 +- 0.028 covers 0.15; the gear is fitted 0.308 +- 0.010 against 0.30): "
                      "the gear and mu_back trade off on these 5 s runs; measured at 8f25b5c (the 6 s "
                      "nominal-off case of omni bench passes, docs/bench.json)",
+    "load_friction_nominal_off": "names load_friction with high confidence (the gap shrinks x17.9), "
+                                 "but on CI at 66d9989 the armature correction 0.002703 +- 0.00017 "
+                                 "kg*m^2 missed the truth 0.0025 and mu_back came out 0.364 (truth "
+                                 "0.45, mu_drive 0.192 against 0.15): the replay error is jagged in "
+                                 "the coefficients (training gap 6.3e-4 rad at mu_back 0.44, 7.6e-4 "
+                                 "at the true 0.45, 6.7e-4 at 0.47, others at their truth) along a "
+                                 "valley that holds gear * (1 - mu_drive); a fit started at the truth "
+                                 "stays there, one started at the reported point stops 40 % higher. "
+                                 "A basin search along the Gauss-Newton direction brought both "
+                                 "corrections inside their intervals but left mu_drive 0.189 +- 0.034 "
+                                 "and mu_back 0.402 +- 0.019 outside at 2.3x the physics steps (154 M): "
+                                 "not adopted (docs/discrepancy.md, known failures)",
     "end_stop": "names presliding_friction with low confidence (x2.3), a stand-in not on the "
                 "case's expect list (none, torque_saturation, joint_stiffness); the list was set "
                 "before any run and is not widened to the result (docs/discrepancy/bank.md)",

@@ -21,9 +21,17 @@ def test_discrepancy_progress_shows_elapsed_time_between_lines():
     text = buf.getvalue()
     assert "round 1: scoring 12 candidates\n" in text
     assert text.count("elapsed]") >= 3  # redrawn by the ticker, not only at each line
+    # the stage bar: the workflow's stage, its index and the physics steps so far
+    buf = io.StringIO()
+    with Progress(enabled=True, file=buf, tick_s=0.02) as log:
+        log.stage(2, "naming", 3_500_000)
+        time.sleep(0.05)
+    text = buf.getvalue()
+    assert "discrepancy: naming (3.5 M steps)" in text and "stage 2/5" in text
     plain = io.StringIO()
     with Progress(enabled=False, file=plain) as log:
         log("gap before 1e-3 rad")
+        log.stage(1, "corrections", 10)  # no bar off a terminal: nothing written
     assert plain.getvalue() == "gap before 1e-3 rad\n"
 
 
@@ -48,3 +56,4 @@ def test_reproduce_all_names_the_family_it_runs(tmp_path, monkeypatch, capsys):
     assert [p for p, _ in seen] == [True] * len(om.FRICTION_FAMILIES)
     for fam, (_, err) in zip(om.FRICTION_FAMILIES, seen):
         assert f"friction family {fam}" in err
+

@@ -112,11 +112,15 @@ def correction_names(corrections, spec: mujoco.MjSpec, target: om.Target, own_de
     return names
 
 
+#: The workflow's stages, in order (the report's ``timings`` and ``physics_steps_per_stage``).
+STAGES = ("replay_nominal", "corrections", "naming", "uncertainty_and_evaluation", "other_fold_scheme")
+
+
 def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None, k: int = 5,
                     max_effects: int = 3, max_fit_samples: int = MAX_FIT_SAMPLES,
                     candidates: tuple[str, ...] | None = None, log=None,
                     target: om.Target | None = None, folds: str = "blocked",
-                    corrections="auto") -> Outcome:
+                    corrections="auto", progress=None) -> Outcome:
     """Find, name, fit and check the effect(s) the model misses on these measured runs.
 
     Parameters
@@ -145,6 +149,10 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         The controlled hinge and its actuator of a user's single-joint device (default None:
         the Omni's contract, ``yaw``/``yaw_motor`` with the arm).  Without the Omni's arm the
         runs need no pose metadata.
+    progress : callable, optional
+        ``progress(index, name, physics_steps)`` at the start of each of :data:`STAGES` (index
+        0-4) and once more at the end (index ``len(STAGES)``, name ``"done"``): a front end's
+        stage bar.
 
     Raises
     ------
@@ -173,30 +181,38 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     log = log or (lambda s: None)
     timings, stage_steps = {}, {}
 
-    def stage(name: str, t0: float, steps0: int) -> None:
+    progress = progress or (lambda index, name, steps: None)
+
+    def begin(name: str) -> tuple[str, float, int]:
+        progress(STAGES.index(name), name, rep.steps)
+        return name, time.perf_counter(), rep.steps
+
+    def end(started: tuple[str, float, int]) -> None:
+        name, t0, steps0 = started
         timings[f"{name}_s"] = time.perf_counter() - t0
         stage_steps[name] = rep.steps - steps0
 
     with Replayer(jobs, target, period) as rep:
-        t0, s0 = time.perf_counter(), rep.steps
+        st = begin("replay_nominal")
         nominal = replay_nominal(model, replay_runs, fit_runs, rep)
-        stage("replay_nominal", t0, s0)
+        end(st)
         log(f"gap before {nominal.gap:.3e} rad, noise floor {nominal.noise:.2e} rad, {len(replay_runs)} runs, "
             f"{sum(r.n for r in replay_runs)} samples"
             + (f" (fits use the first {fit_samples} of each run)" if fit_samples else ""))
-        t0, s0 = time.perf_counter(), rep.steps
+        st = begin("corrections")
         start = refit_nominal(builder, fixed, fit_runs, rep, nominal.fit_gap, k, folds, log)
-        stage("corrections", t0, s0)
-        t0, s0 = time.perf_counter(), rep.steps
+        end(st)
+        st = begin("naming")
         selection = select_effects(builder, candidates, fit_runs, rep, nominal.fit_gap, nominal.noise,
                                    k=k, max_effects=max_effects, log=log, scheme=folds, start=start)
-        stage("naming", t0, s0)
-        t0, s0 = time.perf_counter(), rep.steps
+        end(st)
+        st = begin("uncertainty_and_evaluation")
         unc, theta_after = estimate(builder, selection.best, fit_runs, replay_runs, rep, nominal.theta)
-        stage("uncertainty_and_evaluation", t0, s0)
-        t0, s0 = time.perf_counter(), rep.steps
+        end(st)
+        st = begin("other_fold_scheme")
         gaps = both_schemes(builder, selection, start, fit_runs, rep, nominal.fit_gap, k, folds, log)
-        stage("other_fold_scheme", t0, s0)
+        end(st)
+        progress(len(STAGES), "done", rep.steps)
         steps = rep.steps
         warnings = {"unstable_simulations": rep.unstable_replays, "instability_warnings": rep.unstable_warnings,
                     "first": rep.first_warning}
