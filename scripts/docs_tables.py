@@ -452,14 +452,16 @@ def performance_table(src: dict) -> str:
         rows.append(
             f"| `omni discrepancy` as a user runs it on {srv['runs']} geared-servo runs of 6 s with the "
             f"nominal off (`{srv['case']}`: {srv['control_periods'] / 1e3:.0f} k control periods, "
-            f"{srv['log_samples'] / 1e3:.0f} k logged samples at 200 Hz; measured on a loaded host, see its `measured`) | "
+            f"{srv['log_samples'] / 1e3:.0f} k logged samples at 200 Hz; measured on its own, see its `measured`) | "
             f"≤ 180 s, ≤ 1 GB; ≤ 30 M physics steps aimed at | {srv['wall_s']:.0f} s, {srv['peak_rss_mb']:.0f} MB, "
             f"{srv['physics_steps'] / 1e6:.1f} M steps (named `{'`, `'.join(srv['named'])}`, gap "
             f"×{srv['shrink_factor']:.1f}, bank criteria "
             f"{'met' if srv['passes_bank_criteria'] else 'not met: ' + srv.get('bank_verdict', '?')}) | "
-            f"{met(srv['wall_s'] <= 180 and srv['peak_rss_mb'] <= 1024)} (memory "
+            f"{met(srv['wall_s'] <= 180 and srv['peak_rss_mb'] <= 1024)} (time "
+            f"{'met' if srv['wall_s'] <= 180 else 'not met'}, memory "
             f"{'met' if srv['peak_rss_mb'] <= 1024 else 'not met'}; steps "
-            f"{'met' if srv['physics_steps'] <= 30e6 else 'not met'}) |")
+            f"{'met' if srv['physics_steps'] <= 30e6 else 'not met'}; the answer "
+            f"{'right' if srv['passes_bank_criteria'] else '**wrong**'} by the bank's criteria) |")
     return "\n".join(rows)
 
 
