@@ -119,6 +119,8 @@ class FitResult:
         Weighted residual vector at ``x``.
     nfev : int
         Simulation batches used.
+    jac_at_x : bool
+        Whether ``jac`` was computed at ``x`` (False: a chord fit's, at its start).
     """
 
     effects: list
@@ -129,6 +131,7 @@ class FitResult:
     resid: np.ndarray | None = None
     nfev: int = 0
     raw_residuals: list = field(default_factory=list, repr=False)
+    jac_at_x: bool = True
 
     def split(self) -> list[tuple]:
         """``[(effect, its parameter values), ...]``."""
@@ -173,6 +176,7 @@ class Problem:
         self.nsim = 0
         self.unstable = 0  # replays of this problem MuJoCo found unstable (excluded)
         self._cache: dict = {}
+        self._fcache: dict = {}  # the last point replayed alone (:meth:`residual`)
 
     # --- models and residuals --------------------------------------------------------------
     def changes(self, x: np.ndarray) -> list:
@@ -246,9 +250,12 @@ class Problem:
 
     def seed(self, fit: FitResult) -> None:
         """Take ``fit``'s residual and Jacobian at ``fit.x`` as this problem's evaluation there
-        (``fit`` must come from a problem with the same model, effects and runs)."""
-        if fit.jac is not None and fit.resid is not None:
+        (``fit`` must come from a problem with the same model, effects and runs; a chord fit's
+        residual only: its Jacobian is its start's)."""
+        if fit.jac is not None and fit.resid is not None and fit.jac_at_x:
             self._cache = {self._key(fit.x): (fit.resid, fit.jac, fit.raw_residuals)}
+        elif fit.resid is not None:  # the residual at x only (a chord fit's Jacobian is its start's)
+            self._fcache = {self._key(fit.x): (fit.resid, fit.raw_residuals)}
 
     def fun(self, x: np.ndarray) -> np.ndarray:
         return self.evaluate(x)[0]
@@ -272,20 +279,46 @@ class Problem:
         scores = [gap(self.used(raw)) for raw in raws]
         return pts[int(np.argmin(scores))]
 
-    def fit(self, x0: np.ndarray, grid_effect_index: int | None = None, max_nfev: int = 20) -> FitResult:
-        """Fit from ``x0`` (after a grid over one effect if asked)."""
+    def residual(self, x: np.ndarray) -> tuple[np.ndarray, list]:
+        """Weighted residual and raw residuals at ``x`` alone (one replay of every run; the
+        evaluation's cache is used when it holds ``x``)."""
+        key = self._key(x)
+        if key in self._cache:
+            f, _, raw = self._cache[key]
+            return f, raw
+        if key not in self._fcache:
+            raw = self.simulate([np.asarray(x, float)])[0]
+            self._fcache = {key: (self.weighted(raw), raw)}
+        return self._fcache[key]
+
+    def fit(self, x0: np.ndarray, grid_effect_index: int | None = None, max_nfev: int = 20,
+            chord: bool = False) -> FitResult:
+        """Fit from ``x0`` (after a grid over one effect if asked).
+
+        ``chord``: the Jacobian at the start serves every step (each evaluation then replays the
+        point alone, not its ``p`` perturbations too): for a screening fit of a few steps from a
+        start near the optimum, whose end point only ranks candidates; the result's ``jac`` is
+        the start's."""
         x0 = np.clip(np.asarray(x0, float), self.lower, self.upper)
         if grid_effect_index is not None:
             x0 = self.grid_start(x0, grid_effect_index)
         # keep the start strictly inside the bounds (trf requirement)
         eps = 1e-9 * (self.upper - self.lower)
         x0 = np.clip(x0, self.lower + eps, self.upper - eps)
-        sol = least_squares(self.fun, x0, jac=self.jac, bounds=(self.lower, self.upper),
+        if chord:
+            J0 = self.evaluate(x0)[1]
+            fun, jac = (lambda x: self.residual(x)[0]), (lambda x: J0)
+        else:
+            fun, jac = self.fun, self.jac
+        sol = least_squares(fun, x0, jac=jac, bounds=(self.lower, self.upper),
                             x_scale=self.scale, method="trf", max_nfev=max_nfev,
                             xtol=1e-3, ftol=1e-4, gtol=1e-8)
         x = sol.x
-        f, J, raw = self.evaluate(x)
-        return FitResult(list(self.free), x, x0, gap(self.used(raw)), J, f, self.nsim, raw)
+        if chord:
+            (f, raw), J = self.residual(x), J0
+        else:
+            f, J, raw = self.evaluate(x)
+        return FitResult(list(self.free), x, x0, gap(self.used(raw)), J, f, self.nsim, raw, jac_at_x=not chord)
 
     def _cost(self, raw: list) -> float:
         return float(np.sum(self.weighted(raw) ** 2))

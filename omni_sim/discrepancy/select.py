@@ -367,7 +367,9 @@ def score_round(builder, accepted: list, accepted_x: np.ndarray,
             continue
         t0 = time.perf_counter()
         prob = Problem(builder, [], c.effects, runs, rep)
-        fit = prob.fit(c.x, None, max_nfev=screen_nfev)
+        # a screening fit only ranks the candidates (the best are confirmed with full fits):
+        # the start's Jacobian serves its few steps
+        fit = prob.fit(c.x, None, max_nfev=screen_nfev, chord=True)
         sc = _screened(c.name, c.effects, prob, fit, folds, gap_start, t0, log,
                        width=36 if bases else 18)
         sc.prescreen_gap = c.gap

@@ -78,6 +78,10 @@ def uncertainty(builder, s: Scored, runs: list[ReplayRun], rep, encoder_step_rad
     ``se``, the root-sum-square of the three standard errors and the two half-widths / sqrt(3)
     (the reported one; see the module docstring).
     """
+    if not s.fit.jac_at_x:  # a screening (chord) fit: its Jacobian is its start's, take it at x
+        p0 = Problem(builder, [], s.effects, runs, rep)
+        f, J, raw = p0.evaluate(s.fit.x)
+        s.fit = dataclasses.replace(s.fit, jac=J, resid=f, raw_residuals=raw, jac_at_x=True)
     k = len(s.fold_x)
     X = np.array(s.fold_x)
     se_jk = np.sqrt((k - 1) / k * np.sum((X - X.mean(axis=0)) ** 2, axis=0)) if k > 1 else np.zeros(len(s.fit.x))
