@@ -18,9 +18,10 @@ or a user's hinge):
 * the start state of a run: arm at that pose, yaw at rest at ``theta0``;
 * the encoder (:class:`Encoder`: quantisation, white noise, seeded per-run streams);
 * the clipped P law ``v = clip(kp (r - y), -V, V)`` of the paper's experiments;
-* the drive's friction laws that no MJCF attribute can hold (:class:`DriveFriction`: friction
-  set by the torque the gearbox transmits, direction-dependent Coulomb friction), declared in
-  the model's ``<custom>`` numerics and applied by the engine at every control period.
+* the drive's friction laws that no MJCF attribute can hold (a registry, :data:`DRIVE_LAWS`:
+  friction set by the torque the gearbox transmits, direction-dependent Coulomb friction, the
+  next one a user writes), declared in the model's ``<custom>`` numerics and applied by the
+  engine at every control period (:class:`DriveFriction`).
 
 :class:`Engine` is the one closed loop every user of the device steps through: the generator's
 reference path (:func:`run_p_loop`, used by :func:`omni_sim.experiments.simulate`), the gymnasium
@@ -57,7 +58,7 @@ ENCODER_STEP_RAD = 2 * math.pi / 15000
 #: The physics state the engine carries between control periods.
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 #: ``<custom><numeric name="load_friction" data="mu_drive mu_back"/>``: Coulomb friction that
-#: rises with the torque the gearbox transmits (:class:`DriveFriction`).
+#: rises with the torque the gearbox transmits (:data:`DRIVE_LAWS`).
 LOAD_FRICTION = "load_friction"
 #: ``<custom><numeric name="friction_asymmetry" data="a"/>`` [N*m]: the joint's Coulomb level is
 #: ``frictionloss + a`` moving positive, ``frictionloss - a`` moving negative.
@@ -74,16 +75,84 @@ def _numeric(model: mujoco.MjModel, name: str) -> np.ndarray | None:
 
 
 @dataclass(frozen=True)
+class DriveLaw:
+    """One named term of the drive's Coulomb level, which no MJCF attribute can hold: the
+    engine adds it to the joint's own ``frictionloss`` at every control period
+    (:class:`DriveFriction`).  A model declares it with ``<custom><numeric name="NAME"
+    data="..."/>`` (its :attr:`params`, in order).
+
+    Attributes
+    ----------
+    name : str
+        The ``<custom>`` numeric's name.
+    params : tuple of str
+        Its entries, in order.
+    term : callable
+        ``term(values, w, tau) -> ndarray (B,)`` [N*m]: the term of B rows, with ``values`` of
+        shape (B, len(params)), the joint velocities ``w`` [rad/s] and the transmitted torques
+        ``tau`` [N*m] (B,).  All-zero values must give a zero term (a row without the law).
+    check : callable
+        ``check(values) -> str | None``: why a model's values are not a law (one line), or None.
+    needs_torque : bool
+        The term reads ``tau``: the model needs an ``actuatorfrc`` sensor on the actuator.
+    """
+
+    name: str
+    params: tuple
+    term: object
+    check: object
+    needs_torque: bool = False
+
+
+def _asymmetry_term(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    return v[:, 0] * np.sign(w)
+
+
+def _asymmetry_check(v: np.ndarray) -> str | None:
+    return None if len(v) == 1 and np.isfinite(v[0]) else "must hold one finite level [N*m]"
+
+
+def _load_term(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    # mu_drive while the motor drives the load (tau w > 0), else mu_back: the load back-drives
+    # the motor, or the joint is at rest, where MuJoCo's soft-constraint creep has the sign of
+    # the net torque, so a load that would back-drive a held servo meets mu_back
+    return np.where(tau * w > 0, v[:, 0], v[:, 1]) * np.abs(tau)
+
+
+def _load_check(v: np.ndarray) -> str | None:
+    ok = len(v) == 2 and np.all(np.isfinite(v)) and not np.any(v < 0)
+    return None if ok else "must hold two coefficients >= 0 (mu_drive mu_back)"
+
+
+#: The drive laws the engine knows, by name, in the order their terms are added (the Coulomb
+#: level is ``max(0, frictionloss + term_1 + term_2 + ...)``).  A new law is a
+#: :class:`DriveLaw` added here (:func:`register_drive_law`).
+DRIVE_LAWS: dict[str, DriveLaw] = {
+    FRICTION_ASYMMETRY: DriveLaw(FRICTION_ASYMMETRY, ("a",), _asymmetry_term, _asymmetry_check),
+    LOAD_FRICTION: DriveLaw(LOAD_FRICTION, ("mu_drive", "mu_back"), _load_term, _load_check,
+                            needs_torque=True),
+}
+
+
+def register_drive_law(law: DriveLaw) -> None:
+    """Add ``law`` to :data:`DRIVE_LAWS` (after the others; a name already there is an error)."""
+    if law.name in DRIVE_LAWS:
+        raise ValueError(f"a drive law named {law.name!r} exists already")
+    DRIVE_LAWS[law.name] = law
+
+
+@dataclass(frozen=True)
 class DriveFriction:
-    """The drive's friction laws applied by the engine (not expressible as MJCF attributes).
+    """The drive laws (:data:`DRIVE_LAWS`) a model declares, applied by the engine.
 
     At the start of every control period the joint's Coulomb level (MuJoCo's
     ``dof_frictionloss``, a true stick) is set to
 
         F = max(0, Fc + a sign(w) + mu |tau|),  mu = mu_drive if tau w > 0 else mu_back,
 
-    with ``Fc`` the model's own ``frictionloss``, ``w`` the joint velocity, ``tau`` the torque
-    the motor transmits (``gear * actuator_force`` of the last physics step, from an
+    for the two laws the library holds (in general ``Fc`` plus every declared law's term), with
+    ``Fc`` the model's own ``frictionloss``, ``w`` the joint velocity, ``tau`` the torque the
+    motor transmits (``gear * actuator_force`` of the last physics step, from an
     ``actuatorfrc`` sensor on the actuator; 0 before the first step), ``a``
     (:data:`FRICTION_ASYMMETRY`) the direction-dependent part and ``mu_drive``, ``mu_back``
     (:data:`LOAD_FRICTION`) the load-dependent coefficients: ``tau w > 0`` while the motor drives
@@ -97,30 +166,40 @@ class DriveFriction:
     ~1e-9 rad/s, which last-bit differences between ``mj_step`` and ``mujoco.rollout`` can flip
     (measured up to 4.5e-4 rad apart on a lift-and-drop run of the bank's geared-servo case,
     under one encoder count).
+
+    Attributes
+    ----------
+    dof : int
+    base_nm : float
+        The model's own ``frictionloss`` of the joint.
+    values : dict
+        ``{law name: its values}`` of the declared laws.
+    sensor_adr : int
+        ``sensordata`` address of the transmitted-torque sensor, -1 if none.
+    gear : float
     """
 
     dof: int
     base_nm: float
-    asymmetry_nm: float
-    mu_drive: float
-    mu_back: float
-    sensor_adr: int  # sensordata address of the transmitted-torque sensor, -1 if none
+    values: dict
+    sensor_adr: int
     gear: float
 
     @classmethod
     def of(cls, model: mujoco.MjModel, act: int, dof: int, source: str) -> "DriveFriction | None":
-        load = _numeric(model, LOAD_FRICTION)
-        asym = _numeric(model, FRICTION_ASYMMETRY)
-        if load is None and asym is None:
+        values = {}
+        for name, law in DRIVE_LAWS.items():
+            v = _numeric(model, name)
+            if v is None:
+                continue
+            why = law.check(v)
+            if why:
+                raise UserError(f"{source}: custom numeric {name!r} {why}, got {v.tolist()}")
+            values[name] = tuple(float(x) for x in v)
+        if not values:
             return None
-        if load is not None and (len(load) != 2 or not np.all(np.isfinite(load)) or np.any(load < 0)):
-            raise UserError(f"{source}: custom numeric {LOAD_FRICTION!r} must hold two coefficients "
-                            f">= 0 (mu_drive mu_back), got {load.tolist()}")
-        if asym is not None and (len(asym) != 1 or not np.isfinite(asym[0])):
-            raise UserError(f"{source}: custom numeric {FRICTION_ASYMMETRY!r} must hold one finite "
-                            f"level [N*m], got {asym.tolist()}")
         adr = -1
-        if load is not None:
+        if any(DRIVE_LAWS[n].needs_torque for n in values):
             for i in range(model.nsensor):
                 if (model.sensor_type[i] == mujoco.mjtSensor.mjSENS_ACTUATORFRC
                         and model.sensor_objid[i] == act):
@@ -128,31 +207,37 @@ class DriveFriction:
                     break
             else:
                 name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, act)
-                raise UserError(f"{source}: {LOAD_FRICTION!r} needs the transmitted torque: add "
+                needs = ", ".join(repr(n) for n in values if DRIVE_LAWS[n].needs_torque)
+                raise UserError(f"{source}: {needs} needs the transmitted torque: add "
                                 f'<sensor><actuatorfrc actuator="{name}"/></sensor>')
-        mu = (0.0, 0.0) if load is None else (float(load[0]), float(load[1]))
-        return cls(dof, float(model.dof_frictionloss[dof]), 0.0 if asym is None else float(asym[0]),
-                   mu[0], mu[1], adr, float(model.actuator_gear[act, 0]))
+        return cls(dof, float(model.dof_frictionloss[dof]), values, adr, float(model.actuator_gear[act, 0]))
+
+    @classmethod
+    def none(cls, dof: int, base_nm: float) -> "DriveFriction":
+        """A row without laws (batched with rows that have some): its own level, always."""
+        return cls(dof, float(base_nm), {}, -1, 1.0)
 
 
 class _DriveLaws:
     """The :class:`DriveFriction` of B rows as arrays (made once per engine: the levels are
-    computed at every control period)."""
+    computed at every control period).  Every law any row declares is applied to all rows, a
+    row without it at all-zero values (a zero term)."""
 
     def __init__(self, laws: list[DriveFriction]):
         self.dof = laws[0].dof
         self.sensor = np.array([f.sensor_adr for f in laws])
         self.base = np.array([f.base_nm for f in laws])
-        self.asym = np.array([f.asymmetry_nm for f in laws])
         self.gear = np.array([f.gear for f in laws])
-        self.mu_drive = np.array([f.mu_drive for f in laws])
-        self.mu_back = np.array([f.mu_back for f in laws])
+        self.terms = [(law, np.array([f.values.get(name, (0.0,) * len(law.params)) for f in laws], float))
+                      for name, law in DRIVE_LAWS.items() if any(name in f.values for f in laws)]
 
     def levels(self, w: np.ndarray, force: np.ndarray) -> np.ndarray:
         """The Coulomb levels [N*m] of the rows: velocities ``w`` and actuator forces ``force``."""
         tau = force * self.gear
-        mu = np.where(tau * w > 0, self.mu_drive, self.mu_back)
-        return np.maximum(0.0, self.base + self.asym * np.sign(w) + mu * np.abs(tau))
+        level = self.base
+        for law, values in self.terms:
+            level = level + law.term(values, w, tau)
+        return np.maximum(0.0, level)
 
 
 @dataclass(frozen=True)
@@ -616,8 +701,7 @@ class Engine:
             # a row without laws (a candidate model without them, batched with ones that have
             # them) keeps its own frictionloss: the null law
             self._laws = _DriveLaws([f if f is not None else
-                                     DriveFriction(d.ix.yaw_dof, float(d.model.dof_frictionloss[d.ix.yaw_dof]),
-                                                   0.0, 0.0, 0.0, -1, 1.0)
+                                     DriveFriction.none(d.ix.yaw_dof, d.model.dof_frictionloss[d.ix.yaw_dof])
                                      for f, d in zip(laws, devices)])
             self._force = np.zeros(self.B)  # each row's actuator force of its last step
             self._law_models = [copy.deepcopy(d.model) for d in devices]

@@ -110,3 +110,34 @@ def test_a_batch_may_mix_rows_with_and_without_the_laws():
     for b, dev in enumerate((plain, law)):
         one = run_p_loop(Engine([dev], [0.0], [None]), r, 3.0)["theta"]
         assert np.array_equal(both[b], one[0])
+
+
+def test_a_law_a_user_writes(monkeypatch):
+    """A drive law registered by a user (``register_drive_law``) is declared in MJCF like the
+    library's: a viscous-like friction ``c |w|`` added to the Coulomb level.  Steady sliding
+    under motor torque tau then solves tau - Fc - c w - b w = 0 (w > 0): w = (tau - Fc) / (b + c),
+    against MuJoCo's soft frictionloss at 1e-6 relative, as above; a bad value is refused
+    with the law's own message; the registry keeps its order and refuses a second law of a
+    name it holds."""
+    from omni_sim import device as dv
+
+    law = dv.DriveLaw("speed_friction", ("c",), lambda v, w, tau: v[:, 0] * np.abs(w),
+                      lambda v: None if len(v) == 1 and v[0] >= 0 else "must hold one c >= 0 [N*m*s/rad]")
+    monkeypatch.setattr(dv, "DRIVE_LAWS", dict(dv.DRIVE_LAWS))
+    dv.register_drive_law(law)
+    assert list(dv.DRIVE_LAWS) == [dv.FRICTION_ASYMMETRY, dv.LOAD_FRICTION, "speed_friction"]
+    with pytest.raises(ValueError, match="exists already"):
+        dv.register_drive_law(law)
+
+    base = _model()
+    xml = f"""<mujoco><option timestep="0.001" gravity="0 0 0"/>
+    <worldbody><body><joint name="hinge" axis="0 0 1" damping="{B}" frictionloss="{FC}"/>
+    <inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/></body></worldbody>
+    <actuator><motor name="drive" joint="hinge" gear="2" ctrllimited="true" ctrlrange="-1 1"/></actuator>
+    <custom><numeric name="speed_friction" data="{{c}}"/></custom></mujoco>"""
+    c = 0.03
+    w = _steady_velocity(mujoco.MjModel.from_xml_string(xml.format(c=c)), 0.4)
+    assert w == pytest.approx((0.8 - FC) / (B + c), rel=1e-6)
+    assert _steady_velocity(base, 0.4) == pytest.approx((0.8 - FC) / B, rel=1e-6)
+    with pytest.raises(UserError, match="speed_friction.*must hold one c >= 0"):
+        Device(mujoco.MjModel.from_xml_string(xml.format(c=-1)), 0.001, TARGET)
