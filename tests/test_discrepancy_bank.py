@@ -589,10 +589,9 @@ def test_assess_outside_effects_are_checked_against_expect():
 KNOWN_FAILURES = {
     "load_friction": "with the nominal's constants refitted jointly (the corrections, default on a "
                      "user's device) the workflow names load_friction with high confidence and the "
-                     "gap shrinks x16.3, but mu_back 0.386 +- 0.029 misses the truth 0.45 (mu_drive "
-                     "0.170 +- 0.028 covers 0.15; the gear is fitted 0.308 +- 0.010 against 0.30): "
-                     "the gear and mu_back trade off on these 5 s runs; measured at 8f25b5c (the 6 s "
-                     "nominal-off case of omni bench passes, docs/bench.json)",
+                     "gap shrinks x15.6, but mu_drive 0.1777 +- 0.02 misses the truth 0.15 (mu_back "
+                     "0.423 +- 0.021 covers 0.45): the gain and mu_drive trade off along a jagged "
+                     "valley (docs/discrepancy/bank.json at 84fc339; docs/discrepancy.md, known failures)",
     "load_friction_nominal_off": "names load_friction with high confidence (the gap shrinks more "
                                  "than 10x), but on CI at 66d9989 the armature correction 0.002703 "
                                  "+- 0.00017 kg*m^2 missed the truth 0.0025 and mu_back came out "
@@ -601,9 +600,9 @@ KNOWN_FAILURES = {
                                  "and mu_drive trade off, and the intervals do not see the valley "
                                  "(docs/discrepancy/valley_scan.json; docs/discrepancy.md, known "
                                  "failures)",
-    "end_stop": "names presliding_friction with low confidence (x2.3), a stand-in not on the "
-                "case's expect list (none, torque_saturation, joint_stiffness); the list was set "
-                "before any run and is not widened to the result (docs/discrepancy/bank.md)",
+    "end_stop": "names viscous_damping with low confidence (x2.0), a stand-in not on the case's "
+                "expect list (none, torque_saturation, joint_stiffness); the list was set before any "
+                "run and is not widened to the result (docs/discrepancy/bank.json at 84fc339)",
     "asymmetric_friction": "with the effect in the library (commit 33a9091) it was named with high "
                            "confidence and a = 7.57 +- 0.33 mN*m covered the truth 7.5, but the "
                            "held-out gap shrank only x2.6 (1.54e-3 -> 6.04e-4 rad, noise floor "
@@ -814,23 +813,23 @@ def test_docs_bank_table_is_the_json():
 
 def test_docs_search_examples_are_the_bank_json():
     """The two examples of the search docs/discrepancy.md quotes are what the bank's run did: the stand-in
-    pair of delay+friction+armature (its Coulomb and delay) and the set backlash+coulomb's
-    backward step thinned."""
+    pair of delay+friction+armature (Coulomb + a lag beats Coulomb + delay, whose Coulomb and
+    delay stand in for the armature) and the set backlash+coulomb's backward step thinned."""
     data = json.loads((ROOT / "docs" / "discrepancy" / "bank.json").read_text())
     sec = _flat(_section("# Where model and measurements disagree", "## The hidden-effect bank"))
     rep = data["cases"]["delay+friction+armature"]["report"]
     pairs = {c["name"]: c for rnd in rep["candidates"] for c in rnd if c["method"] != "prescreen"}
     best_pair = max((c for n, c in pairs.items() if n.count("+") == 1), key=lambda c: c["share"])
-    assert best_pair["name"] == "armature+presliding_friction"
+    assert best_pair["name"] == "coulomb_friction+actuator_lag"
     cd = pairs["coulomb_friction+time_delay"]
     assert cd["share"] < best_pair["share"]
     assert (f"whose fit makes up for the missing armature with {cd['parameters']['frictionloss_nm'] * 1e3:.0f} "
             f"mN m and {cd['parameters']['delay_s'] * 1e3:.1f} ms") in sec
     rounds = data["cases"]["backlash+coulomb"]["report"]["rounds"]
-    assert rounds[0]["pair_search"]["best"] == "coulomb_friction+joint_stiffness"
-    assert any(r.get("tie") and r.get("runner_up") == "gravity_tilt" for r in rounds if r["round"] == 1)
+    assert rounds[0]["pair_search"]["best"] == "coulomb_friction+armature"
+    assert any(r.get("tie") and r.get("runner_up") == "joint_stiffness" for r in rounds if r["round"] == 1)
     thinned = [r for r in rounds if "backward_step" in r]
     assert [(r["best"], r["backward_step"]["dropped"]) for r in thinned] == \
-        [("coulomb_friction+gravity_tilt+backlash", "gravity_tilt")]
-    assert ("the pair search accepts Coulomb + a spring, tied with Coulomb + a tilt; the beam's best set "
-            "is Coulomb + tilt + backlash, and the tilt is dropped") in sec
+        [("coulomb_friction+joint_stiffness+backlash", "joint_stiffness")]
+    assert ("the pair search accepts Coulomb + an armature, tied with Coulomb + a spring; the beam's best "
+            "set is Coulomb + spring + backlash, and the spring is dropped") in sec
