@@ -42,7 +42,6 @@ class Progress:
                         bar_format="{desc} {bar:12} stage {n_fmt}/{total_fmt} [{elapsed} elapsed]{postfix}",
                         desc="discrepancy: starting")
         self.tick_s = tick_s
-        self._stage = "starting"
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._tick, daemon=True) if enabled else None
 

@@ -16,7 +16,7 @@ Writes ``valley_scan.json`` (``--out``, default docs/discrepancy) with:
   Gauss-Newton model predicts a 50 % rise), with the std of the error about that parabola.
 
 The training gap is :func:`omni_sim.discrepancy.fit.gap` on all runs; the error the fits
-minimise is ``Problem._cost`` (weighted sum of squares).  Deterministic (the case's seed);
+minimise is the sum of squares of ``Problem.weighted``.  Deterministic (the case's seed);
 about a minute on 2 cores.
 
 Usage: python scripts/valley_scan.py [--out docs/discrepancy]
@@ -28,8 +28,10 @@ import argparse
 import json
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
+from omni_sim import model as om
 from omni_sim.device import Device
 from omni_sim.discrepancy import effects as fx
 from omni_sim.discrepancy import fit as fitm
@@ -49,7 +51,8 @@ def main(argv=None) -> int:
     case = hidden.case(CASE)
     path, target = hidden.nominal(case)
     runs = hidden.generate(case)
-    spec, model, _ = wf._load_spec(path, target)
+    model = om.load_model(path, target=target)
+    spec = mujoco.MjSpec.from_file(str(path))
     period = control_period_of(runs)
     rr = prepare_runs(runs, Device(model, period, target=target))
     builder = fx.ModelBuilder(spec, target)
@@ -89,8 +92,8 @@ def main(argv=None) -> int:
             tmax = float(np.sqrt(0.5 * c0 / lam[k]))
             ts = np.linspace(-tmax, tmax, 9)
             v = V[:, k] * prob.scale
-            costs = np.array([prob._cost(r) for r in prob.simulate([np.clip(fc.x + t * v, prob.lower, prob.upper)
-                                                                     for t in ts])])
+            raws = prob.simulate([np.clip(fc.x + t * v, prob.lower, prob.upper) for t in ts])
+            costs = np.array([float(np.sum(prob.weighted(r) ** 2)) for r in raws])
             coef = np.polyfit(ts, costs, 2)
             resid = costs - np.polyval(coef, ts)
             dirs.append({"eigenvalue": float(lam[k]), "direction_scaled": V[:, k].tolist(),

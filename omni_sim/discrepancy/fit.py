@@ -257,6 +257,14 @@ class Problem:
         elif fit.resid is not None:  # the residual at x only (a chord fit's Jacobian is its start's)
             self._fcache = {self._key(fit.x): (fit.resid, fit.raw_residuals)}
 
+    def jacobian_at(self, fit: FitResult) -> np.ndarray:
+        """The Jacobian at ``fit.x`` on this problem's runs: ``fit``'s own when it was computed
+        there (not a chord fit's start) on as many samples, else evaluated (``p + 1`` replays)."""
+        n = sum(r.n for r in self.runs)
+        if fit.jac is not None and fit.jac_at_x and fit.jac.shape == (n, len(fit.x)):
+            return fit.jac
+        return self.evaluate(fit.x)[1]
+
     def fun(self, x: np.ndarray) -> np.ndarray:
         return self.evaluate(x)[0]
 

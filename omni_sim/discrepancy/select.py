@@ -252,8 +252,8 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[Fold], start: lis
     the fold's parameters (a jackknife spread away from the all-runs fit) hardly change, so a
     fresh finite-difference Jacobian per fold and iteration (``p`` more replays of every
     training run each) changes the refit by far less than the folds differ, at ``p + 1`` times
-    the cost.  Without the all-runs Jacobian (a fit that holds none) the Jacobian is computed
-    at ``fit.x``.
+    the cost.  Without the all-runs Jacobian (a fit that holds none, or a chord fit's) it is
+    computed at ``fit.x`` (:meth:`Problem.jacobian_at`).
     """
     runs = problem.runs
     # each fold's training runs (in run order; a run held out whole is not simulated at all)
@@ -262,9 +262,7 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[Fold], start: lis
     train = [idx for _, idx in fps]
     xs = [np.asarray(x, float).copy() for x in start]
     p = len(fit.x)
-    J_all = fit.jac
-    if J_all is None or J_all.shape != (sum(r.n for r in runs), p):
-        J_all = problem.evaluate(fit.x)[1]
+    J_all = problem.jacobian_at(fit)
     rows = np.cumsum([0] + [r.n for r in runs])
     Jf = []  # each fold's Jacobian on its training samples, in its own weighting, scaled
     for (pf, idx) in fps:

@@ -197,10 +197,7 @@ def _refit_draws(prob: Problem, s: Scored, synth: list[ReplayRun], rep, draws: i
     p = len(s.fit.x)
     nr = len(synth) // draws
     w = prob.weights
-    J = s.fit.jac
-    if J is None or J.shape != (sum(r.n for r in synth[:nr]), p):  # not the all-runs fit's
-        J = prob.evaluate(s.fit.x)[1]
-    Js = J * prob.scale
+    Js = prob.jacobian_at(s.fit) * prob.scale
     A = Js.T @ Js
     damped = A + 1e-6 * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p)
     xs = [s.fit.x.copy() for _ in range(draws)]
