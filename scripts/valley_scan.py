@@ -7,8 +7,9 @@ Writes ``valley_scan.json`` (``--out``, default docs/discrepancy) with:
 * ``truth``: the training gap [rad] at the truth (every parameter at its true value, the
   corrections' unlisted constants at the nominal's), and where a trust-region fit started
   there stops;
-* ``from_ci_point``: the same fit started at the point CI reported (armature 0.002703,
-  mu_drive 0.1919, mu_back 0.3644, the rest at the truth): where it stops, its training gap;
+* ``from_ci_point``: the same fit started at the point CI reported (armature 0.002703 with a
+  95 % half-width of 0.00017, mu_drive 0.1919, mu_back 0.3644, the rest at the truth): where it
+  stops, its training gap;
 * ``mu_back_scan``: the training gap along mu_back (every other parameter at its truth);
 * ``weak_directions``: at the fit from the CI point, for each eigen-direction of the
   Gauss-Newton matrix (scaled parameters), its eigenvalue and the curvature of a parabola
@@ -42,6 +43,8 @@ from omni_sim.discrepancy.replay import Replayer, control_period_of, prepare_run
 CASE = "load_friction_nominal_off"
 #: The point CI reported at 66d9989 (the failing test's message): armature, mu_drive, mu_back.
 CI_POINT = {"armature_kgm2": 0.002703, "mu_drive": 0.1919, "mu_back": 0.3644}
+#: The 95 % half-width CI reported with that armature correction [kg*m^2].
+CI_ARMATURE_HALF_WIDTH = 0.00017
 
 
 def main(argv=None) -> int:
@@ -68,7 +71,8 @@ def main(argv=None) -> int:
     x_ci = xt.copy()
     for k, v in CI_POINT.items():
         x_ci[names.index(k)] = v
-    out = {"case": CASE, "parameters": names, "truth_x": xt.tolist(), "ci_point_x": x_ci.tolist()}
+    out = {"case": CASE, "parameters": names, "truth_x": xt.tolist(), "ci_point_x": x_ci.tolist(),
+           "ci_armature_half_width": CI_ARMATURE_HALF_WIDTH}
     with Replayer(None, target, period) as rep:
         prob = fitm.Problem(builder, [], effs, rr, rep)
         raw_t, raw_c = prob.simulate([xt, x_ci])

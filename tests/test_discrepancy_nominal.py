@@ -297,5 +297,25 @@ def test_known_failures_paragraph_is_the_valley_record():
         f"the truth lies {abs(dirs[0]['truth_offset_scaled']):.1f} scaled units away",
         f"flatter than the Gauss-Newton model says by {min(ratios):.1f}× to {max(ratios):.0f}×",
     ]
+    ci = dict(zip(names, rec["ci_point_x"]))
+    phrases.append(f"armature came out {ci['armature_kgm2']:.6f} ± {rec['ci_armature_half_width']:.5f} kg m² "
+                   f"(truth {rec['truth_x'][names.index('armature_kgm2')]:.4f}) with mu_back "
+                   f"{ci['mu_back']:.3f} (0.45) and mu_drive {ci['mu_drive']:.3f} (0.15)")
+    # the bench's and the bank's load_friction verdicts, from their records
+    import re
+
+    def verdict(why):  # "mu_drive: 0.1777 vs truth 0.15 (± 0.02)" -> ("mu_drive", "0.1777", "0.02")
+        m = re.fullmatch(r"(\w+): ([\d.]+) vs truth [\d.]+ \(± ([\d.e-]+)\)", why)
+        return m.groups()
+
+    srv = json.loads((root / "docs/bench.json").read_text())["discrepancy_servo"]
+    p, v, u = verdict(srv["bank_verdict"])
+    phrases.append(f"{p} {float(v):.3f} ± {u}")
+    perf = " ".join((root / "docs/performance.md").read_text().split())
+    assert f"{p} {float(v):.3f} ± {u} misses 0.15" in perf
+    lf = json.loads((root / "docs/discrepancy/bank.json").read_text())["cases"]["load_friction"]
+    p, v, u = verdict(lf["why"])
+    phrases.append(f"(gap ×{lf['report']['shrink_factor']:.1f}) with the nominal's corrections on, as on "
+                   f"every user's device, but {p} {v} ± {u} misses 0.15")
     for ph in phrases:
         assert ph.replace("%", " %") in text or ph in text, ph
