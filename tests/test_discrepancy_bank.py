@@ -587,19 +587,6 @@ def test_assess_outside_effects_are_checked_against_expect():
 #: Cases the workflow fails, by the bank's criteria, on record (docs/discrepancy/bank.md): run
 #: as strict xfails, so each still runs, and a change of its outcome either way is reported.
 KNOWN_FAILURES = {
-    "load_friction": "with the nominal's constants refitted jointly (the corrections, default on a "
-                     "user's device) the workflow names load_friction with high confidence and the "
-                     "gap shrinks x15.6, but mu_drive 0.1777 +- 0.02 misses the truth 0.15 (mu_back "
-                     "0.423 +- 0.021 covers 0.45): the gain and mu_drive trade off along a jagged "
-                     "valley (docs/discrepancy/bank.json at 84fc339; docs/discrepancy.md, known failures)",
-    "load_friction_nominal_off": "names load_friction with high confidence (the gap shrinks more "
-                                 "than 10x), but on CI at 66d9989 the armature correction 0.002703 "
-                                 "+- 0.00017 kg*m^2 missed the truth 0.0025 and mu_back came out "
-                                 "0.364 (truth 0.45, mu_drive 0.192 against 0.15): the training "
-                                 "error is jagged in the coefficients along a valley where the gain "
-                                 "and mu_drive trade off, and the intervals do not see the valley "
-                                 "(docs/discrepancy/valley_scan.json; docs/discrepancy.md, known "
-                                 "failures)",
     "end_stop": "names viscous_damping with low confidence (x2.0), a stand-in not on the case's "
                 "expect list (none, torque_saturation, joint_stiffness); the list was set before any "
                 "run and is not widened to the result (docs/discrepancy/bank.json at 84fc339)",

@@ -78,7 +78,8 @@ def test_asymmetric_coulomb_friction():
 def test_zero_coefficients_are_the_plain_model_and_the_paths_agree():
     """mu = 0, a = 0: the law writes the model's own frictionloss at every period, so the
     trajectory is the plain model's bit for bit (the same mj_step arithmetic); with the law on,
-    one-row (mj_step) and batch (rollout) engines agree bit for bit."""
+    one-row (mj_step) and batch (rollout) engines agree to the last bits (the load law's blend
+    carries last-bit differences of their velocities into the level: 3.3e-16 rad measured)."""
     t = np.arange(1500) * 0.001
     r = np.where(t % 0.5 < 0.25, 0.3, -0.3)[None, :]
     plain = run_p_loop(Engine([Device(_model(), 0.001, TARGET)], [0.0], [None]), r, 3.0)["theta"]
@@ -88,7 +89,7 @@ def test_zero_coefficients_are_the_plain_model_and_the_paths_agree():
     dev = Device(_model(load=(0.25, 0.6), asym=0.01), 0.001, TARGET)
     one = run_p_loop(Engine([dev], [0.0], [None]), r, 3.0)["theta"]
     batch = run_p_loop(Engine([dev, dev], [0.0, 0.0], [None, None], nthread=2), np.vstack([r, r]), 3.0)["theta"]
-    assert np.array_equal(batch[0], one[0]) and np.array_equal(batch[1], one[0])
+    assert np.max(np.abs(batch - one)) < 1e-12 and np.array_equal(batch[0], batch[1])
     assert np.max(np.abs(one - plain)) > 1e-3  # and the law changes the trajectory
     assert dev.model.dof_frictionloss[0] == FC  # the device's own model is left as it was
 

@@ -88,9 +88,10 @@ def test_nominal_loop_is_the_devices_on_regular_times(nominal):
 
 
 def test_the_friction_law_step_by_step():
-    """Each step's frictionloss is max(0, Fc + mu |tau_prev|) with mu by the sign of
-    tau_prev * w (w the velocity before the step, tau_prev the previous step's transmitted torque,
-    0 before the first); a run visits both branches."""
+    """Each step's frictionloss is max(0, Fc + mu |tau_prev|) with mu passing from mu_back to
+    mu_drive by a logistic in sign(tau_prev) * w over the blend speed 0.05 rad/s (w the velocity
+    before the step, tau_prev the previous step's transmitted torque, 0 before the first); a
+    run visits both branches."""
     e = st.EXPERIMENTS[3]  # a sine about +0.6 rad: up driven, down back-driven
     t = st.log_times(e.duration_s, np.random.default_rng(5))
     tr = st.simulate(t, e.goal(t), e.enabled(t), mu_drive=0.15, mu_back=0.45,
@@ -98,8 +99,11 @@ def test_the_friction_law_step_by_step():
     tau_prev = np.concatenate(([0.0], tr.tau[:-1]))
     w = tr.omega[:-1]
     drive = tau_prev * w > 0
-    expect = np.maximum(0.0, 0.03 + np.where(drive, 0.15, 0.45) * np.abs(tau_prev))
-    np.testing.assert_array_equal(tr.frictionloss, expect)
+    # (1 + tanh(x)) / 2 = 1 / (1 + exp(-2x)): the same law written another way
+    share = 1.0 / (1.0 + np.exp(-2.0 * np.where(tau_prev > 0, w, -w) / 0.05))
+    expect = np.maximum(0.0, 0.03 + (0.45 + (0.15 - 0.45) * share) * np.abs(tau_prev))
+    # two formulas of one law: they differ in the last bits (1e-15 N*m on levels of ~0.1)
+    np.testing.assert_allclose(tr.frictionloss, expect, rtol=0, atol=1e-14)
     assert tr.frictionloss[0] == 0.03
     assert drive.mean() > 0.2 and (~drive & (np.abs(w) > 0.05)).mean() > 0.2
     # the transmitted torque is the command through the gear (no saturation beyond ctrlrange)
@@ -119,9 +123,11 @@ def test_the_asymmetry_step_by_step():
                          noise=noise)
         w = tr.omega[:-1]
         tau_prev = np.concatenate(([0.0], tr.tau[:-1]))
-        m = np.where(tau_prev * w > 0, mu[0], mu[1])
+        share = 1.0 / (1.0 + np.exp(-2.0 * np.where(tau_prev > 0, w, -w) / 0.05))  # the blend
+        m = mu[1] + (mu[0] - mu[1]) * share
         expect = np.maximum(0.0, 0.03 + a * np.sign(w) + m * np.abs(tau_prev))
-        np.testing.assert_array_equal(tr.frictionloss, expect)
+        # the blend written another way: last bits differ (1e-15 N*m on levels of ~0.1)
+        np.testing.assert_allclose(tr.frictionloss, expect, rtol=0, atol=1e-14)
         assert tr.frictionloss[0] == 0.03 and w[0] == 0.0
         assert (w > 0.05).mean() > 0.2 and (w < -0.05).mean() > 0.2
         if mu == (0.0, 0.0):
@@ -184,12 +190,14 @@ def _hold_then_relax(mu_back, mu_drive=0.15):
 
 def test_self_locking():
     """A back-driven gearbox holds the load: with mu_back = 1.5 (friction (Fc + 1.5 tau) >= G -
-    tau down to tau = 0.4 G) the pendulum stays where it was when the motor's torque drops to
-    half the gravity torque; with mu_back = 0 it sinks until the P law's torque meets gravity
-    (tens of mrad); the case's 0.45 holds down to (G - Fc) / 1.45 = 0.67 G only: it sinks, but
-    less."""
+    tau down to tau = 0.4 G) the pendulum stays within one encoder count (1.53 mrad) of where
+    it was when the motor's torque drops to half the gravity torque -- at rest the coefficient
+    is the mean of mu_drive and mu_back (the blend), so the load creeps until its speed engages
+    mu_back, then holds with the motor near half the gravity torque; with mu_back = 0 it sinks
+    until the P law's torque meets gravity (tens of mrad); the case's 0.45 holds down to
+    (G - Fc) / 1.45 = 0.67 G only: it sinks, but less."""
     th, end_lock, tau_lock, g = _hold_then_relax(1.5)
-    assert abs(end_lock - th) < 2e-4 and tau_lock == pytest.approx(0.5 * g, rel=0.01)
+    assert 0 <= th - end_lock < st.ENCODER_STEP_RAD and 0.5 * g <= tau_lock < 0.55 * g
     th0, end_free, _, _ = _hold_then_relax(0.0)
     th45, end_45, _, _ = _hold_then_relax(0.45)
     assert th0 - end_free > 0.02

@@ -14,10 +14,13 @@ before the step; ``tau`` = the torque the motor transmits, ``gear * actuator_for
 servo's actuator as computed in the previous step (0 before the first step); the hinge's
 Coulomb friction for this step is::
 
-    frictionloss = max(0, Fc + a * sign(w) + mu * |tau|),   mu = mu_drive if tau * w > 0 else mu_back
+    frictionloss = max(0, Fc + a * sign(w) + mu * |tau|),
+    mu = (mu_drive + mu_back)/2 + (mu_drive - mu_back)/2 * tanh(w / W_B)   if tau > 0
+         (mu_drive + mu_back)/2 - (mu_drive - mu_back)/2 * tanh(w / W_B)   otherwise
 
-(``mu_drive``: the motor drives the load; ``mu_back``: the load back-drives the motor, or at
-rest), ``Fc`` the nominal model's own ``frictionloss`` of the hinge, ``a`` [N*m] the
+(``mu_drive``: the motor drives the load, ``tau * w > 0``; ``mu_back``: the load back-drives
+the motor; their mean at rest, the coefficient passing from one to the other over speeds of
+about ``W_B`` = :data:`BLEND_SPEED_RAD_S`), ``Fc`` the nominal model's own ``frictionloss`` of the hinge, ``a`` [N*m] the
 direction-dependent part of the Coulomb level (``Fc + a`` moving positive, ``Fc - a`` moving
 negative, ``Fc`` at ``w = 0`` exactly; ``sign`` is -1, 0 or +1).  It is written into the private
 model's ``dof_frictionloss`` before each ``mj_step``.  With ``a`` and both coefficients 0 the
@@ -107,6 +110,10 @@ COMMAND_LIMIT = 12.0
 #: Magnetic encoder: 4096 counts/rev (12-bit, as on Dynamixel X / Feetech STS servos).
 ENCODER_COUNTS = 4096
 ENCODER_STEP_RAD = 2 * math.pi / ENCODER_COUNTS
+#: The speed [rad/s] over which the gearbox's coefficient passes from mu_back to mu_drive: the
+#: device engine's law has the same (omni_sim.device.LOAD_FRICTION_BLEND_RAD_S, its provenance;
+#: written here on its own, as the rest of this truth).
+BLEND_SPEED_RAD_S = 0.05
 #: White noise [rad] added before rounding, ~1/4 count (the bank's Omni encoder noise is 1/4 of
 #: its count too; estimate).
 NOISE_RAD = 0.4e-3
@@ -223,7 +230,8 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
         u[k] = min(max(kp * (goal[k] - y[k]), -command_limit), command_limit) if on[k] else 0.0
         if friction_law:
             w = d.qvel[dof]
-            mu = mu_drive if tau * w > 0 else mu_back
+            half_sum, half_diff = 0.5 * (mu_drive + mu_back), 0.5 * (mu_drive - mu_back)
+            mu = half_sum + half_diff * math.tanh((w if tau > 0 else -w) / BLEND_SPEED_RAD_S)
             m.dof_frictionloss[dof] = max(0.0, fc + asymmetry_nm * _sign(w) + mu * abs(tau))
         fl[k] = m.dof_frictionloss[dof]
         d.ctrl[aid] = u[k]
