@@ -1,24 +1,27 @@
-"""Why the bank's geared-servo cases with the corrections on miss their intervals: the objective
-of the joint fit (the nominal's corrections + ``load_friction``) near the truth, on the
-``load_friction_nominal_off`` case's runs.
+"""Why ``load_friction``'s coefficient is blended, and why the prescreen also starts from the
+model's own values: the objective of the joint fit (the nominal's corrections +
+``load_friction``) on the ``load_friction_nominal_off`` case's runs, with the law as the
+library holds it (``blend``: the coefficient passes from mu_back to mu_drive over
+``omni_sim.device.LOAD_FRICTION_BLEND_RAD_S``) and as it was before (``switch``: on the sign
+of tau*w, mu_back at rest: the blend speed set to 0, in the engine and in the case's truth
+alike, so the truth's runs change with it).
 
-Writes ``valley_scan.json`` (``--out``, default docs/discrepancy) with:
+Writes ``valley_scan.json`` (``--out``, default docs/discrepancy) with, per law:
 
-* ``truth``: the training gap [rad] at the truth (every parameter at its true value, the
-  corrections' unlisted constants at the nominal's), and where a trust-region fit started
-  there stops;
-* ``from_ci_point``: the same fit started at the point CI reported (armature 0.002703 with a
-  95 % half-width of 0.00017, mu_drive 0.1919, mu_back 0.3644, the rest at the truth): where it
-  stops, its training gap;
+* ``truth_gap``: the training gap [rad] at the truth (every parameter at its true value);
 * ``mu_back_scan``: the training gap along mu_back (every other parameter at its truth);
-* ``weak_directions``: at the fit from the CI point, for each eigen-direction of the
-  Gauss-Newton matrix (scaled parameters), its eigenvalue and the curvature of a parabola
-  fitted by least squares to the training error at 9 points along it (bracket: where the
-  Gauss-Newton model predicts a 50 % rise), with the std of the error about that parabola.
+* ``fits``: trust-region fits (``Problem.fit``, 30 evaluations at most) from three starts --
+  the truth, the point CI reported with the switch (armature 0.002703, mu_drive 0.1919,
+  mu_back 0.3644, the rest at the truth) and a far one (the nominal's values, mu_drive 0.04,
+  mu_back 0.07): where each stops and its training gap;
 
-The training gap is :func:`omni_sim.discrepancy.fit.gap` on all runs; the error the fits
-minimise is the sum of squares of ``Problem.weighted``.  Deterministic (the case's seed);
-about a minute on 2 cores.
+and, with the blend, ``prescreen``: the corrections fitted without the effect (all runs), and
+on the prescreen's 1 s records the gap of every point of load_friction's grid with the other
+parameters at those corrections and at the nominal's own values, and where the prescreen
+(:func:`omni_sim.discrepancy.select.prescreen`) ends.
+
+The training gap is :func:`omni_sim.discrepancy.fit.gap` on all runs.  Deterministic (the
+case's seed); a few minutes on 2 cores.
 
 Usage: python scripts/valley_scan.py [--out docs/discrepancy]
 """
@@ -32,26 +35,27 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from omni_sim import device
 from omni_sim import model as om
 from omni_sim.device import Device
 from omni_sim.discrepancy import effects as fx
 from omni_sim.discrepancy import fit as fitm
-from omni_sim.discrepancy import hidden
+from omni_sim.discrepancy import hidden, select, servo_truth
 from omni_sim.discrepancy import workflow as wf
 from omni_sim.discrepancy.replay import Replayer, control_period_of, prepare_runs
 
 CASE = "load_friction_nominal_off"
-#: The point CI reported at 66d9989 (the failing test's message): armature, mu_drive, mu_back.
+#: The point CI reported at 66d9989 with the switch (the failing test's message).
 CI_POINT = {"armature_kgm2": 0.002703, "mu_drive": 0.1919, "mu_back": 0.3644}
-#: The 95 % half-width CI reported with that armature correction [kg*m^2].
-CI_ARMATURE_HALF_WIDTH = 0.00017
+#: The far start's coefficients (the corrections at the nominal's values).
+FAR_START = {"mu_drive": 0.04, "mu_back": 0.07}
+#: The blend speed that makes the law the switch on sign(tau w) it was (mu_back at rest).
+SWITCH_SPEED = 0.0
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default="docs/discrepancy")
-    args = ap.parse_args(argv)
-    case = hidden.case(CASE)
+def _scan(case, blend: float) -> dict:
+    device.LOAD_FRICTION_BLEND_RAD_S = blend
+    servo_truth.BLEND_SPEED_RAD_S = blend
     path, target = hidden.nominal(case)
     runs = hidden.generate(case)
     model = om.load_model(path, target=target)
@@ -59,27 +63,24 @@ def main(argv=None) -> int:
     period = control_period_of(runs)
     rr = prepare_runs(runs, Device(model, period, target=target))
     builder = fx.ModelBuilder(spec, target)
-    fixed = wf.correction_names("auto", spec, target, True)
-    effs = [builder.effect(n) for n in fixed] + [builder.effect("load_friction")]
+    fixed = [builder.effect(n) for n in wf.correction_names("auto", spec, target, True)]
+    effs = fixed + [builder.effect("load_friction")]
     names = [p.name for e in effs for p in e.params]
-    x_nom = np.concatenate([builder.nominal_values(e) for e in effs[:-1]] + [np.zeros(2)])
+    x_nom = np.concatenate([builder.nominal_values(e) for e in fixed] + [np.zeros(2)])
     truth_joint = hidden.truth_joint(case)
     xt = x_nom.copy()
     for attr, _ in case.nominal_joint:
         xt[names.index(hidden.CORRECTED_BY[attr][1])] = truth_joint[attr]
     xt[names.index("mu_drive")], xt[names.index("mu_back")] = dict(case.effects)["load_friction"]
-    x_ci = xt.copy()
+    starts = {"truth": xt.copy(), "ci_point": xt.copy(), "far": x_nom.copy()}
     for k, v in CI_POINT.items():
-        x_ci[names.index(k)] = v
-    out = {"case": CASE, "parameters": names, "truth_x": xt.tolist(), "ci_point_x": x_ci.tolist(),
-           "ci_armature_half_width": CI_ARMATURE_HALF_WIDTH}
+        starts["ci_point"][names.index(k)] = v
+    for k, v in FAR_START.items():
+        starts["far"][names.index(k)] = v
+    out = {"parameters": names, "truth_x": xt.tolist()}
     with Replayer(None, target, period) as rep:
         prob = fitm.Problem(builder, [], effs, rr, rep)
-        raw_t, raw_c = prob.simulate([xt, x_ci])
-        ft = prob.fit(xt, max_nfev=20)
-        fc = prob.fit(x_ci, max_nfev=20)
-        out["truth"] = {"gap": fitm.gap(raw_t), "fit_from_truth_x": ft.x.tolist(), "fit_from_truth_gap": ft.gap_train}
-        out["from_ci_point"] = {"gap_at_start": fitm.gap(raw_c), "fit_x": fc.x.tolist(), "fit_gap": fc.gap_train}
+        out["truth_gap"] = fitm.gap(prob.simulate([xt])[0])
         mus = np.round(np.linspace(0.35, 0.55, 21), 3)
         pts = []
         for m in mus:
@@ -87,24 +88,43 @@ def main(argv=None) -> int:
             x[names.index("mu_back")] = m
             pts.append(x)
         out["mu_back_scan"] = {"mu_back": mus.tolist(), "gap": [fitm.gap(r) for r in prob.simulate(pts)]}
-        f, J, _ = prob.evaluate(fc.x)
-        Js = J * prob.scale
-        lam, V = np.linalg.eigh(Js.T @ Js)
-        c0 = float(f @ f)
-        dirs = []
-        for k in range(len(lam)):
-            tmax = float(np.sqrt(0.5 * c0 / lam[k]))
-            ts = np.linspace(-tmax, tmax, 9)
-            v = V[:, k] * prob.scale
-            raws = prob.simulate([np.clip(fc.x + t * v, prob.lower, prob.upper) for t in ts])
-            costs = np.array([float(np.sum(prob.weighted(r) ** 2)) for r in raws])
-            coef = np.polyfit(ts, costs, 2)
-            resid = costs - np.polyval(coef, ts)
-            dirs.append({"eigenvalue": float(lam[k]), "direction_scaled": V[:, k].tolist(),
-                         "fitted_curvature": float(coef[0]), "ratio": float(lam[k] / coef[0]) if coef[0] > 0 else None,
-                         "jagged_std": float(resid.std(ddof=3)), "cost_at_fit": c0,
-                         "truth_offset_scaled": float(np.dot((xt - fc.x) / prob.scale, V[:, k]))})
-        out["weak_directions"] = dirs
+        out["fits"] = {}
+        for label, x0 in starts.items():
+            f = prob.fit(x0, max_nfev=30)
+            out["fits"][label] = {"start": x0.tolist(), "x": f.x.tolist(), "gap": f.gap_train}
+        if blend != SWITCH_SPEED:
+            out["prescreen"] = _prescreen(builder, fixed, x_nom[:len(names) - 2], rr, rep)
+    return out
+
+
+def _prescreen(builder, fixed: list, x_own: np.ndarray, rr: list, rep) -> dict:
+    corr = fitm.Problem(builder, [], fixed, rr, rep).fit(x_own, max_nfev=30)
+    short = [r.first_seconds(select.PRESCREEN_S) for r in rr]
+    eff = builder.effect("load_friction")
+    grid = [eff.clip(np.asarray(g, float)) for g in eff.grid(np.zeros(2))]
+    prob = fitm.Problem(builder, [], fixed + [eff], short, rep)
+    gaps = {}
+    for label, base in (("from_corrections", corr.x), ("from_own_values", x_own)):
+        raws = prob.simulate([np.concatenate([base, g]) for g in grid])
+        gaps[label] = [fitm.gap(r) for r in raws]
+    (p,) = select.prescreen(builder, fixed, corr.x, ["load_friction"], rr, rep)
+    return {"corrections_x": corr.x.tolist(), "grid": [g.tolist() for g in grid], "grid_gap": gaps,
+            "prescreen_x": p.x.tolist(), "prescreen_gap": p.gap}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default="docs/discrepancy")
+    args = ap.parse_args(argv)
+    case = hidden.case(CASE)
+    blend = device.LOAD_FRICTION_BLEND_RAD_S
+    out = {"case": CASE, "blend_rad_s": blend, "switch_rad_s": SWITCH_SPEED, "ci_point": CI_POINT,
+           "far_start": FAR_START}
+    try:
+        out["switch"] = _scan(case, SWITCH_SPEED)
+    finally:
+        device.LOAD_FRICTION_BLEND_RAD_S = servo_truth.BLEND_SPEED_RAD_S = blend
+    out["blend"] = _scan(case, blend)
     dest = Path(args.out)
     dest.mkdir(parents=True, exist_ok=True)
     (dest / "valley_scan.json").write_text(json.dumps(out, indent=1) + "\n")

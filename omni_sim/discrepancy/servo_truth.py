@@ -112,7 +112,7 @@ ENCODER_COUNTS = 4096
 ENCODER_STEP_RAD = 2 * math.pi / ENCODER_COUNTS
 #: The speed [rad/s] over which the gearbox's coefficient passes from mu_back to mu_drive: the
 #: device engine's law has the same (omni_sim.device.LOAD_FRICTION_BLEND_RAD_S, its provenance;
-#: written here on its own, as the rest of this truth).
+#: written here on its own, as the rest of this truth); 0: a switch on sign(tau w), mu_back at rest.
 BLEND_SPEED_RAD_S = 0.05
 #: White noise [rad] added before rounding, ~1/4 count (the bank's Omni encoder noise is 1/4 of
 #: its count too; estimate).
@@ -230,8 +230,11 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
         u[k] = min(max(kp * (goal[k] - y[k]), -command_limit), command_limit) if on[k] else 0.0
         if friction_law:
             w = d.qvel[dof]
-            half_sum, half_diff = 0.5 * (mu_drive + mu_back), 0.5 * (mu_drive - mu_back)
-            mu = half_sum + half_diff * math.tanh((w if tau > 0 else -w) / BLEND_SPEED_RAD_S)
+            if BLEND_SPEED_RAD_S == 0:  # a switch, mu_back at rest (scripts/valley_scan.py)
+                mu = mu_drive if tau * w > 0 else mu_back
+            else:
+                half_sum, half_diff = 0.5 * (mu_drive + mu_back), 0.5 * (mu_drive - mu_back)
+                mu = half_sum + half_diff * math.tanh((w if tau > 0 else -w) / BLEND_SPEED_RAD_S)
             m.dof_frictionloss[dof] = max(0.0, fc + asymmetry_nm * _sign(w) + mu * abs(tau))
         fl[k] = m.dof_frictionloss[dof]
         d.ctrl[aid] = u[k]
