@@ -42,7 +42,7 @@ def _worst(values) -> float:
     return float(max(values, key=abs)) if values else math.nan
 
 
-def _pose(ident, set_pose):
+def pose_of(ident, set_pose):
     for p in ident.poses:
         if (round(p.gamma1_set_deg), round(p.gamma2_set_deg)) == tuple(set_pose):
             return p
@@ -74,7 +74,7 @@ def table3_errors(ident) -> dict:
             "poses": rows}
 
 
-def _resonance_hz(beta_linear: float) -> float:
+def resonance_hz(beta_linear: float) -> float:
     return math.sqrt(max(beta_linear, 0.0)) / (2 * math.pi)
 
 
@@ -102,7 +102,7 @@ def family_figures(res: dict) -> dict:
     """The comparison figures of one family's reproduction (see the module docstring)."""
     ident = res["ident"]
     s = res["scores"]["summary"]
-    detail = _pose(ident, DETAIL_POSE)
+    detail = pose_of(ident, DETAIL_POSE)
     am = ident.alpha_model
     I = ident.pose_inertia(detail)
     inr = s["inertia"]
@@ -113,7 +113,7 @@ def family_figures(res: dict) -> dict:
         "model_sha256": s["run"]["model_sha256"],
         "friction": s["run"].get("friction"),
         "table3": table3_errors(ident),
-        "resonance_hz_65_90": _resonance_hz(detail.beta_linear),
+        "resonance_hz_65_90": resonance_hz(detail.beta_linear),
         "C_alpha_fall": am.C_fall(I),
         "alpha_breaks": [float(a) for a in am.alpha_breaks],
         "C_at_breaks_65_90": [float(c) for c in am.C(am.alpha_breaks, I)],
@@ -142,7 +142,7 @@ def paper_figures() -> dict:
     """The paper's values of the same figures."""
     t10 = paper.table10()
     t8 = paper.table8_average()
-    return {"resonance_hz_65_90": _resonance_hz(paper.table9()["beta_linear"]["fitted"]),
+    return {"resonance_hz_65_90": resonance_hz(paper.table9()["beta_linear"]["fitted"]),
             "C_alpha_fall": t10["C0"] / t10["C3"],
             "step_ratio": paper.PAPER_STEP_RATIO,
             # Table 11 reduced with the statistics of the families' step figures (like for like)
@@ -176,7 +176,7 @@ def fig_C_alpha(folder: Path, results: dict) -> None:
     grid = np.concatenate([[0.0], np.logspace(-2, math.log10(top * 2), 300)])
     for fam, res in results.items():
         ident = res["ident"]
-        p = _pose(ident, DETAIL_POSE)
+        p = pose_of(ident, DETAIL_POSE)
         am = ident.alpha_model
         I = ident.pose_inertia(p)
         ax.plot(grid, am.C(grid, I), "-", color=colors[fam], label=f"{fam}: identified alpha model")

@@ -174,7 +174,7 @@ def write_reproduce(folder: Path, res: dict, t0: float, pool=None, dataset=None)
     (folder / "report.md").write_text(format_report(res))
 
 
-def _one_blas_thread():
+def one_blas_thread():
     """A context limiting BLAS (numpy's and scipy's OpenBLAS) to one thread.  The method's
     least-squares problems are small (thousands of samples by at most 7 columns): a second
     BLAS thread gains nothing.  The numbers do not depend on it (the same files, byte for
@@ -217,7 +217,7 @@ def reproduce_command(args) -> int:
     Device(om.load_model(model_path))  # a bad model file: refused before the workers start
     t0 = time.perf_counter()
     # the pool is left first: its jobs end before a failure removes the temporary folder
-    with _one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp, worker_pool() as pool:
+    with one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp, worker_pool() as pool:
         res = simulate_campaign(model_path, args.jobs, progress=sys.stderr.isatty())
         dataset = pool.submit(write_dataset, tmp / "dataset", res["runs"])  # while it analyses
         res = analyse(res)
@@ -239,7 +239,7 @@ def reproduce_all(out: Path, force: bool = False, jobs: int | None = None,
     overlay figures; :mod:`omni_app.comparison`).  ``campaign``: the paper's (the command's),
     or a smaller one (tests)."""
     check_output_dir(out, force)
-    with _one_blas_thread():
+    with one_blas_thread():
         return _reproduce_all(out, force, jobs, campaign)
 
 

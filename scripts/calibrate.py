@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Calibrate the virtual Omni to the paper's measurements (see omni_sim/calibration.py).
+"""Calibrate the virtual Omni to the paper's measurements (see omni_studies/calibration.py).
 
 Usage: python scripts/calibrate.py [--friction {lugre,coulomb}] [--free {friction,all}]
                                   [--max-nfev N] [--dry-run] [--record FILE]
@@ -13,12 +13,10 @@ models/calibration.json. --dry-run only prints and writes the record to --record
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from omni_sim import calibration as cal  # noqa: E402
+from omni_studies import calibration as cal
 
 
 def main() -> int:

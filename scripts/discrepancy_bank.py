@@ -48,9 +48,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
-from omni_sim.discrepancy import experiment_set, hidden, servo_truth  # noqa: E402
+from omni_sim.discrepancy import experiment_set, hidden, servo_truth
 
 #: Where the bank's table and its JSON live (docs/discrepancy.md links them).
 DEFAULT_OUT = ROOT / "docs" / "discrepancy" / "bank.md"

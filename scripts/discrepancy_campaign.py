@@ -15,9 +15,8 @@ import json
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from omni_app.discrepancy import CAMPAIGN_CASE, bench_discrepancy_campaign  # noqa: E402
+from omni_app.discrepancy import CAMPAIGN_CASE, bench_discrepancy_campaign
 
 
 def main(argv=None) -> int:

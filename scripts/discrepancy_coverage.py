@@ -29,10 +29,9 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
-from identification.errors import UserError  # noqa: E402
-from omni_sim.discrepancy import bank, experiment_set, hidden  # noqa: E402
+from identification.errors import UserError
+from omni_sim.discrepancy import bank, experiment_set, hidden
 
 CONDITIONS = ("noisy", "exact")
 #: Target coverage of the nominal 95 % intervals.

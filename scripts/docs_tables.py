@@ -36,14 +36,11 @@ import csv
 import json
 import math
 import re
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:  # run as a script from anywhere
-    sys.path.insert(0, str(ROOT))
 
-from identification import paper  # noqa: E402
+from identification import paper
 
 #: The pages that hold generated tables or quoted figures, by short name (paths from the root).
 PAGES = {"results": "docs/results.md", "model": "docs/model.md", "calibration": "docs/calibration.md",
@@ -229,7 +226,7 @@ def _cal_detail(rec: dict) -> dict:
 
 def calibration_targets(src: dict) -> str:
     """docs/calibration.md: the LuGre calibration (models/calibration.json) against the paper."""
-    from omni_sim.calibration import TABLE10_ALPHA, TABLE10_C, TABLE10_FALL, c_at_alpha
+    from omni_studies.calibration import TABLE10_ALPHA, TABLE10_C, TABLE10_FALL, c_at_alpha
 
     rec = src["cal"]
     a = rec["achieved"]
@@ -297,7 +294,7 @@ def calibration_targets(src: dict) -> str:
 
 def families_calibration(src: dict) -> str:
     """docs/friction-families.md: both calibration records side by side."""
-    from omni_sim.calibration import TABLE10_FALL
+    from omni_studies.calibration import TABLE10_FALL
 
     recs = {"coulomb": src["cal_coulomb"], "lugre": src["cal"]}
     A = {f: r["achieved"] for f, r in recs.items()}
@@ -485,7 +482,7 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
     """Phrases of the pages that carry a figure from the sources, rendered from them: page
     (a key of :data:`PAGES`) -> its phrases.  (Long on purpose: a flat list, one entry per
     quoted figure, read beside the page it checks.)"""
-    from omni_sim.calibration import STEP_BAND_REL
+    from omni_studies.calibration import STEP_BAND_REL
 
     src = src or load_sources()
     s, comp, bench = src["summary"], src["comparison"], src["bench"]

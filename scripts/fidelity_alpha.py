@@ -17,14 +17,11 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
 
-from scripts import fidelity_alpha_verdict as fav  # noqa: E402
+from omni_app import fidelity_alpha as fav
 
 
 def main(argv=None) -> int:
@@ -54,7 +51,7 @@ def main(argv=None) -> int:
 
 
 def _commit():
-    from scripts._provenance import git_commit
+    from omni_app.provenance import git_commit
 
     return git_commit()
 

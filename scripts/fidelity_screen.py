@@ -51,16 +51,14 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
 
-from omni_sim.calibration import STEP_BAND_REL  # noqa: E402
-from omni_sim.device import ENCODER_STEP_RAD  # noqa: E402
+from omni_studies.calibration import STEP_BAND_REL
+from omni_sim.device import ENCODER_STEP_RAD
 
 #: The Omni's encoder count [rad] (the device's, 15000 counts/rev), for the backlash magnitudes.
 COUNT_RAD = ENCODER_STEP_RAD
 #: A pose "matches" Table 11 when its linear median step error is within this fraction of it
-#: (the table-level targets' band, omni_sim.calibration.STEP_BAND_REL).
+#: (the table-level targets' band, omni_studies.calibration.STEP_BAND_REL).
 WITHIN = STEP_BAND_REL
 #: The bases: scene file (relative to the project) per friction family.
 BASES = {"lugre": "models/scene.xml", "coulomb": "models/scene_coulomb.xml"}
@@ -189,9 +187,9 @@ def build_model(cfg: dict):
 
 
 def _linear_step_errors(runs, inertia_params) -> list[dict]:
-    """The linear model (26) on every step run (:func:`omni_sim.calibration.linear_step_errors`),
+    """The linear model (26) on every step run (:func:`omni_studies.calibration.linear_step_errors`),
     in this screen's row layout."""
-    from omni_sim.calibration import linear_step_errors
+    from omni_studies.calibration import linear_step_errors
 
     return [{"set_deg": r["set"], "median_linear_rad": r["median_rad"], "p90_linear_rad": r["p90_rad"]}
             for r in linear_step_errors(runs, inertia_params)]
@@ -201,7 +199,7 @@ def measure_model(model, jobs=None) -> dict:
     """The screen's figures of one compiled model (see the module docstring)."""
     from identification.identify import Identification, identify_runs
     from identification.inertia import MIN_POSES, fit_inertia_model
-    from omni_app.comparison import _pose, _resonance_hz, table3_errors
+    from omni_app.comparison import pose_of, resonance_hz, table3_errors
     from omni_app.figures import DETAIL_POSE
     from omni_app.reproduce import simulate_campaign
 
@@ -217,8 +215,8 @@ def measure_model(model, jobs=None) -> dict:
     out["table3"]["poses"] = [{k: r[k] for k in ("set_deg", "C_linear_rel_error",
                                                 "beta_tilde_linear_rel_error", "angle_error_deg")}
                               for r in t3["poses"]]
-    detail = _pose(lin, DETAIL_POSE)
-    out["resonance_hz_65_90"] = (_resonance_hz(detail.beta_linear) if detail is not None and detail.physical
+    detail = pose_of(lin, DETAIL_POSE)
+    out["resonance_hz_65_90"] = (resonance_hz(detail.beta_linear) if detail is not None and detail.physical
                                  else None)
     if len(usable) < MIN_POSES:
         out["ok"] = False
@@ -283,7 +281,7 @@ def run_configuration(cfg: dict, jobs=None) -> dict:
 
 # -- writing -------------------------------------------------------------------------------------
 def _git_commit() -> str | None:
-    from scripts._provenance import git_commit
+    from omni_app.provenance import git_commit
 
     return git_commit()
 
@@ -552,10 +550,10 @@ def main(argv=None) -> int:
            "configurations": []}
     from tqdm import tqdm
 
-    from omni_app.reproduce import _one_blas_thread
+    from omni_app.reproduce import one_blas_thread
 
     bar = tqdm(todo, unit="cfg", file=sys.stderr)
-    with _one_blas_thread():
+    with one_blas_thread():
         for cfg in bar:
             bar.set_description(cfg["id"])
             done[cfg["id"]] = run_configuration(cfg, args.jobs)

@@ -58,19 +58,18 @@ import mujoco
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
-from identification.dataset import read_dataset  # noqa: E402
-from omni_sim.device import Device  # noqa: E402
-from omni_sim.discrepancy import effects as fx  # noqa: E402
-from omni_sim.discrepancy import hidden  # noqa: E402
-from omni_sim.discrepancy import select as sel  # noqa: E402
-from omni_sim.discrepancy import servo_truth  # noqa: E402
-from omni_sim.discrepancy import uncertainty as un  # noqa: E402
-from omni_sim.discrepancy.fit import Problem, gap, jacobian_se  # noqa: E402
-from omni_sim.discrepancy.replay import Replayer, control_period_of, prepare_runs  # noqa: E402
-from omni_sim.model import Target  # noqa: E402
-from scripts._provenance import git_commit  # noqa: E402
+from identification.dataset import read_dataset
+from omni_sim.device import Device
+from omni_sim.discrepancy import effects as fx
+from omni_sim.discrepancy import hidden
+from omni_sim.discrepancy import select as sel
+from omni_sim.discrepancy import servo_truth
+from omni_sim.discrepancy import uncertainty as un
+from omni_sim.discrepancy.fit import Problem, gap, jacobian_se
+from omni_sim.discrepancy.replay import Replayer, control_period_of, prepare_runs
+from omni_sim.model import Target
+from omni_app.provenance import git_commit
 
 OUT = ROOT / "docs" / "discrepancy"
 JSON_NAME, MD_NAME = "sysid_compare.json", "sysid.md"

@@ -44,11 +44,10 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from identification.inertia import InertiaParameters  # noqa: E402
-from identification.nonlinear import AlphaModel  # noqa: E402
-from omni_app import zwidth as zw  # noqa: E402
+from identification.inertia import InertiaParameters
+from identification.nonlinear import AlphaModel
+from omni_app import zwidth as zw
 
 GAMMA_SET = (65.0, 90.0)
 FAMILIES = ("lugre", "coulomb")

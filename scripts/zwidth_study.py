@@ -34,9 +34,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from omni_app import zwidth as zw  # noqa: E402
+from omni_app import zwidth as zw
 
 #: The grid of the study (the section's): B rows, K columns.
 DAMPING = np.linspace(0.0, 0.012, 7)
@@ -159,7 +158,7 @@ def colgate_general(b: float, damping, T: float, delay: int, n: int = 200001) ->
 
 
 def _git_commit() -> str | None:
-    from scripts._provenance import git_commit
+    from omni_app.provenance import git_commit
 
     return git_commit()
 

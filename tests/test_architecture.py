@@ -1,4 +1,6 @@
-"""Layering of the three packages: omni_app -> omni_sim -> identification, and no import cycles.
+"""Layering of the four packages: omni_app -> omni_studies -> omni_sim -> identification, no
+import cycles, and scripts that are thin mains (no script imports another, a private name or
+edits ``sys.path``).
 
 The import graph is read from the source with :mod:`ast` (never by importing), including
 imports inside functions, ``if TYPE_CHECKING:`` blocks and ``importlib.import_module("...")``
@@ -15,7 +17,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("identification", "omni_sim", "omni_app")
+PACKAGES = ("identification", "omni_sim", "omni_studies", "omni_app")
 #: Never imported by the method layer, directly or through a dependency.
 METHOD_FORBIDDEN = ("matplotlib", "argparse", "mujoco", "omni_sim", "omni_app", "numba")
 #: Must not appear in ``sys.modules`` after importing every identification module (numba: the
@@ -157,8 +159,9 @@ def test_relative_imports_resolve():
 
 
 def test_every_package_was_walked():
+    least = {"identification": 8, "omni_sim": 8, "omni_studies": 2, "omni_app": 8}
     for pkg in PACKAGES:   # (omni_app has no __init__.py: a namespace package)
-        assert sum(m.startswith(pkg + ".") for m in MODULES) >= 8, pkg
+        assert sum(m.startswith(pkg + ".") for m in MODULES) >= least[pkg], pkg
     assert "omni_sim.discrepancy.bank" in MODULES and "omni_app.report" in MODULES
 
 
@@ -175,11 +178,74 @@ def test_method_layer_imports(module):
     assert not bad, f"{module} imports outside the method layer: {bad}"
 
 
-@pytest.mark.parametrize("module", sorted(m for m in MODULES if m.split(".")[0] == "omni_sim"))
-def test_simulator_does_not_import_the_app(module):
+#: What each package may import of ours (itself and the floors below).
+ALLOWED = {"identification": {"identification"},
+           "omni_sim": {"identification", "omni_sim"},
+           "omni_studies": {"identification", "omni_sim", "omni_studies"},
+           "omni_app": {"identification", "omni_sim", "omni_studies", "omni_app"}}
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if m.split(".")[0] in ("omni_sim", "omni_studies")))
+def test_no_import_runs_up_a_floor(module):
+    pkg = module.split(".")[0]
     bad = [f"line {line}: {name}" for name, line in imports_of(module)
-           if name.split(".")[0] == "omni_app"]
-    assert not bad, f"{module} imports the presentation layer: {bad}"
+           if name.split(".")[0] in PACKAGES and name.split(".")[0] not in ALLOWED[pkg]]
+    assert not bad, f"{module} imports a floor above its own: {bad}"
+
+
+# -- the scripts: thin mains ---------------------------------------------------------------------
+SCRIPTS = sorted((ROOT / "scripts").glob("*.py"))
+
+
+def script_problems(path: Path) -> list[str]:
+    """What makes a script more than a thin main: an import of another script (``scripts``),
+    a private name of a package (``from pkg import _x``, ``module._x``), a ``sys.path`` edit."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    ours = set(PACKAGES)
+    modules = {}  # local name -> our module it is bound to
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                top = a.name.split(".")[0]
+                if top == "scripts":
+                    out.append(f"line {node.lineno}: imports {a.name}")
+                if top in ours:
+                    modules[a.asname or top] = a.name
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            top = node.module.split(".")[0]
+            if top == "scripts" or node.level:
+                out.append(f"line {node.lineno}: imports from {node.module}")
+            if top in ours:
+                for a in node.names:
+                    if a.name.startswith("_"):
+                        out.append(f"line {node.lineno}: imports the private {node.module}.{a.name}")
+                    modules[a.asname or a.name] = f"{node.module}.{a.name}"
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                and node.value.id in modules and node.attr.startswith("_") and not node.attr.startswith("__")):
+            out.append(f"line {node.lineno}: uses the private {modules[node.value.id]}.{node.attr}")
+        if (isinstance(node, ast.Attribute) and node.attr == "path" and isinstance(node.value, ast.Name)
+                and node.value.id == "sys"):
+            out.append(f"line {node.lineno}: touches sys.path")
+    return out
+
+
+def test_script_checker_finds_what_it_forbids(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text("import sys\nfrom scripts import other\nfrom omni_sim.device import _numeric\n"
+                   "from omni_studies import calibration as cal\nsys.path.insert(0, '.')\ncal._fmt(1)\n")
+    found = script_problems(bad)
+    assert len(found) == 4, found
+    good = tmp_path / "good.py"
+    good.write_text("import sys\nfrom omni_studies import calibration as cal\ncal.fmt(1)\nprint(sys.argv)\n")
+    assert script_problems(good) == []
+
+
+@pytest.mark.parametrize("path", SCRIPTS, ids=lambda p: p.name)
+def test_scripts_are_thin_mains(path):
+    found = script_problems(path)
+    assert not found, f"{path.name}: {found}"
 
 
 def test_method_layer_loads_without_simulator_or_plotting():

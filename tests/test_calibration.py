@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from omni_sim import calibration as cal
+from omni_studies import calibration as cal
 from omni_sim import model as om
 from omni_sim.device import Device
 
@@ -134,7 +134,7 @@ def test_write_model_round_trip(tmp_path, family):
 @pytest.mark.parametrize("family", sorted(cal.RECORDS))
 def test_record_carries_the_code_residual_scales(family):
     """Each family's record was fitted with the residual scales and targets the code uses now
-    (the module constants of omni_sim/calibration.py that :func:`cal.residuals` divides by),
+    (the module constants of omni_studies/calibration.py that :func:`cal.residuals` divides by),
     not merely the same as the other record: a changed constant without a re-run calibration
     fails here."""
     record = json.loads(cal.RECORDS[family].read_text())

@@ -33,7 +33,7 @@ def _source(module: str) -> str:
 WRITERS = ("apply", "compile_with", "write", "nominal_values")
 #: The project's top-level packages: imports into them are followed, others (numpy, mujoco,
 #: the standard library) are not.
-PROJECT_PACKAGES = ("omni_sim", "identification", "omni_app")
+PROJECT_PACKAGES = ("omni_sim", "omni_studies", "identification", "omni_app")
 EFFECTS = "omni_sim.discrepancy.effects"
 
 

@@ -10,18 +10,17 @@ import copy
 import dataclasses
 import json
 import re
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+from identification import paper
+from omni_app import fidelity_alpha as fav
+from omni_app import fidelity_report as report
+from omni_studies.fidelity import SCENE_EFFECTS, meets
 
-from identification import paper  # noqa: E402
-from scripts import fidelity_alpha_verdict as fav  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 SEARCH = json.loads((ROOT / "docs/fidelity/search.json").read_text())
 RECORD = json.loads((ROOT / "docs/fidelity/alpha_verdict.json").read_text())
@@ -206,9 +205,6 @@ def test_pages_quote_the_verdict():
 def test_pages_quote_what_the_rules_fixed_before_the_search_say():
     """'Only the coulomb-footed pre-sliding candidates pass' the acceptance's five figures, and
     by their count the matched scene is ahead of the shipped default: from the search record."""
-    from scripts import fidelity_report as report
-    from scripts.fidelity_search import meets
-
     passed = [r["id"] for r in SEARCH["candidates"] if r.get("ok") and meets(r["figures"])["all"]]
     assert passed and all(i.startswith("coulomb/presliding_friction") for i in passed)
     phrase = "only the coulomb-footed pre-sliding candidates pass"
@@ -220,7 +216,6 @@ def test_pages_quote_what_the_rules_fixed_before_the_search_say():
     matched = json.loads((ROOT / "models/calibration_matched.json").read_text())["from_candidate"]
     n_matched = report._n_figures(by_id[matched])
     n_default = sum(by_id["lugre/none"]["figures_start"]["meets"][k] for k in report.ACCEPTANCE_FIGURES)
-    from scripts.fidelity_search import SCENE_EFFECTS
     scene = sorted((r for r in doc["candidates"] if r.get("ok") and r["family"] == "lugre"
                     and all(e in SCENE_EFFECTS for e in r["effects"])),
                    key=lambda r: (-report._n_figures(r), r["cost"]))

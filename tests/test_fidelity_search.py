@@ -1,21 +1,18 @@
-"""scripts/fidelity_search.py and its report: the candidates are the library's effects (never a
+"""The table-level search (omni_studies.fidelity, scripts/fidelity_search.py) and its report: the candidates are the library's effects (never a
 family's own friction twice), the acceptance is computed figure by figure, the committed report
 is what the committed record renders to, and only scene-declarable candidates become a scene."""
 
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+from omni_app import fidelity_report as report
+from omni_studies import fidelity as search
 
-from scripts import fidelity_report as report  # noqa: E402
-from scripts import fidelity_search as search  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_candidates_are_library_effects_and_never_the_family_twice():
@@ -66,11 +63,11 @@ def test_committed_report_is_the_record_rendered():
 
 def test_only_declarable_candidates_become_a_scene():
     doc = json.loads((ROOT / "docs/fidelity/search.json").read_text())
-    with pytest.raises(SystemExit, match="not a lugre-footed candidate"):
+    with pytest.raises(ValueError, match="not a lugre-footed candidate"):
         search.write_scene(doc, "lugre/position_offset")
-    with pytest.raises(SystemExit, match="not a lugre-footed candidate"):
+    with pytest.raises(ValueError, match="not a lugre-footed candidate"):
         search.write_scene(doc, "coulomb/presliding_friction")
-    with pytest.raises(SystemExit, match="no successful candidate"):
+    with pytest.raises(ValueError, match="no successful candidate"):
         search.write_scene(doc, "lugre/no_such_effect")
     record = json.loads((ROOT / "models/calibration_matched.json").read_text())
     report._refresh(doc)

@@ -1,4 +1,4 @@
-"""The table-level targets (omni_sim.calibration, targets="tables"): the published tables that
+"""The table-level targets (omni_studies.calibration, targets="tables"): the published tables that
 describe the real Omni -- Table 3, Table 9's resonance, Table 10, section 2.3 and Table 11's
 *linear* column -- and never the paper's validation of the alpha model (Tables 8 and 11's alpha
 columns).  The guard is behavioural: in a fresh process whose copy of the paper's data holds
@@ -20,12 +20,12 @@ import numpy as np
 import pytest
 
 from identification import paper
-from omni_sim import calibration as cal
+from omni_studies import calibration as cal
 from omni_sim import model as om
 
+from omni_studies.fidelity import N_RESIDUALS
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from scripts.fidelity_search import N_RESIDUALS  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +109,7 @@ sys.setprofile(profile)
 threading.setprofile(profile)
 before = set(sys.modules)
 from identification import paper
-from omni_sim import calibration as cal
+from omni_studies import calibration as cal
 from omni_sim import model as om
 exec(sys.argv[1])  # an injected alpha route (the guard's own test); empty otherwise
 fig = cal.evaluate(om.load_model(), cal.ex.SINE_AMPLITUDE_RAD, steps=True)
@@ -297,7 +297,7 @@ STEP_RECORD_RTOL = 1e-5
 
 def test_step_figures_match_the_reproduction(evaluation):
     """The calibration's Table 11 linear column (its own route,
-    :func:`omni_sim.calibration.linear_step_errors`) is the reproduction's (``omni reproduce``'s
+    :func:`omni_studies.calibration.linear_step_errors`) is the reproduction's (``omni reproduce``'s
     validation; the committed record's family ``lugre``, the default scene): every pose's median
     and p90 and the median over poses (3.10 mrad; the paper's 11.2 mrad, 3.6x more).
 

@@ -16,7 +16,7 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-SOURCES = sorted(p for d in ("omni_sim", "omni_app", "identification", "scripts", "examples")
+SOURCES = sorted(p for d in ("omni_sim", "omni_studies", "omni_app", "identification", "scripts", "examples")
                  for p in (ROOT / d).rglob("*.py"))
 
 
@@ -74,8 +74,8 @@ def test_the_search_would_see_a_second_copy(tmp_path):
 
 
 def test_calibration_writes_structure_not_text():
-    """The calibrated values reach the MJCF through an XML tree (calibration._set_attributes),
+    """The calibrated values reach the MJCF through an XML tree (calibration.set_attributes),
     never through regular expressions on the file's text."""
-    code = _code(ROOT / "omni_sim" / "calibration.py")
+    code = _code(ROOT / "omni_studies" / "calibration.py")
     assert not re.search(r"^\s*(import re\b|from re import)", code, re.M)
     assert "xml.etree.ElementTree" in code

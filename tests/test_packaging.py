@@ -19,7 +19,7 @@ def test_every_package_is_listed():
     subpackage must be added to it or a regular install would silently lack it."""
     listed = set(_setuptools()["packages"])
     found = {".".join(p.parent.relative_to(ROOT).parts)
-             for top in ("omni_sim", "identification", "omni_app")
+             for top in ("omni_sim", "omni_studies", "identification", "omni_app")
              for p in (ROOT / top).rglob("__init__.py")}
     assert found <= listed, sorted(found - listed)
     assert "omni_sim.models" in listed

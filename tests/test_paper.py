@@ -127,7 +127,7 @@ def test_no_code_reads_paper_csvs_directly():
 
     root = Path(__file__).resolve().parents[1]
     offenders = []
-    for pkg in ("identification", "omni_sim", "omni_app", "scripts"):
+    for pkg in ("identification", "omni_sim", "omni_studies", "omni_app", "scripts"):
         for path in (root / pkg).rglob("*.py"):
             if path.name == "paper.py" and path.parent.name == "identification":
                 continue

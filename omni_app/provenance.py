@@ -1,10 +1,11 @@
-"""What the study scripts record of the checkout they ran from."""
+"""What a record says of the checkout it was made from."""
 
 from __future__ import annotations
 
 import subprocess
 from pathlib import Path
 
+#: The checkout this package runs from (a regular install has none: :func:`git_commit` is None).
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -53,9 +53,9 @@ from identification.identify import identify_runs
 from identification.errors import UserError
 from identification.nonlinear import select_frequencies
 
-from . import experiments as ex
-from . import model as om
-from .device import Device
+from omni_sim import experiments as ex
+from omni_sim import model as om
+from omni_sim.device import Device
 
 #: The calibration record of each friction family (the lugre record also holds the robot's
 #: joint calibration with that family, which set the shared numbers of omni.xml).
@@ -129,7 +129,7 @@ PARAMETERS = (
     Parameter("sine_amplitude_rad", "rad", 0.03, 0.3, "A_r, not stated in the paper"),
 )
 NAMES = tuple(p.name for p in PARAMETERS)
-_BY_NAME = {p.name: p for p in PARAMETERS}
+BY_NAME = {p.name: p for p in PARAMETERS}
 #: The robot's numbers (models/omni.xml) and the campaign's A_r: shared by the friction families.
 SHARED = ("m_upper_arm", "m_forearm", "m_stylus", "I_turret", "shoulder_kp", "elbow_kp",
           "sine_amplitude_rad")
@@ -469,7 +469,7 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
     base = device.model
     family = family_of(device)
     names = free_names(family, free)
-    params = [_BY_NAME[n] for n in names]
+    params = [BY_NAME[n] for n in names]
     now = current_values(base)
     x0 = {**now, **(start or {})}
     lo = np.array([p.lower for p in params])
@@ -501,7 +501,7 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
         "free": free,
         "date": _dt.date.today().isoformat(),
         "method": "scipy.optimize.least_squares (trf, bounded), simulation-in-the-loop with the "
-                  "project's own identification (omni_sim/calibration.py)",
+                  "project's own identification (omni_studies/calibration.py)",
         "targets": f"paper Table 3 (C_linear, beta_tilde_linear, actual angles, {len(read_table3())} "
                    f"poses); Table 10 C at alpha = {_alphas_text(TABLE10_ALPHA)} (65/90 pose); "
                    "section 2.3: some frequency with "
@@ -533,11 +533,11 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
 
 
 # --- writing the result back into the MJCF ------------------------------------------------
-def _fmt(x: float) -> str:
+def fmt(x: float) -> str:
     return f"{x:.6g}"
 
 
-def _set_attributes(path: Path, edits: list[tuple[str, dict]]) -> Path:
+def set_attributes(path: Path, edits: list[tuple[str, dict]]) -> Path:
     """Set attributes of elements of the MJCF file ``path``, each element found by an
     ElementTree path expression that must match exactly one element; the file is read and
     written as an XML tree (comments and the rest of the file stay: the writer edits
@@ -585,40 +585,40 @@ def write_model(values: dict, family: str, folder: Path = om.MODELS_DIR) -> list
 
 def _write_robot(values: dict, path: Path) -> Path:
     def inertial(mass: float, diag) -> dict:
-        return {"mass": _fmt(mass), "diaginertia": " ".join(_fmt(d) for d in diag)}
+        return {"mass": fmt(mass), "diaginertia": " ".join(fmt(d) for d in diag)}
 
     stylus_mass = float(_get_attribute(path, _inertial("stylus"), "mass"))
     stylus_diag = [float(v) for v in _get_attribute(path, _inertial("stylus"), "diaginertia").split()]
     scale = values["m_stylus"] / stylus_mass
     ixx, iyy, _ = (float(v) for v in _get_attribute(path, _inertial("turret"), "diaginertia").split())
-    return _set_attributes(path, [
+    return set_attributes(path, [
         (_inertial("upper_arm"), inertial(values["m_upper_arm"], _rod_inertia(values["m_upper_arm"]))),
         (_inertial("forearm"), inertial(values["m_forearm"], _rod_inertia(values["m_forearm"]))),
         (_inertial("stylus"), inertial(values["m_stylus"], [d * scale for d in stylus_diag])),
-        (_inertial("turret"), {"diaginertia": f"{_fmt(ixx)} {_fmt(iyy)} {_fmt(values['I_turret'])}"}),
-        (".//actuator/position[@name='shoulder_servo']", {"kp": _fmt(values["shoulder_kp"])}),
-        (".//actuator/position[@name='elbow_servo']", {"kp": _fmt(values["elbow_kp"])}),
+        (_inertial("turret"), {"diaginertia": f"{fmt(ixx)} {fmt(iyy)} {fmt(values['I_turret'])}"}),
+        (".//actuator/position[@name='shoulder_servo']", {"kp": fmt(values["shoulder_kp"])}),
+        (".//actuator/position[@name='elbow_servo']", {"kp": fmt(values["elbow_kp"])}),
     ])
 
 
 #: The main-class joint defaults of a family's scene: the yaw's damping and frictionloss.
-_SCENE_JOINT = "./default/joint"
+SCENE_JOINT = "./default/joint"
 _LUGRE = f".//actuator/dcmotor[@name='{FRICTION_ACTUATOR}']"
 
 
 def _write_friction(values: dict, family: str, path: Path) -> Path:
-    joint = {"damping": _fmt(values["yaw_damping"])}
+    joint = {"damping": fmt(values["yaw_damping"])}
     if family == "coulomb":
-        joint["frictionloss"] = _fmt(values["yaw_frictionloss"])
-    edits = [(_SCENE_JOINT, joint)]
+        joint["frictionloss"] = fmt(values["yaw_frictionloss"])
+    edits = [(SCENE_JOINT, joint)]
     if family == "lugre":
         lugre = _get_attribute(path, _LUGRE, "lugre").split()  # sigma0 sigma1 Fc Fs vs
-        lugre[0] = _fmt(values["lugre_stiffness"])
-        lugre[2] = _fmt(values["lugre_friction"])
-        lugre[3] = _fmt(values["lugre_friction"] * values["stribeck_ratio"])
-        lugre[4] = _fmt(values["stribeck_speed"])
+        lugre[0] = fmt(values["lugre_stiffness"])
+        lugre[2] = fmt(values["lugre_friction"])
+        lugre[3] = fmt(values["lugre_friction"] * values["stribeck_ratio"])
+        lugre[4] = fmt(values["stribeck_speed"])
         edits.append((_LUGRE, {"lugre": " ".join(lugre)}))
-    return _set_attributes(path, edits)
+    return set_attributes(path, edits)
 
 
 #: The paper campaign's file, whose ``[sine]`` amplitude the calibration sets.
@@ -646,7 +646,7 @@ def write_amplitude(amplitude_rad: float, path: Path = CAMPAIGN_FILE) -> float:
     lines = path.read_text().split("\n")
     i = sine_amplitude_line(lines, path)
     comment = lines[i].partition("#")[2]
-    lines[i] = f"amplitude_rad = {_fmt(amplitude_rad)}" + (f"  #{comment}" if comment else "")
+    lines[i] = f"amplitude_rad = {fmt(amplitude_rad)}" + (f"  #{comment}" if comment else "")
     new = "\n".join(lines)
     written = ex.parse_campaign(new, str(path)).sine[0]["amplitude_rad"]
     if abs(written - amplitude_rad) > 1e-5 * abs(amplitude_rad):

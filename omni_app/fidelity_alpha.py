@@ -1,6 +1,6 @@
 """The alpha model's verdict on every candidate of the table-level search within Table 11's band.
 
-The table-level search (``scripts/fidelity_search.py``, record ``docs/fidelity/search.json``)
+The table-level search (:mod:`omni_studies.fidelity`, record ``docs/fidelity/search.json``)
 calibrated 35 candidate virtual Omnis to the published tables that describe the device; it never
 simulated the alpha model.  Here the paper's validation of the alpha model is run on **every**
 candidate whose linear model errs on the steps as much as the real Omni's did (Table 11's band,
@@ -12,7 +12,8 @@ the reproduction report's own targets (``omni_app/report.py``), and the result i
 
 :func:`in_band` (the selection), :func:`rebuild` (a candidate's device from the record),
 :func:`measure` (one candidate), :func:`run` (all of them), :func:`format_markdown` and
-:func:`plot` (the report, from the JSON record).  ``scripts/fidelity_alpha.py`` is the command.
+:func:`plot` (the report, from the JSON record).  ``scripts/fidelity_alpha.py`` is the command;
+the search itself is :mod:`omni_studies.fidelity`.
 """
 
 from __future__ import annotations
@@ -22,6 +23,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from omni_studies import calibration as cal
+from omni_studies import fidelity as fs
 
 ROOT = Path(__file__).resolve().parents[1]
 SEARCH = ROOT / "docs" / "fidelity" / "search.json"
@@ -72,10 +76,8 @@ def in_band(doc: dict) -> list[dict]:
 def rebuild(cand: dict):
     """The candidate's compiled model and sine amplitude A_r: its family's footing with the
     record's fitted values, by the search's own builder (``fidelity_search.build``)."""
-    from scripts import fidelity_search as fs
-
     base, _ = fs.footing(cand["family"])
-    free = fs._free(cand)
+    free = fs.free_parameters(cand)
     names = [f["name"] for f in free]
     if names != [p["name"] for p in cand["parameters"]]:
         raise RuntimeError(f"{cand['id']}: the record's parameters {[p['name'] for p in cand['parameters']]} "
@@ -88,7 +90,6 @@ def campaign_file(amplitude_rad: float, folder: Path) -> Path:
     """The paper campaign (omni_sim/campaigns/paper.toml) with the sine amplitude A_r of the
     candidate (its footing's; the coulomb footing's all-free refit has its own), written in
     ``folder``; exact (repr), checked by parsing."""
-    from omni_sim import calibration as cal
     from omni_sim import experiments as ex
 
     lines = cal.CAMPAIGN_FILE.read_text().split("\n")
@@ -117,16 +118,14 @@ def measure(cand: dict, jobs: int | None = None) -> dict:
     device and campaign, the comparison's figures (``omni_app.comparison.family_figures``), the
     rebuild check against the search record, and the verdict."""
     from omni_app.comparison import family_figures
-    from omni_app.reproduce import _one_blas_thread, run_reproduce
+    from omni_app.reproduce import one_blas_thread, run_reproduce
 
     from identification.errors import UserError
-
-    from scripts.fidelity_search import meets
 
     t0 = time.perf_counter()
     model, amplitude = rebuild(cand)
     sf = cand["figures"]
-    m = meets(sf)  # the search's rules, recomputed (the record's flags may predate them)
+    m = fs.meets(sf)  # the search's rules, recomputed (the record's flags may predate them)
     row = {"id": cand["id"], "family": cand["family"], "effects": cand["effects"],
            "amplitude_rad": amplitude,
            "effect_parameters": {p["name"]: p["value"] for p in cand["parameters"] if p["kind"] != "friction"},
@@ -134,7 +133,7 @@ def measure(cand: dict, jobs: int | None = None) -> dict:
                                          "table3_beta_tilde_worst_rel", "table10_C_fall")},
            "search_meets": {"acceptance": m["all"], "tables_met": sum(m["tables"].values())}}
     try:
-        with tempfile.TemporaryDirectory() as tmp, _one_blas_thread():
+        with tempfile.TemporaryDirectory() as tmp, one_blas_thread():
             res = run_reproduce(model=model, jobs=jobs, campaign=str(campaign_file(amplitude, Path(tmp))))
     except UserError as exc:  # the pipeline could not identify an alpha model: that is the verdict
         return {**row, "error": str(exc), "wall_s": time.perf_counter() - t0}
