@@ -846,8 +846,9 @@ def record_claims(src: dict) -> dict[str, list[str]]:
         row("armature_kgm2", "armature [kg·m²]", 3), row("damping_nms_per_rad", "damping [N·m·s/rad]", 3),
         row("frictionloss_nm", "frictionloss [N·m]", 3), row("gear_nm_per_v", "torque per volt (gear) [-]", 3),
         f"the best, `{best['name']}`, leaves {_sci(best['heldout_gap_rad'], 2)} rad "
-        f"({-100 * best['share']:.0f} % worse than the corrected nominal's {_sci(blocked['corrected'], 2)})",
-        f"ends at `mu_drive` {lf['parameters']['mu_drive']:.0f} and `mu_back` {lf['parameters']['mu_back']:.1f} "
+        f"({abs(100 * best['share']):.0f} % {'better' if best['share'] > 0 else 'worse'} than the corrected "
+        f"nominal's {_sci(blocked['corrected'], 2)})",
+        f"ends at `mu_drive` {lf['parameters']['mu_drive']:.2f} and `mu_back` {lf['parameters']['mu_back']:.2f} "
         f"and replays the held-out blocks far worse ({_sci(lf['heldout_gap_rad'], 2)} rad)",
         f"make the held-out gap {rs['gaps']['runs']['corrected'] / blocked['nominal']:.1f}x worse "
         f"({_sci(rs['gaps']['runs']['corrected'], 2)} rad)",
