@@ -7,5 +7,6 @@ A study computes and returns its results; writing records and drawing figures is
 * :mod:`omni_studies.calibration`: the virtual Omni calibrated to the paper's tables (targets,
   parameters, the fit, the MJCF/campaign/record writers it owns);
 * :mod:`omni_studies.fidelity`: the table-level search for the effect the calibration lacks,
-  and the matched scene it writes.
+  and the matched scene it writes;
+* :mod:`omni_studies.zwidth`: which virtual walls the yaw renders passively (the energy test).
 """

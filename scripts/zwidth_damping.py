@@ -4,9 +4,9 @@
 For each friction family (lugre, coulomb) the paper's identification runs on the virtual Omni
 (``omni reproduce --friction F``, or a given params.json).  At the wall maps' pose (servo set
 points gamma_set = (65, 90) deg; the actual, sagged angles from ``Device.equilibrium``, as
-:func:`omni_app.zwidth.passivity_map` uses them) three physical dampings [N*m*s/rad] are formed:
+:func:`omni_studies.zwidth.passivity_map` uses them) three physical dampings [N*m*s/rad] are formed:
 
-* ``nominal``: the yaw's joint damping b (:func:`omni_app.zwidth.physical_damping`);
+* ``nominal``: the yaw's joint damping b (:func:`omni_studies.zwidth.physical_damping`);
 * ``linear``: b_id = C_linear * I_yaw, C_linear [1/s] of the identified pose nearest to the actual
   angles (beta_bar = 1 units: C = damping / inertia), I_yaw MuJoCo's yaw inertia there
   (``Device.inertia``);
@@ -47,7 +47,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 from identification.inertia import InertiaParameters
 from identification.nonlinear import AlphaModel
-from omni_app import zwidth as zw
+from omni_studies import zwidth as zw
 
 GAMMA_SET = (65.0, 90.0)
 FAMILIES = ("lugre", "coulomb")

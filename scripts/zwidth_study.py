@@ -1,17 +1,17 @@
 #!/usr/bin/env python
 """What moves the Z-width boundary: the table of docs/haptics.md's "What moves the boundary".
 
-Each case is one passivity map of the virtual Omni's yaw (:func:`omni_app.zwidth.passivity_map`,
+Each case is one passivity map of the virtual Omni's yaw (:func:`omni_studies.zwidth.passivity_map`,
 the current energy test) on the same 7 x 41 grid: wall damping B from 0 to 0.012 N*m*s/rad in 7
 values, wall stiffness K from 0 to 40 N*m/rad in 41 values; the device is
-:func:`omni_app.zwidth.map_device` (physics step T/20, the wall clipped at the drive's limit).
+:func:`omni_studies.zwidth.map_device` (physics step T/20, the wall clipped at the drive's limit).
 The cases: the ideal device (no dry friction, exact encoder); the lugre and coulomb families with
 an exact encoder and with the encoder's quantisation, each at probe speeds 0.02 and 1 rad/s; the
 ideal device with 1 and 2 servo periods of loop delay; and the coulomb
 exact map at 1 rad/s with a 0.5 s run instead of 1 s.
 
 Recorded per case: the settings, the wall time, b (the yaw's joint damping), the boundary (largest
-passive K, :func:`omni_app.zwidth.boundary`) of every damping row, K_max at B = 0 / 0.004 / 0.008,
+passive K, :func:`omni_studies.zwidth.boundary`) of every damping row, K_max at B = 0 / 0.004 / 0.008,
 Colgate & Schenkel's 2(b - |B|)/T, the passive cells and the energy index, and how many rows are
 not monotone (a passive cell beyond a non-passive one along K: rows and cells).
 
@@ -35,7 +35,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from omni_app import zwidth as zw
+from omni_studies import zwidth as zw
 
 #: The grid of the study (the section's): B rows, K columns.
 DAMPING = np.linspace(0.0, 0.012, 7)
@@ -44,7 +44,7 @@ STIFFNESS = np.linspace(0.0, 40.0, 41)
 TABLE_B = (0.0, 0.004, 0.008)
 
 #: name -> (friction family or "ideal", quantize, probe speed [rad/s], delay [periods][, run
-#: length [s], default omni_app.zwidth.DURATION_S])
+#: length [s], default omni_studies.zwidth.DURATION_S])
 CASES = {
     "ideal": ("ideal", False, 0.02, 0),
     "lugre_exact_v002": ("lugre", False, 0.02, 0),

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import omni_app.zwidth as zw
+import omni_studies.zwidth as zw
 from identification.errors import UserError
 from omni_app.cli import main
-from omni_app.zwidth import boundary, colgate_limit, map_device, passivity_map, physical_damping
+from omni_studies.zwidth import boundary, colgate_limit, map_device, passivity_map, physical_damping
 
 
 @pytest.fixture(scope="module")
@@ -319,7 +319,7 @@ def test_ideal_claims_equal_the_committed_record():
     d, rows, err, readme, docs = _ideal_claims()
     for name, text, claims in (("README.md", (ROOT / "README.md").read_text(), readme),
                                ("docs/haptics.md", (ROOT / "docs/haptics.md").read_text(), docs),
-                               ("omni_app/zwidth.py", zw.__doc__, docs)):
+                               ("omni_studies/zwidth.py", zw.__doc__, docs)):
         flat = " ".join(text.split())
         for claim in claims:
             assert claim in flat, (name, claim)
