@@ -121,3 +121,17 @@ def test_two_estimates_replay_to_their_recorded_gaps():
 def test_sysid_is_not_a_dependency():
     text = (ROOT / "pyproject.toml").read_text()
     assert "sysid" not in text
+
+
+def test_the_discrepancy_page_quotes_the_record():
+    """docs/discrepancy.md's summary of the comparison: the closed-loop variants' physics steps
+    against ours, over the cases, are the record's."""
+    text = " ".join((ROOT / "docs/discrepancy.md").read_text().split())
+
+    def ends(k):
+        r = [c["methods"][k]["physics_steps"] / c["methods"]["ours"]["physics_steps"] for c in RECORD["cases"]]
+        return sc.g(min(r), 2), sc.g(max(r), 2)
+
+    a, b = ends("sysid_closed")
+    c, d = ends("sysid_closed_scaled")
+    assert f"at {a} to {b} times our physics steps (scaled as ours: {c} to {d} times)" in text
