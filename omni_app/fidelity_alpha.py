@@ -115,9 +115,9 @@ def verdict(alpha: dict) -> dict:
 
 def measure(cand: dict, jobs: int | None = None) -> dict:
     """The paper's validation on one candidate: ``omni reproduce``'s stages on its rebuilt
-    device and campaign, the comparison's figures (``omni_app.comparison.family_figures``), the
+    device and campaign, the comparison's figures (``omni_studies.comparison.family_figures``), the
     rebuild check against the search record, and the verdict."""
-    from omni_app.comparison import family_figures
+    from omni_studies.comparison import family_figures
     from omni_app.reproduce import one_blas_thread, run_reproduce
 
     from identification.errors import UserError
@@ -157,7 +157,7 @@ def measure(cand: dict, jobs: int | None = None) -> dict:
 def run(doc: dict, jobs: int | None = None, verbose: bool = True) -> dict:
     """Every in-band candidate of the search record ``doc`` measured; the record (without its
     provenance, which the command adds)."""
-    from omni_app.comparison import paper_figures
+    from omni_studies.comparison import paper_figures
     from omni_app.report import TARGET_STEP_RATIO
 
     chosen = in_band(doc)  # fixed here, before any alpha figure is computed

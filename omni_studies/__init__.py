@@ -8,5 +8,6 @@ A study computes and returns its results; writing records and drawing figures is
   parameters, the fit, the MJCF/campaign/record writers it owns);
 * :mod:`omni_studies.fidelity`: the table-level search for the effect the calibration lacks,
   and the matched scene it writes;
+* :mod:`omni_studies.comparison`: the friction families' figures beside the paper's;
 * :mod:`omni_studies.zwidth`: which virtual walls the yaw renders passively (the energy test).
 """

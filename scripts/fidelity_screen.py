@@ -199,7 +199,7 @@ def measure_model(model, jobs=None) -> dict:
     """The screen's figures of one compiled model (see the module docstring)."""
     from identification.identify import Identification, identify_runs
     from identification.inertia import MIN_POSES, fit_inertia_model
-    from omni_app.comparison import pose_of, resonance_hz, table3_errors
+    from omni_studies.comparison import pose_of, resonance_hz, table3_errors
     from omni_app.figures import DETAIL_POSE
     from omni_app.reproduce import simulate_campaign
 

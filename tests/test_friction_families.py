@@ -323,7 +323,7 @@ def test_comparison_figures_recomputed_independently(compared, fam):
 
 
 def test_comparison_paper_column():
-    from omni_app.comparison import paper_figures
+    from omni_studies.comparison import paper_figures
 
     p = paper_figures()
     with open(DATA / "table10_model_65_90.csv") as fh:
