@@ -66,19 +66,19 @@ def simulate_campaign(model_path=None, jobs=None, progress=False, model=None,
     from .accel import install
     install()  # the compiled α loop (loaded at its first use)
     in_memory = model is not None and model_path is None
-    if model is None:
-        model = om.load_model(model_path)
-    device = Device(model)  # built once: the campaign, the ground truth
+    # built once: the campaign, the ground truth; from a file it knows the file's digest
+    device = Device.load(model_path) if model is None else Device(model)
     t0 = time.perf_counter()
     bar = tqdm(total=5, disable=not progress, unit="stage", leave=False)
     bar.set_description("simulating the paper campaign")
     exps = ex.campaign(campaign)
-    runs = ex.simulate(exps, model_path, jobs=jobs, progress=False, device=device)
+    runs = ex.simulate(exps, None if model is None else model_path, jobs=jobs, progress=False,
+                       device=device)
     bar.update(1)
     run_meta = {"model": ("in-memory model" if in_memory else _model_label(model_path)),
-                "model_sha256": "in-memory model" if in_memory else ex.model_digest(model_path),
+                "model_sha256": "in-memory model" if in_memory else runs[0].meta["model_sha256"],
                 "friction": runs[0].meta["friction"]}
-    return {"model": model, "device": device, "runs": runs, "bar": bar, "t0": t0, "run_meta": run_meta}
+    return {"model": device.model, "device": device, "runs": runs, "bar": bar, "t0": t0, "run_meta": run_meta}
 
 
 def analyse(res: dict) -> dict:

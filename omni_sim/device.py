@@ -408,9 +408,14 @@ class Device:
     """
 
     def __init__(self, model: mujoco.MjModel, control_period_s: float = CONTROL_PERIOD_S,
-                 target: om.Target | None = None, source: str = "<model>"):
+                 target: om.Target | None = None, source: str = "<model>",
+                 file: str | None = None, digest: str | None = None):
         self.model = model
         self.target = target
+        #: Where the model came from (:meth:`load` sets both): the MJCF file as the caller named
+        #: it (None: the built-in ``scene.xml``) and its digest (:func:`omni_sim.model.model_digest`);
+        #: ``digest`` None: a model compiled in memory.
+        self.file, self.digest = file, digest
         self.ix = om.index(model, source, target)
         self.control_period_s = float(control_period_s)
         self.substeps = substeps_of(model, control_period_s)
@@ -439,8 +444,12 @@ class Device:
     def load(cls, path=None, control_period_s: float = CONTROL_PERIOD_S, friction: str | None = None,
              target: om.Target | None = None) -> "Device":
         """Compile an MJCF file (default: the built-in scene of the friction family
-        ``friction``, or ``scene.xml``) into a device."""
-        return cls(om.load_model(path, friction, target), control_period_s, target)
+        ``friction``, or ``scene.xml``) into a device that knows its file and digest."""
+        model = om.load_model(path, friction, target)
+        # the file as the caller named it; None for the built-in scene.xml (runs say so)
+        file = None if path is None and friction is None else str(om.model_path(path, friction))
+        return cls(model, control_period_s, target, file=file,
+                   digest=om.model_digest(om.model_path(path, friction)))
 
     # -- the drive's friction ------------------------------------------------------------------
     def lugre_actuators(self) -> list[int]:

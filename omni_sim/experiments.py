@@ -19,7 +19,6 @@ Two ways to run the same physics:
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 import tomllib
@@ -410,15 +409,6 @@ def run_fast(device: Device, exps: list[Experiment], settings: Settings,
     return out
 
 
-def model_digest(path: str | os.PathLike | None) -> str:
-    """SHA-256 of the model file's bytes (first 16 hex digits), for run metadata."""
-    p = Path(path) if path is not None else om.DEFAULT_SCENE
-    h = hashlib.sha256()
-    for f in sorted({p, *p.parent.glob("*.xml")}):
-        h.update(f.read_bytes())
-    return h.hexdigest()[:16]
-
-
 def _to_run(exp: Experiment, res: dict, settings: Settings, model_path, digest: str,
             friction: str) -> Run:
     dt = settings.control_period_s
@@ -470,7 +460,12 @@ def simulate(exps: list[Experiment], model_path: str | os.PathLike | None = None
     """
     from tqdm import tqdm
 
-    in_memory = (model is not None or device is not None) and model_path is None
+    if device is not None and model is None and model_path is None and device.digest is not None:
+        model_path, digest = device.file, device.digest  # a device loaded from a file knows it
+        in_memory = False
+    else:
+        in_memory = (model is not None or device is not None) and model_path is None
+        digest = "in-memory model" if in_memory else om.model_digest(model_path)
     if device is None or device.control_period_s != settings.control_period_s:
         if model is None:
             model = device.model if device is not None else om.load_model(model_path)
@@ -482,7 +477,6 @@ def simulate(exps: list[Experiment], model_path: str | os.PathLike | None = None
         raise UserError(f"kp must be positive, got {settings.kp}")
     for e in exps:
         device.check_pose(e.gamma1_set_deg, e.gamma2_set_deg)
-    digest = "in-memory model" if in_memory else model_digest(model_path)
     bar = tqdm(total=len(exps), desc="simulating", unit="run", disable=not progress, leave=False)
     results: list[dict] = []
     fast = fast_path_ok(device, settings) and not force_reference

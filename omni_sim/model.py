@@ -13,6 +13,7 @@ gravity (:func:`equilibrium_pose`), as in the paper's Table 3.
 
 from __future__ import annotations
 
+import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,6 +54,15 @@ def model_path(path: str | os.PathLike | None = None, friction: str | None = Non
         raise UserError("give either a model file or a friction family, not both (the family "
                         "picks one of the built-in scenes)")
     return Path(path) if path is not None else scene_path(friction)
+
+def model_digest(path: str | os.PathLike | None) -> str:
+    """SHA-256 of the model file's bytes (first 16 hex digits), for run metadata."""
+    p = Path(path) if path is not None else DEFAULT_SCENE
+    h = hashlib.sha256()
+    for f in sorted({p, *p.parent.glob("*.xml")}):
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
 
 def builtin_family(path: str | os.PathLike) -> str | None:
     """The friction family of a built-in scene file (``scene.xml``: the default family), or

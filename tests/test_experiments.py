@@ -281,3 +281,17 @@ def test_bad_campaign_file_is_one_line_naming_the_key(tmp_path, capsys, text, ke
 def test_unknown_campaign_name(capsys, tmp_path):
     assert main(["generate", "--campaign", "papr", "--out", str(tmp_path / "o")]) == 2
     assert "unknown campaign 'papr'" in capsys.readouterr().err
+
+
+def test_a_loaded_device_names_its_file_in_the_runs():
+    """A device loaded from a file carries the file's digest into the runs' metadata (``omni
+    reproduce`` passes the device alone); a compiled model stays "in-memory model"."""
+    exp = ex.campaign("step")[:1]
+    loaded = ex.simulate(exp, device=Device.load())[0].meta
+    assert loaded["model_sha256"] == om.model_digest(om.DEFAULT_SCENE) != "in-memory model"
+    assert loaded["model"] == "scene.xml (built-in)" and loaded["friction"] == "lugre"
+    coulomb = ex.simulate(exp, device=Device.load(friction="coulomb"))[0].meta
+    assert coulomb["model"] == "scene_coulomb.xml" and coulomb["friction"] == "coulomb"
+    assert coulomb["model_sha256"] == om.model_digest(om.scene_path("coulomb"))
+    compiled = ex.simulate(exp, device=Device(om.load_model()))[0].meta
+    assert compiled["model_sha256"] == "in-memory model"
