@@ -451,6 +451,12 @@ class Device:
         return cls(model, control_period_s, target, file=file,
                    digest=om.model_digest(om.model_path(path, friction)))
 
+    @property
+    def yaw_damping(self) -> float:
+        """The encoder joint's viscous damping [N*m*s/rad] (its MJCF ``damping``, as the model
+        holds it now)."""
+        return float(self.model.dof_damping[self.ix.yaw_dof])
+
     # -- the drive's friction ------------------------------------------------------------------
     def lugre_actuators(self) -> list[int]:
         """Ids of the passive LuGre friction actuators (``dcmotor`` bias) on the encoder joint."""

@@ -404,7 +404,7 @@ class OmniYawEnv(gym.Env):
         self._yaw_range = (tuple(float(x) for x in self.model.jnt_range[yaw_j])
                            if self.model.jnt_limited[yaw_j] else (-math.pi, math.pi))
         self._device0 = Device(copy.deepcopy(self.model), self.device.control_period_s)  # friction levels of the model file
-        self._yaw_damping0 = float(self.model.dof_damping[self._ix.yaw_dof])
+        self._yaw_damping0 = self.device.yaw_damping
 
         vlim = np.float32(self.voltage_limit)
         self.action_space = spaces.Box(-vlim, vlim, shape=(1,), dtype=np.float32)

@@ -39,7 +39,7 @@ def yaw_dynamics(device: Device, gamma1_deg: float, gamma2_deg: float) -> dict:
         ``beta_tilde`` = beta_bar/I [rad/(V*s^2)], ``I_paper`` = I/beta_bar (the paper's units).
     """
     inertia = device.inertia(gamma1_deg, gamma2_deg)
-    damping = float(device.model.dof_damping[device.ix.yaw_dof])
+    damping = device.yaw_damping
     beta_bar = device.torque_constant
     return {
         "inertia": inertia,

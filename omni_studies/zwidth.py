@@ -100,7 +100,7 @@ MEMORY_BUDGET_BYTES = 2.0e9
 
 def physical_damping(device) -> float:
     """The yaw's viscous damping ``b`` [N*m*s/rad] (the joint's ``damping``)."""
-    return float(device.model.dof_damping[device.ix.yaw_dof])
+    return device.yaw_damping
 
 
 def map_device(path=None, friction=None, ideal=False, control_period_s=1e-3, substeps=SUBSTEPS):
