@@ -25,9 +25,9 @@ import numpy as np
 
 from identification import paper
 from identification.nonlinear import paper_alpha_model
-from omni_studies.comparison import STEP_NOTE, compare, pose_of
+from omni_studies.comparison import DETAIL_POSE, STEP_NOTE, compare, pose_of
 
-from .figures import DETAIL_POSE, _plt, _run, save_png
+from .figures import _plt, _run, save_png
 
 #: Files written next to the family folders.
 FIGURES = ("comparison_C_alpha.png", "comparison_bode.png", "comparison_step.png")

@@ -12,9 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from identification import paper as _paper
-
-#: The pose of the paper's detailed figures (Table 9, Figs. 9-14), set points [deg].
-DETAIL_POSE = _paper.TABLE9_10_SET_POSE
+from omni_studies.comparison import DETAIL_POSE
 
 
 def _plt():

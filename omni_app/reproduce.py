@@ -72,6 +72,7 @@ def simulate_campaign(model_path=None, jobs=None, progress=False, model=None,
     bar = tqdm(total=5, disable=not progress, unit="stage", leave=False)
     bar.set_description("simulating the paper campaign")
     exps = ex.campaign(campaign)
+    # a loaded device names its file itself; a compiled model is labelled by model_path (if any)
     runs = ex.simulate(exps, None if model is None else model_path, jobs=jobs, progress=False,
                        device=device)
     bar.update(1)

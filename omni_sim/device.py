@@ -178,9 +178,9 @@ class DriveFriction:
     smooth sign), so at rest it is their mean: a load back-driving a held servo creeps until
     its speed engages ``mu_back`` (1 mrad on tests/test_servo_truth.py's hold, mu_back 1.5).
 
-    The one-row and batch engines agree bit for bit on tests/test_drive_friction.py's runs, but
-    not always: last-bit differences between ``mj_step`` and ``mujoco.rollout`` can grow
-    through a stick-slip event.
+    The one-row and batch engines agree to the last bits, not bit for bit: the blend carries
+    last-bit differences of ``mj_step``'s and ``mujoco.rollout``'s velocities into the level
+    (3.3e-16 rad on tests/test_drive_friction.py's runs), and a stick-slip event can grow them.
 
     Attributes
     ----------
@@ -446,10 +446,10 @@ class Device:
         """Compile an MJCF file (default: the built-in scene of the friction family
         ``friction``, or ``scene.xml``) into a device that knows its file and digest."""
         model = om.load_model(path, friction, target)
+        where = om.model_path(path, friction)
         # the file as the caller named it; None for the built-in scene.xml (runs say so)
-        file = None if path is None and friction is None else str(om.model_path(path, friction))
-        return cls(model, control_period_s, target, file=file,
-                   digest=om.model_digest(om.model_path(path, friction)))
+        file = None if path is None and friction is None else str(where)
+        return cls(model, control_period_s, target, file=file, digest=om.model_digest(where))
 
     @property
     def yaw_damping(self) -> float:

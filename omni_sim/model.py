@@ -55,6 +55,7 @@ def model_path(path: str | os.PathLike | None = None, friction: str | None = Non
                         "picks one of the built-in scenes)")
     return Path(path) if path is not None else scene_path(friction)
 
+
 def model_digest(path: str | os.PathLike | None) -> str:
     """SHA-256 of the model file's bytes (first 16 hex digits), for run metadata."""
     p = Path(path) if path is not None else DEFAULT_SCENE

@@ -15,7 +15,8 @@ import numpy as np
 
 from identification import paper
 
-#: The pose of the detail figures and of Table 9's resonance and Table 10 (65/90).
+#: The pose of the paper's detailed figures (Table 9, Figs. 9-14) and of Table 10, set points
+#: [deg] (65/90).
 DETAIL_POSE = paper.TABLE9_10_SET_POSE
 
 STEP_NOTE = ("The linear model's step errors are a property of the device (how far a linear "

@@ -15,7 +15,6 @@ import argparse
 import json
 from pathlib import Path
 
-
 from omni_studies import calibration as cal
 
 

@@ -47,9 +47,9 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-
 from omni_sim.discrepancy import experiment_set, hidden, servo_truth
+
+ROOT = Path(__file__).resolve().parent.parent
 
 #: Where the bank's table and its JSON live (docs/discrepancy.md links them).
 DEFAULT_OUT = ROOT / "docs" / "discrepancy" / "bank.md"

@@ -13,8 +13,6 @@ Usage: python scripts/discrepancy_campaign.py [--jobs N] [--case NAME]
 import argparse
 import json
 import sys
-from pathlib import Path
-
 
 from omni_app.discrepancy import CAMPAIGN_CASE, bench_discrepancy_campaign
 

@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-
 from identification.errors import UserError
 from omni_sim.discrepancy import bank, experiment_set, hidden
+
+ROOT = Path(__file__).resolve().parent.parent
 
 CONDITIONS = ("noisy", "exact")
 #: Target coverage of the nominal 95 % intervals.

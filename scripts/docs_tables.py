@@ -38,9 +38,9 @@ import math
 import re
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-
 from identification import paper
+
+ROOT = Path(__file__).resolve().parents[1]
 
 #: The pages that hold generated tables or quoted figures, by short name (paths from the root).
 PAGES = {"results": "docs/results.md", "model": "docs/model.md", "calibration": "docs/calibration.md",

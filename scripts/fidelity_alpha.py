@@ -19,9 +19,10 @@ import json
 import platform
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-
 from omni_app import fidelity_alpha as fav
+from omni_app.provenance import git_commit
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv=None) -> int:
@@ -41,7 +42,7 @@ def main(argv=None) -> int:
                 print(r["id"])
             return 0
         rec = fav.run(doc, args.jobs)
-        rec.update(code_commit=_commit(), versions=_versions())
+        rec.update(code_commit=git_commit(), versions=_versions())
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(rec, indent=1) + "\n")
         print("wrote", args.out)
@@ -49,11 +50,6 @@ def main(argv=None) -> int:
         print("wrote", path)
     return 0
 
-
-def _commit():
-    from omni_app.provenance import git_commit
-
-    return git_commit()
 
 
 def _versions() -> dict:

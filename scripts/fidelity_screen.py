@@ -50,10 +50,11 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-
 from omni_studies.calibration import STEP_BAND_REL
 from omni_sim.device import ENCODER_STEP_RAD
+from omni_app.provenance import git_commit
+
+ROOT = Path(__file__).resolve().parents[1]
 
 #: The Omni's encoder count [rad] (the device's, 15000 counts/rev), for the backlash magnitudes.
 COUNT_RAD = ENCODER_STEP_RAD
@@ -199,8 +200,7 @@ def measure_model(model, jobs=None) -> dict:
     """The screen's figures of one compiled model (see the module docstring)."""
     from identification.identify import Identification, identify_runs
     from identification.inertia import MIN_POSES, fit_inertia_model
-    from omni_studies.comparison import pose_of, resonance_hz, table3_errors
-    from omni_app.figures import DETAIL_POSE
+    from omni_studies.comparison import DETAIL_POSE, pose_of, resonance_hz, table3_errors
     from omni_app.reproduce import simulate_campaign
 
     res = simulate_campaign(model=model, jobs=jobs)
@@ -280,11 +280,6 @@ def run_configuration(cfg: dict, jobs=None) -> dict:
 
 
 # -- writing -------------------------------------------------------------------------------------
-def _git_commit() -> str | None:
-    from omni_app.provenance import git_commit
-
-    return git_commit()
-
 
 def _mrad(x) -> str:
     return "—" if x is None else f"{1e3 * x:.2f}"
@@ -544,7 +539,7 @@ def main(argv=None) -> int:
                           "scenes; linear-model step errors and Table 3 (no alpha model)",
            "settings": {"bases": BASES, "campaign": "paper", "within_fraction": WITHIN,
                         "jobs": args.jobs, "target": "OMNI (joint yaw, actuator yaw_motor)"},
-           "code_commit": _git_commit(),
+           "code_commit": git_commit(),
            "machine": {"python": platform.python_version(), "processor": platform.machine()},
            "paper": paper_reference(),
            "configurations": []}

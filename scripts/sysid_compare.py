@@ -57,8 +57,6 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-
 from identification.dataset import read_dataset
 from omni_sim.device import Device
 from omni_sim.discrepancy import effects as fx
@@ -70,6 +68,8 @@ from omni_sim.discrepancy.fit import Problem, gap, jacobian_se
 from omni_sim.discrepancy.replay import Replayer, control_period_of, prepare_runs
 from omni_sim.model import Target
 from omni_app.provenance import git_commit
+
+ROOT = Path(__file__).resolve().parent.parent
 
 OUT = ROOT / "docs" / "discrepancy"
 JSON_NAME, MD_NAME = "sysid_compare.json", "sysid.md"

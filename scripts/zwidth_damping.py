@@ -43,11 +43,11 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-
 from identification.inertia import InertiaParameters
 from identification.nonlinear import AlphaModel
 from omni_studies import zwidth as zw
+
+ROOT = Path(__file__).resolve().parents[1]
 
 GAMMA_SET = (65.0, 90.0)
 FAMILIES = ("lugre", "coulomb")

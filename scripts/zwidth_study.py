@@ -33,9 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-
 from omni_studies import zwidth as zw
+from omni_app.provenance import git_commit
+
+ROOT = Path(__file__).resolve().parents[1]
 
 #: The grid of the study (the section's): B rows, K columns.
 DAMPING = np.linspace(0.0, 0.012, 7)
@@ -157,11 +158,6 @@ def colgate_general(b: float, damping, T: float, delay: int, n: int = 200001) ->
     return out
 
 
-def _git_commit() -> str | None:
-    from omni_app.provenance import git_commit
-
-    return git_commit()
-
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
@@ -184,7 +180,7 @@ def main(argv=None) -> int:
            "table_damping": list(TABLE_B), "cases": {}}
     if args.merge and out.exists():
         doc["cases"] = json.loads(out.read_text()).get("cases", {})
-    doc["code_commit"] = _git_commit()
+    doc["code_commit"] = git_commit()
     doc["machine"] = {"python": platform.python_version(), "processor": platform.machine()}
     out.parent.mkdir(parents=True, exist_ok=True)
     for name in names:

@@ -332,7 +332,7 @@ def test_load_friction_verdicts_on_the_pages():
     srv = json.loads((root / "docs/bench.json").read_text())["discrepancy_servo"]
     perf = " ".join((root / "docs/performance.md").read_text().split())
     if srv["bank_verdict"] == "ok":
-        assert f'meets the bank\'s criteria here (`bank_verdict` "ok")' in perf
+        assert 'meets the bank\'s criteria here (`bank_verdict` "ok")' in perf
         assert f"gap ×{srv['shrink_factor']:.1f}" in perf
     else:
         p, v, u = verdict(srv["bank_verdict"])

@@ -20,8 +20,8 @@ Coulomb friction for this step is::
 
 (``mu_drive``: the motor drives the load, ``tau * w > 0``; ``mu_back``: the load back-drives
 the motor; their mean at rest, the coefficient passing from one to the other over speeds of
-about ``W_B`` = :data:`BLEND_SPEED_RAD_S`), ``Fc`` the nominal model's own ``frictionloss`` of the hinge, ``a`` [N*m] the
-direction-dependent part of the Coulomb level (``Fc + a`` moving positive, ``Fc - a`` moving
+about ``W_B`` = :data:`BLEND_SPEED_RAD_S`), ``Fc`` the nominal model's own ``frictionloss`` of
+the hinge, ``a`` [N*m] the direction-dependent part of the Coulomb level (``Fc + a`` moving positive, ``Fc - a`` moving
 negative, ``Fc`` at ``w = 0`` exactly; ``sign`` is -1, 0 or +1).  It is written into the private
 model's ``dof_frictionloss`` before each ``mj_step``.  With ``a`` and both coefficients 0 the
 loop is the nominal model's, bit for bit (``tests/test_servo_truth.py``).
