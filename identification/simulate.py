@@ -249,7 +249,7 @@ def set_kernel(kernel):
     """Register ``kernel``, a compiled implementation of the time loop of
     :func:`simulate_alpha_batch` (and so of :func:`simulate_alpha`) with the arguments of
     :func:`_batch_loop_numpy`, giving the same numbers to a few ulps per step (e.g.
-    ``omni_app.alpha_kernel``); ``None`` restores the numpy loop.  Returns the previous one."""
+    ``omni_studies.alpha_kernel``); ``None`` restores the numpy loop.  Returns the previous one."""
     global _KERNEL
     previous, _KERNEL = _KERNEL, kernel
     return previous

@@ -39,6 +39,7 @@ from mujoco import rollout
 
 from omni_sim import experiments as ex
 from omni_sim import model as om
+from omni_sim.device import Device
 
 
 def _rollout_ceiling(model: mujoco.MjModel, nbatch: int, nstep: int, nthread: int) -> float:
@@ -87,7 +88,7 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
     t_sim, t_all, ceiling = [], [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        runs = ex.simulate(exps, model=model, jobs=jobs)
+        runs = ex.simulate(Device(model), exps, jobs=jobs)  # built each time, as a command does
         t1 = time.perf_counter()
         with tempfile.TemporaryDirectory() as tmp:
             write_dataset(runs, os.path.join(tmp, "ds"), force=False)

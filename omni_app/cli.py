@@ -245,7 +245,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
-        from .accel import install
+        from omni_studies.accel import install
         install()  # the compiled α loop (loaded at its first use)
         code = _dispatch(args) or 0
         sys.stdout.flush()  # a closed pipe shows here, not at the interpreter's exit

@@ -20,6 +20,7 @@ from identification.validation import read_params, validate_runs, write_predicti
 from .inputs import check_run_poses, omni_pose_check
 from omni_sim import experiments as ex
 from omni_sim import model as om
+from omni_sim.device import Device
 
 
 def _settings(args: argparse.Namespace) -> ex.Settings:
@@ -62,13 +63,13 @@ def generate(args: argparse.Namespace) -> int:
     else:
         exps = ex.campaign(args.campaign)
         source = str(args.campaign)
-    check = omni_pose_check(model)  # the model file: refused here if bad
+    device = Device.load(model)  # the model file: refused here if bad
     for e in exps:
         try:
-            check(e.gamma1_set_deg, e.gamma2_set_deg)
+            device.check_pose(e.gamma1_set_deg, e.gamma2_set_deg)
         except UserError as exc:
             raise UserError(f"{source}: run {e.name}: {exc}") from None
-    runs = ex.simulate(exps, model, settings, jobs=jobs, progress=sys.stderr.isatty())
+    runs = ex.simulate(device, exps, settings, jobs=jobs, progress=sys.stderr.isatty())
     write_dataset(runs, out, args.force)
     n_sine = sum(r.kind == "sine" for r in runs)
     n_step = sum(r.kind == "step" for r in runs)

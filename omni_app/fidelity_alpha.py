@@ -118,7 +118,9 @@ def measure(cand: dict, jobs: int | None = None) -> dict:
     device and campaign, the comparison's figures (``omni_studies.comparison.family_figures``), the
     rebuild check against the search record, and the verdict."""
     from omni_studies.comparison import family_figures
-    from omni_app.reproduce import one_blas_thread, run_reproduce
+    from omni_app.reproduce import one_blas_thread
+    from omni_sim.device import Device
+    from omni_studies.reproduce import run_reproduce
 
     from identification.errors import UserError
 
@@ -134,10 +136,9 @@ def measure(cand: dict, jobs: int | None = None) -> dict:
            "search_meets": {"acceptance": m["all"], "tables_met": sum(m["tables"].values())}}
     try:
         with tempfile.TemporaryDirectory() as tmp, one_blas_thread():
-            res = run_reproduce(model=model, jobs=jobs, campaign=str(campaign_file(amplitude, Path(tmp))))
+            res = run_reproduce(Device(model), jobs, str(campaign_file(amplitude, Path(tmp))))
     except UserError as exc:  # the pipeline could not identify an alpha model: that is the verdict
         return {**row, "error": str(exc), "wall_s": time.perf_counter() - t0}
-    res["bar"].close()
     f = family_figures(res)
     s = res["scores"]["summary"]["step"]
     alpha = {"step": {**f["step"], "median_abs_error_linear_rad": s["median_abs_error_linear_rad"],

@@ -18,97 +18,30 @@ from pathlib import Path
 
 from identification.dataset import atomic_output_dir, check_output_dir, write_run
 from identification.errors import UserError
-from identification.identify import identify_runs
-from identification.validation import Params, validate_runs, write_predictions
-from omni_sim import experiments as ex
+from identification.validation import write_predictions
 from omni_sim import model as om
-from omni_sim import truth
 from omni_sim.device import Device
+from omni_studies.reproduce import STAGES, analyse, run_reproduce, simulate_campaign
 
 from . import figures as F
 from .identify_report import write_identify_figures, write_identify_report
 
 
-def _model_label(model_path) -> str:
-    """``built-in scene_coulomb.xml`` for a built-in scene (where it is installed says
-    nothing), else the path as given."""
-    if model_path is None:
-        return "built-in scene.xml"
-    p = Path(model_path)
-    if p.resolve().parent == om.MODELS_DIR.resolve():
-        return f"built-in {p.name}"
-    return str(model_path)
-
-
-def run_reproduce(model_path=None, jobs=None, progress=False, model=None,
-                  campaign="paper") -> dict:
-    """Run every stage in memory (:func:`simulate_campaign`, then :func:`analyse`); returns
-    everything the writers need.
-
-    ``model``: an already compiled (possibly modified) model to run instead of the file
-    ``model_path`` (e.g. the friction study's scaled models); ``campaign``: the campaign to
-    generate (name or file, :func:`omni_sim.experiments.campaign`).
-
-    Raises
-    ------
-    UserError
-        The model or campaign is bad, or identification failed (no inertia or alpha model).
-    """
-    return analyse(simulate_campaign(model_path, jobs, progress, model, campaign))
-
-
-def simulate_campaign(model_path=None, jobs=None, progress=False, model=None,
-                      campaign="paper") -> dict:
-    """The first stage: the campaign's runs on the model (arguments: :func:`run_reproduce`);
-    returns the stages' shared state (``runs``, ``device``, the progress ``bar``, ...)."""
+def stage_bar(progress: bool):
+    """A tqdm bar over the study's stages and the writing (:data:`STAGES` + 1), and the
+    callback that moves it on (pass it as the study's ``progress``)."""
     from tqdm import tqdm
 
-    from .accel import install
-    install()  # the compiled α loop (loaded at its first use)
-    in_memory = model is not None and model_path is None
-    # built once: the campaign, the ground truth; from a file it knows the file's digest
-    device = Device.load(model_path) if model is None else Device(model)
-    t0 = time.perf_counter()
-    bar = tqdm(total=5, disable=not progress, unit="stage", leave=False)
-    bar.set_description("simulating the paper campaign")
-    exps = ex.campaign(campaign)
-    # a loaded device names its file itself; a compiled model is labelled by model_path (if any)
-    runs = ex.simulate(exps, None if model is None else model_path, jobs=jobs, progress=False,
-                       device=device)
-    bar.update(1)
-    run_meta = {"model": ("in-memory model" if in_memory else _model_label(model_path)),
-                "model_sha256": "in-memory model" if in_memory else runs[0].meta["model_sha256"],
-                "friction": runs[0].meta["friction"]}
-    return {"model": device.model, "device": device, "runs": runs, "bar": bar, "t0": t0, "run_meta": run_meta}
+    bar = tqdm(total=len(STAGES) + 1, disable=not progress, unit="stage", leave=False)
+    started = []
 
+    def advance(stage: str) -> None:
+        if started:
+            bar.update(1)
+        started.append(stage)
+        bar.set_description(stage)
 
-def analyse(res: dict) -> dict:
-    """The other stages on :func:`simulate_campaign`'s runs: identify, validate both models,
-    compare with the ground truth; adds ``ident``, ``params``, ``scores``, ``predictions`` and
-    ``linear_truth`` to ``res`` and returns it."""
-    bar, runs, device = res["bar"], res["runs"], res["device"]
-    bar.set_description("identifying")
-    ident = identify_runs(runs)
-    if ident.inertia is None or ident.alpha_model is None:
-        bar.close()
-        raise UserError("identification failed on the generated campaign: " + "; ".join(ident.warnings))
-    params_dict = ident.to_params()
-    bar.update(1)
-    bar.set_description("validating")
-    params = Params(ident.inertia.params, ident.alpha_model, params_dict["poses"])
-    scores, predictions = validate_runs(runs, params)
-    bar.update(1)
-    bar.set_description("ground truth")
-    scores["summary"]["inertia"] = truth.inertia_truth(device, ident.inertia.params)
-    lin = truth.linear_truth(device, ident)
-    bar.update(1)
-    sim_time = sum(len(r.t) for r in runs) * ex.CONTROL_PERIOD_S
-    scores["summary"]["run"] = {"simulated_time_s": sim_time,
-                                "wall_s_before_writing": time.perf_counter() - res["t0"],
-                                **res["run_meta"]}
-    res.update(ident=ident, params=params_dict, scores=scores, predictions=predictions,
-               linear_truth=lin)
-    return res
+    return bar, advance
 
 
 def write_dataset(folder: Path, runs) -> None:
@@ -213,20 +146,20 @@ def reproduce_command(args) -> int:
         if args.model is not None:
             om.model_path(args.model, friction)  # raises: a model file and a family
         return reproduce_all(out, force=args.force, jobs=args.jobs)
-    model_path = None if (args.model is None and friction is None) else om.model_path(args.model, friction)
-    check_output_dir(out, args.force, inputs=(model_path,))
-    Device(om.load_model(model_path))  # a bad model file: refused before the workers start
+    check_output_dir(out, args.force, inputs=(om.model_path(args.model, friction),))
+    device = Device.load(args.model, friction=friction)  # a bad model file: refused before the workers start
     t0 = time.perf_counter()
+    bar, advance = stage_bar(sys.stderr.isatty())
     # the pool is left first: its jobs end before a failure removes the temporary folder
     with one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp, worker_pool() as pool:
-        res = simulate_campaign(model_path, args.jobs, progress=sys.stderr.isatty())
-        dataset = pool.submit(write_dataset, tmp / "dataset", res["runs"])  # while it analyses
-        res = analyse(res)
-        bar = res["bar"]
-        bar.set_description("writing report and figures")
-        write_reproduce(tmp, res, t0, pool, dataset)
-    bar.update(1)
-    bar.close()
+        try:
+            res = simulate_campaign(device, args.jobs, progress=advance)
+            dataset = pool.submit(write_dataset, tmp / "dataset", res["runs"])  # while it analyses
+            res = analyse(res, advance)
+            advance("writing report and figures")
+            write_reproduce(tmp, res, t0, pool, dataset)
+        finally:
+            bar.close()
     _print_summary(res)
     print(f"wrote {out}/report.md, summary.json, figures and predictions/ "
           f"(real-time factor {res['scores']['summary']['run']['real_time_factor']:.0f})")
@@ -252,11 +185,14 @@ def _reproduce_all(out: Path, force: bool, jobs: int | None, campaign: str) -> i
     results, starts = {}, {}
     progress = sys.stderr.isatty()
     families = tqdm(om.FRICTION_FAMILIES, unit="family", disable=not progress, leave=False)
-    for fam in families:  # each family's stages in a bar below this one
+    for fam in families:
         families.set_description(f"friction family {fam}")
         starts[fam] = time.perf_counter()
-        results[fam] = run_reproduce(om.scene_path(fam), jobs, progress=progress, campaign=campaign)
-        results[fam]["bar"].close()
+        bar, advance = stage_bar(progress)  # each family's stages in a bar below this one
+        try:
+            results[fam] = run_reproduce(Device.load(friction=fam), jobs, campaign, advance)
+        finally:
+            bar.close()
     families.close()
     with atomic_output_dir(out, force=force) as tmp:
         for fam, res in results.items():

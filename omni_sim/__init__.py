@@ -7,7 +7,7 @@ Public API::
     equilibrium_pose(model, gamma1_set_deg, gamma2_set_deg) -> (gamma1_deg, gamma2_deg)
     Device(model)   # the device: gear, friction, inertia at a pose, equilibria, start state,
                     # encoder, P law, Engine (yaw_inertia and equilibrium_pose ask it)
-    experiments.campaign(name_or_file), experiments.simulate(exps, model_path, settings)
+    experiments.campaign(name_or_file), experiments.simulate(Device.load(path), exps, settings)
 """
 
 import gymnasium

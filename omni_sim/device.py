@@ -42,6 +42,7 @@ import hashlib
 import math
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -416,6 +417,9 @@ class Device:
         #: it (None: the built-in ``scene.xml``) and its digest (:func:`omni_sim.model.model_digest`);
         #: ``digest`` None: a model compiled in memory.
         self.file, self.digest = file, digest
+        #: The friction family of a built-in scene the device was loaded from (:meth:`load`;
+        #: None: another file, or a model compiled in memory).
+        self.scene_family: str | None = None
         self.ix = om.index(model, source, target)
         self.control_period_s = float(control_period_s)
         self.substeps = substeps_of(model, control_period_s)
@@ -445,11 +449,49 @@ class Device:
              target: om.Target | None = None) -> "Device":
         """Compile an MJCF file (default: the built-in scene of the friction family
         ``friction``, or ``scene.xml``) into a device that knows its file and digest."""
-        model = om.load_model(path, friction, target)
         where = om.model_path(path, friction)
+        model = om.load_model(where, target=target)
         # the file as the caller named it; None for the built-in scene.xml (runs say so)
         file = None if path is None and friction is None else str(where)
-        return cls(model, control_period_s, target, file=file, digest=om.model_digest(where))
+        device = cls(model, control_period_s, target, file=file, digest=om.model_digest(where))
+        device.scene_family = om.builtin_family(where)
+        return device
+
+    def at_period(self, control_period_s: float) -> "Device":
+        """This device at another servo period (itself if it is the same): the same model
+        object, source and equilibrium poses (they do not depend on the period)."""
+        if float(control_period_s) == self.control_period_s:
+            return self
+        other = copy.copy(self)
+        other.control_period_s = float(control_period_s)
+        other.substeps = substeps_of(self.model, control_period_s)
+        other._scratch = None  # start_state's MjData: one per device (not shared by threads)
+        return other
+
+    # -- where the model came from ---------------------------------------------------------------
+    @property
+    def in_memory(self) -> bool:
+        """True for a model compiled in memory (no file, no digest)."""
+        return self.digest is None
+
+    @property
+    def run_model_name(self) -> str:
+        """What a run's metadata calls the model: the file's name, ``scene.xml (built-in)``
+        for the default scene, ``in-memory model`` for a model compiled in memory."""
+        if self.in_memory:
+            return "in-memory model"
+        return "scene.xml (built-in)" if self.file is None else os.path.basename(self.file)
+
+    @property
+    def label(self) -> str:
+        """The model for a reader: ``built-in scene_coulomb.xml`` for a built-in scene (where
+        it is installed says nothing), the file as named, or ``in-memory model``."""
+        if self.in_memory:
+            return "in-memory model"
+        if self.file is None:
+            return "built-in scene.xml"
+        p = Path(self.file)
+        return f"built-in {p.name}" if p.resolve().parent == om.MODELS_DIR.resolve() else self.file
 
     @property
     def yaw_damping(self) -> float:
@@ -481,11 +523,11 @@ class Device:
     def friction_family(self, path: str | os.PathLike | None = None) -> str:
         """The friction family a run's metadata names.
 
-        ``path`` a built-in scene: its family (``scene.xml`` is the default family).  Otherwise
-        (a user's file, or ``path`` None for a compiled model) what the drive carries:
-        ``"lugre"`` (a LuGre actuator with a non-zero level), ``"coulomb"`` (``frictionloss``),
-        ``"lugre+coulomb"`` or ``"none"``."""
-        family = om.builtin_family(path) if path is not None else None
+        The model's file (``path``; default: the one the device was loaded from) a built-in scene:
+        its family (``scene.xml`` is the default family).  Otherwise (a user's file, or a model
+        compiled in memory) what the drive carries: ``"lugre"`` (a LuGre actuator with a
+        non-zero level), ``"coulomb"`` (``frictionloss``), ``"lugre+coulomb"`` or ``"none"``."""
+        family = om.builtin_family(path) if path is not None else self.scene_family
         if family is not None:
             return family
         f = self.friction()

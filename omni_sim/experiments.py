@@ -34,7 +34,6 @@ from identification.dataset import Run
 from identification import paper
 from identification.errors import UserError
 
-from . import model as om
 from .device import (CONTROL_PERIOD_S, ENCODER_STEP_RAD, Device, Encoder,  # noqa: F401 (re-exported)
                      p_law, run_p_loop, substeps_of)
 
@@ -409,8 +408,7 @@ def run_fast(device: Device, exps: list[Experiment], settings: Settings,
     return out
 
 
-def _to_run(exp: Experiment, res: dict, settings: Settings, model_path, digest: str,
-            friction: str) -> Run:
+def _to_run(exp: Experiment, res: dict, settings: Settings, device: Device, friction: str) -> Run:
     dt = settings.control_period_s
     t = np.arange(len(exp.r)) * dt
     meta = {
@@ -424,8 +422,8 @@ def _to_run(exp: Experiment, res: dict, settings: Settings, model_path, digest: 
         "amplitude_rad": exp.amplitude_rad,
         "theta0_rad": exp.theta0_rad,
         "source": "virtual Omni (omni_sim)",
-        "model": Path(model_path).name if model_path is not None else "scene.xml (built-in)",
-        "model_sha256": digest,
+        "model": device.run_model_name,
+        "model_sha256": "in-memory model" if device.in_memory else device.digest,
         "friction": friction,
         "control_period_s": dt,
         "encoder_quantized": settings.quantize,
@@ -435,42 +433,30 @@ def _to_run(exp: Experiment, res: dict, settings: Settings, model_path, digest: 
     return Run(exp.name, t, exp.r.copy(), res["theta"], res["v"], meta)
 
 
-def simulate(exps: list[Experiment], model_path: str | os.PathLike | None = None,
-             settings: Settings = Settings(), jobs: int | None = None,
-             progress: bool = False, model: mujoco.MjModel | None = None,
-             force_reference: bool = False, device: Device | None = None) -> list[Run]:
+def simulate(device: Device, exps: list[Experiment], settings: Settings = Settings(),
+             jobs: int | None = None, progress: bool = False,
+             force_reference: bool = False) -> list[Run]:
     """Run experiments on the virtual Omni and return them as dataset runs.
 
     Parameters
     ----------
+    device : Device
+        The model to run (:meth:`Device.load` for a file, which the runs' metadata then name
+        with its digest; ``Device(model)`` for a model compiled in memory).  Run at the
+        settings' control period (the same model; its equilibrium poses are reused when the
+        period is the device's).
     exps : list of Experiment
-    model_path : path, optional
-        MJCF file keeping the contract's names (default: the built-in scene).
     settings : Settings
     jobs : int, optional
         Threads of the rollouts; default: all cores.
     progress : bool
         Show a progress bar (tqdm) on stderr.
-    model : MjModel, optional
-        An already compiled model (overrides ``model_path`` for the physics).
     force_reference : bool
         Use the device's closed-loop engine even where the fast path applies.
-    device : Device, optional
-        An already built device (overrides ``model``; its equilibrium poses are reused).
     """
     from tqdm import tqdm
 
-    if device is not None and model is None and model_path is None and device.digest is not None:
-        model_path, digest = device.file, device.digest  # a device loaded from a file knows it
-        in_memory = False
-    else:
-        in_memory = (model is not None or device is not None) and model_path is None
-        digest = "in-memory model" if in_memory else om.model_digest(model_path)
-    if device is None or device.control_period_s != settings.control_period_s:
-        if model is None:
-            model = device.model if device is not None else om.load_model(model_path)
-        device = Device(model, settings.control_period_s)
-    model = device.model
+    device = device.at_period(settings.control_period_s)
     jobs = max(1, jobs or os.cpu_count() or 1)
     settings.encoder  # validates the noise level
     if not (settings.kp > 0 and math.isfinite(settings.kp)):
@@ -487,6 +473,5 @@ def simulate(exps: list[Experiment], model_path: str | os.PathLike | None = None
                     else run_reference(device, part, settings, jobs))
         bar.update(len(part))
     bar.close()
-    # a compiled model: what its yaw carries; a file: its family if it is a built-in scene
-    friction = device.friction_family(None if in_memory else (model_path or om.DEFAULT_SCENE))
-    return [_to_run(e, r, settings, model_path, digest, friction) for e, r in zip(exps, results)]
+    friction = device.friction_family()
+    return [_to_run(e, r, settings, device, friction) for e, r in zip(exps, results)]

@@ -266,7 +266,7 @@ def evaluate(model: mujoco.MjModel, amplitude_rad: float, jobs: int | None = Non
     ``steps``: also the step campaign and the linear model's errors on it (:func:`step_errors`,
     the figures of ``targets="tables"``)."""
     device = Device(model)  # one device (its equilibrium poses) for both campaigns
-    runs = ex.simulate(ex.campaign("sine", sine_amplitude_rad=amplitude_rad), device=device, jobs=jobs)
+    runs = ex.simulate(device, ex.campaign("sine", sine_amplitude_rad=amplitude_rad), jobs=jobs)
     ident = identify_runs(runs, linear_only=True)
     table = {(int(r["gamma1_set_deg"]), int(r["gamma2_set_deg"])): r for r in read_table3()}
     poses = []
@@ -310,7 +310,7 @@ def step_errors(device: Device, ident, jobs: int | None = None) -> dict:
         return {"error": f"only {len(usable)} physical poses: no inertia model (6)"}
     inertia = fit_inertia_model([p.gamma1_deg for p in usable], [p.gamma2_deg for p in usable],
                                 [p.C_linear for p in usable], [p.beta_tilde_linear for p in usable])
-    runs = ex.simulate(ex.campaign("step"), device=device, jobs=jobs)
+    runs = ex.simulate(device, ex.campaign("step"), jobs=jobs)
     table = {k: (row["median_linear_rad"], row["p90_linear_rad"])
              for k, row in _paper.by_set_pose(_paper.table11()).items()}
     rows = linear_step_errors(runs, inertia.params)

@@ -9,7 +9,7 @@ coulomb 2.9 mrad).  This script is a first *screen* for the missing effect: for 
 (``lugre`` = models/scene.xml, ``coulomb`` = models/scene_coulomb.xml) and each (effect,
 magnitude) of :data:`CONFIGURATIONS`, one effect at a time is written into a copy of the base's
 MjSpec (:func:`omni_sim.discrepancy.effects.apply`, target OMNI), the model is compiled and the
-paper's campaign runs on it in memory (:func:`omni_app.reproduce.simulate_campaign`).  Nothing
+paper's campaign runs on it in memory (:func:`omni_studies.reproduce.simulate_campaign`).  Nothing
 is re-calibrated: the friction and inertia stay the base scene's.
 
 Measured, device-describing figures only:
@@ -201,10 +201,10 @@ def measure_model(model, jobs=None) -> dict:
     from identification.identify import Identification, identify_runs
     from identification.inertia import MIN_POSES, fit_inertia_model
     from omni_studies.comparison import DETAIL_POSE, pose_of, resonance_hz, table3_errors
-    from omni_app.reproduce import simulate_campaign
+    from omni_sim.device import Device
+    from omni_studies.reproduce import simulate_campaign
 
-    res = simulate_campaign(model=model, jobs=jobs)
-    res["bar"].close()
+    res = simulate_campaign(Device(model), jobs)
     runs = res["runs"]
     lin = identify_runs(runs, linear_only=True)  # per-pose linear models: stops before any alpha fit
     usable = [p for p in lin.poses if p.physical]

@@ -5,7 +5,7 @@ yaw's dry friction, per friction family.
 For each family (``coulomb``, ``lugre``: the built-in scenes) and each scale factor, the yaw's
 dry-friction levels (``frictionloss`` and the LuGre Fc, Fs; :func:`omni_sim.model.
 scale_yaw_friction`, viscous damping unchanged) are set to factor x the calibrated ones and the
-whole reproduction runs in memory (:func:`omni_app.reproduce.run_reproduce`: generate the
+whole reproduction runs in memory (:func:`omni_studies.reproduce.run_reproduce`: generate the
 campaign -> identify -> validate both models -> inertia (6) against MuJoCo).  Recorded per level:
 the step ratio of medians linear/alpha (whole record and first second after each edge), the
 sine phase and magnitude p90 of both models, the inertia (6) max |error| and its signed worst
@@ -92,17 +92,15 @@ def _short_reason(message: str) -> str:
 
 def run_level(base, factor: float, campaign: str, jobs: int | None) -> dict:
     """One level: the family's device ``base`` with its dry friction scaled by ``factor``."""
-    from omni_app.reproduce import run_reproduce
     from omni_sim.device import Device
+    from omni_studies.reproduce import run_reproduce
 
     dev = Device(copy.deepcopy(base.model))
     dev.scale_friction(factor, base)
-    m = dev.model
     row = {"scale": factor, "dry_friction": dev.friction()}
     t0 = time.perf_counter()
     try:
-        res = run_reproduce(model=m, jobs=jobs, campaign=campaign)
-        res["bar"].close()
+        res = run_reproduce(dev, jobs, campaign)
         row.update(ok=True, **level_figures(res))
     except (UserError, RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
         row.update(ok=False, reason=_short_reason(f"{type(exc).__name__}: {exc}"))

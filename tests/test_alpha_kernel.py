@@ -1,8 +1,8 @@
-"""The compiled α-simulation loop (omni_app.alpha_kernel, numba) against the numpy loop
+"""The compiled α-simulation loop (omni_studies.alpha_kernel, numba) against the numpy loop
 (identification.simulate._batch_loop_numpy, its reference): the same numbers to the stated
 tolerance of two code paths (test_simulate_fast.ULP_PER_STEP: LLVM's exp against numpy's SIMD
 exp) and the same decisions of the iteration (bisection fallback, batches of ragged runs and
-the paper campaign included), and its registration (omni_app.accel)."""
+the paper campaign included), and its registration (omni_studies.accel)."""
 
 import numpy as np
 import pytest
@@ -10,8 +10,8 @@ import pytest
 from identification import simulate as sim
 from identification.nonlinear import AlphaModel, paper_alpha_model
 from identification.simulate import simulate_alpha, simulate_alpha_batch, square_wave_reference
-from omni_app import accel
-from omni_app.alpha_kernel import interp, loop
+from omni_studies import accel
+from omni_studies.alpha_kernel import interp, loop
 
 from test_simulate_fast import DT, IDENTIFIED, KP, _assert_paths_agree, _numpy, _sines
 
@@ -135,7 +135,7 @@ def test_install_registers_lazily_and_falls_back(monkeypatch):
         # numba unavailable: a warning, and the numpy loop (the same numbers, to the tolerance
         # of two code paths)
         sim.set_kernel(None)
-        monkeypatch.setitem(__import__("sys").modules, "omni_app.alpha_kernel", None)
+        monkeypatch.setitem(__import__("sys").modules, "omni_studies.alpha_kernel", None)
         accel.install()
         with pytest.warns(RuntimeWarning, match="unavailable"):
             b = simulate_alpha(model, 0.005, r, DT, KP, **kw)

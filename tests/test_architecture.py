@@ -375,7 +375,7 @@ def test_no_runtime_import_of_the_bank():
     assert not bad, bad
     # the walk follows imports inside functions: the sweep's discrepancy pipeline imports the
     # hidden cases lazily
-    assert f"{DISCREPANCY}.hidden" in reach("omni_app.sweep", graph)
+    assert f"{DISCREPANCY}.hidden" in reach("omni_studies.sweep", graph)
 
 
 #: Process-global machinery the packages do without: forking a process that may

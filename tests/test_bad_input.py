@@ -36,8 +36,8 @@ LONG_WORK = (
     ("omni_app.reproduce", "worker_pool"),       # reproduce's worker processes
     ("omni_sim.discrepancy.replay:Replayer", "__init__"),  # every replay of the discrepancy search
     ("omni_app.bench", "run_bench"),
-    ("omni_app.sweep", "_client"),               # the Dask cluster
-    ("omni_app.sweep", "run_variant"),
+    ("omni_studies.sweep", "_client"),           # the Dask cluster
+    ("omni_studies.sweep", "run_variant"),
 )
 #: A refusal's wall time bound [s].  Refusals measured here take 0.01-0.3 s (the slowest: sweep
 #: compiling its study's base model); the long work is patched to raise, so this only bounds

@@ -114,8 +114,7 @@ def test_generator_env_and_replay_share_one_engine(device, quantize):
     measured start, through the same quantised encoder."""
     exp = _short(ex.square_experiment(35, 110), 2500)
     kp = ex.KP_DEFAULT
-    gen = ex.simulate([exp], settings=ex.Settings(kp=kp, quantize=quantize), force_reference=True,
-                      device=device)[0]
+    gen = ex.simulate(device, [exp], settings=ex.Settings(kp=kp, quantize=quantize), force_reference=True)[0]
 
     env = OmniYawEnv(gamma1_set_deg=35, gamma2_set_deg=110, reference=exp.r,
                      theta0_rad=exp.theta0_rad, quantize=quantize)
@@ -140,8 +139,7 @@ def test_generator_env_and_replay_share_one_engine(device, quantize):
     else:  # the same engine and encoder from the measured start
         start = _short(exp, len(exp.r))
         start = ex.Experiment(start.name, start.kind, 35, 110, exp.r, 0.0, 0.0, float(gen.theta[0]))
-        again = ex.simulate([start], settings=ex.Settings(kp=kp, quantize=True),
-                            force_reference=True, device=device)[0]
+        again = ex.simulate(device, [start], settings=ex.Settings(kp=kp, quantize=True), force_reference=True)[0]
         np.testing.assert_array_equal(th_rep, again.theta)
 
 

@@ -46,7 +46,7 @@ def test_replay_equals_reference_loop(spec, name, value):
     forcerange, bias) too."""
     m = spec.compile() if name is None else fx.compile_with(spec, [(fx.get(name), np.array(value))])
     exps = _short([ex.sine_experiment(65, 90, 3.0, record_s=1.0), ex.square_experiment(25, 115)], 800)
-    runs = ex.simulate(exps, model=m, force_reference=True, jobs=1)
+    runs = ex.simulate(Device(m), exps, force_reference=True, jobs=1)
     rr = prepare_runs(runs, Device(m))
     with Replayer(2) as rep:
         th = rep.simulate([m], rr)
@@ -142,7 +142,7 @@ def test_fast_unexplained_gap_is_flagged(tmp_path):
 def small_dataset(tmp_path_factory):
     folder = tmp_path_factory.mktemp("measured")
     exps = _short([ex.sine_experiment(65, 90, 2.0), ex.square_experiment(65, 90)], 600)
-    for r in ex.simulate(exps):
+    for r in ex.simulate(Device.load(), exps):
         write_run(folder, r)
     return folder
 
@@ -189,7 +189,7 @@ def test_cli_model_without_contract_names(small_dataset, tmp_path, capsys):
 def test_cli_too_short(tmp_path, capsys):
     folder = tmp_path / "short"
     folder.mkdir()
-    for r in ex.simulate(_short([ex.sine_experiment(65, 90, 2.0), ex.square_experiment(65, 90)], 50)):
+    for r in ex.simulate(Device.load(), _short([ex.sine_experiment(65, 90, 2.0), ex.square_experiment(65, 90)], 50)):
         write_run(folder, r)
     assert main(["discrepancy", "--measured", str(folder), "--out", str(tmp_path / "o")]) == 2
     assert "samples" in capsys.readouterr().err
@@ -207,7 +207,7 @@ def test_cli_exact_data_names_none(tmp_path, capsys):
     folder = tmp_path / "exact"
     folder.mkdir()
     exps = _short([ex.sine_experiment(65, 90, 2.0), ex.square_experiment(65, 90)], 600)
-    for r in ex.simulate(exps, settings=ex.Settings(quantize=False, noise_rad=0.0), force_reference=True):
+    for r in ex.simulate(Device.load(), exps, settings=ex.Settings(quantize=False, noise_rad=0.0), force_reference=True):
         write_run(folder, r)
     out = tmp_path / "out"
     assert main(["discrepancy", "--measured", str(folder), "--out", str(out)]) == 0
@@ -225,7 +225,7 @@ def test_simulate_grouped_mixes_structures(spec):
 
     exps = _short([ex.sine_experiment(65, 90, 3.0, record_s=1.0), ex.square_experiment(25, 115)], 300)
     m0 = spec.compile()
-    rr = prepare_runs(ex.simulate(exps, model=m0, jobs=1), Device(m0))
+    rr = prepare_runs(ex.simulate(Device(m0), exps, jobs=1), Device(m0))
     names = ["drive_compliance", "backlash", "time_delay", "actuator_lag", "cogging", "stribeck_friction"]
     models = [m0]
     for a, b in itertools.combinations(names, 2):

@@ -13,6 +13,7 @@ import pytest
 
 from omni_sim import model as om
 from omni_sim.discrepancy import effects as fx
+from omni_sim.device import Device
 
 NEW = ("presliding_friction", "stribeck_friction", "drive_compliance", "backlash", "arm_mass", "cogging")
 COUNT = 2 * math.pi / 15000  # one encoder count [rad] (models/README.md)
@@ -352,11 +353,9 @@ def test_two_mass_drive_starts_at_rest(scene, name, x):
 
     m = fx.compile_with(_omni(scene), [(fx.get(name), x)])
     r = np.full(1000, 0.1)
-    rest = ex.simulate([ex.Experiment("rest", "step", 65.0, 90.0, r, 0.0, 0.0, theta0_rad=0.1)],
-                       model=m, jobs=1)[0]
+    rest = ex.simulate(Device(m), [ex.Experiment("rest", "step", 65.0, 90.0, r, 0.0, 0.0, theta0_rad=0.1)], jobs=1)[0]
     assert np.max(np.abs(rest.theta - 0.1)) < 1e-9
-    step = ex.simulate([ex.Experiment("step", "step", 65.0, 90.0, r, 0.0, 0.0, theta0_rad=0.0)],
-                       model=m, jobs=1)[0]
+    step = ex.simulate(Device(m), [ex.Experiment("step", "step", 65.0, 90.0, r, 0.0, 0.0, theta0_rad=0.0)], jobs=1)[0]
     assert abs(step.theta[-1] - 0.1) < 0.02
 
 

@@ -199,7 +199,7 @@ def test_p_controller_reproduces_generator(kind, quantize, pose):
         exp = ex.sine_experiment(*pose, 3.0, settle_s=1.0, record_s=1.0)
     else:
         exp = ex.square_experiment(*pose, duration_s=2.0)
-    run = ex.simulate([exp], settings=ex.Settings(kp=KP, quantize=quantize), jobs=1)[0]
+    run = ex.simulate(Device.load(), [exp], settings=ex.Settings(kp=KP, quantize=quantize), jobs=1)[0]
     env = gym.make(ENV_ID, gamma1_set_deg=pose[0], gamma2_set_deg=pose[1], reference=kind,
                    frequency_hz=exp.frequency_hz, amplitude_rad=exp.amplitude_rad,
                    duration_s=len(exp.r) * ex.CONTROL_PERIOD_S, quantize=quantize)
@@ -220,7 +220,7 @@ def test_user_array_reference_matches_generator_reference_loop():
     t = np.arange(1500) * ex.CONTROL_PERIOD_S
     r = 0.05 * np.sin(2 * np.pi * 1.7 * t) + 0.03 * np.sign(np.sin(2 * np.pi * 0.9 * t))
     exp = ex.Experiment("user", "other", 55.0, 110.0, r, 0.0, 0.08, theta0_rad=float(r[0]))
-    run = ex.simulate([exp], force_reference=True, jobs=1)[0]
+    run = ex.simulate(Device.load(), [exp], force_reference=True, jobs=1)[0]
     env = OmniYawEnv(gamma1_set_deg=55.0, gamma2_set_deg=110.0, reference=r)
     theta, v, r_obs = _p_rollout(env)
     np.testing.assert_array_equal(r_obs, r)

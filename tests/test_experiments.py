@@ -49,8 +49,8 @@ def test_fast_path_equals_reference_loop(model):
     exps = [ex.Experiment(e.name, e.kind, e.gamma1_set_deg, e.gamma2_set_deg, e.r[:3000],
                           e.frequency_hz, e.amplitude_rad, e.theta0_rad) for e in exps]
     assert ex.fast_path_ok(Device(model), ex.Settings())
-    fast = ex.simulate(exps, model=model)
-    ref = ex.simulate(exps, model=model, force_reference=True, jobs=1)
+    fast = ex.simulate(Device(model), exps)
+    ref = ex.simulate(Device(model), exps, force_reference=True, jobs=1)
     for a, b in zip(fast, ref):
         np.testing.assert_array_equal(a.theta, b.theta)
         np.testing.assert_array_equal(a.v, b.v)
@@ -65,8 +65,8 @@ def test_coulomb_friction_amplitude_loss(model):
     loss = {}
     for amp in (0.05, 0.1, 0.2):
         exps = [ex.sine_experiment(45, 90, f, amp) for f in (0.5, 1.0)]
-        with_f = ex.simulate(exps, model=model)
-        without = ex.simulate(exps, model=frictionless)
+        with_f = ex.simulate(Device(model), exps)
+        without = ex.simulate(Device(frictionless), exps)
         loss[amp] = [1 - _fundamental(a, e.frequency_hz) / _fundamental(b, e.frequency_hz)
                      for a, b, e in zip(with_f, without, exps)]
     # clear loss at 0.5 Hz at the paper's scale (calibrated model: 11 %), some at 1 Hz (3.6 %)
@@ -78,7 +78,7 @@ def test_step_settles_inside_the_friction_band(model):
     """A P-held step ends inside the static friction band |kp beta_bar e| <= Fs + frictionloss
     (the drive can hold that much torque at rest), and its residual pre-sliding oscillation
     decays (the LuGre drive has no hard stick; models/README.md, "Friction")."""
-    run = ex.simulate([ex.square_experiment(45, 90)], model=model)[0]
+    run = ex.simulate(Device(model), [ex.square_experiment(45, 90)])[0]
     dev = Device(model)
     f = dev.friction()
     band = (f["lugre_Fs"] + f["frictionloss"]) / dev.torque_constant / ex.KP_DEFAULT
@@ -103,11 +103,11 @@ def test_determinism_and_round_trip(tmp_path):
     assert np.allclose(run.theta / q, np.round(run.theta / q), atol=1e-6)
     # round trip: what we read back is bit-identical to a fresh simulation
     exp = [e for e in ex.campaign("step") if e.name == run.name][0]
-    fresh = ex.simulate([exp], settings=ex.Settings(quantize=True, noise_rad=1e-4, seed=3))[0]
+    fresh = ex.simulate(Device.load(), [exp], settings=ex.Settings(quantize=True, noise_rad=1e-4, seed=3))[0]
     assert np.array_equal(fresh.theta, run.theta) and np.array_equal(fresh.v, run.v)
     assert fresh.meta == run.meta
     # a different seed gives different noise
-    other = ex.simulate([exp], settings=ex.Settings(quantize=True, noise_rad=1e-4, seed=4))[0]
+    other = ex.simulate(Device.load(), [exp], settings=ex.Settings(quantize=True, noise_rad=1e-4, seed=4))[0]
     assert not np.array_equal(other.theta, run.theta)
 
 
@@ -182,7 +182,7 @@ def test_control_period_must_divide():
     m = om.load_model()
     m.opt.timestep = 0.0003
     with pytest.raises(Exception, match="whole multiple"):
-        ex.simulate([ex.square_experiment(45, 90)], model=m)
+        ex.simulate(Device(m), [ex.square_experiment(45, 90)])
 
 
 def test_substeps_reference_path():
@@ -192,8 +192,8 @@ def test_substeps_reference_path():
     m.opt.timestep = 0.0005
     assert not ex.fast_path_ok(Device(m), ex.Settings())
     exp = ex.square_experiment(45, 90, duration_s=1.0)
-    fine = ex.simulate([exp], model=m)[0]
-    coarse = ex.simulate([exp])[0]
+    fine = ex.simulate(Device(m), [exp])[0]
+    coarse = ex.simulate(Device.load(), [exp])[0]
     assert 0 < np.max(np.abs(fine.theta - coarse.theta)) < 2e-3
 
 
@@ -287,11 +287,15 @@ def test_a_loaded_device_names_its_file_in_the_runs():
     """A device loaded from a file carries the file's digest into the runs' metadata (``omni
     reproduce`` passes the device alone); a compiled model stays "in-memory model"."""
     exp = ex.campaign("step")[:1]
-    loaded = ex.simulate(exp, device=Device.load())[0].meta
+    loaded = ex.simulate(Device.load(), exp)[0].meta
     assert loaded["model_sha256"] == om.model_digest(om.DEFAULT_SCENE) != "in-memory model"
     assert loaded["model"] == "scene.xml (built-in)" and loaded["friction"] == "lugre"
-    coulomb = ex.simulate(exp, device=Device.load(friction="coulomb"))[0].meta
+    coulomb = ex.simulate(Device.load(friction="coulomb"), exp)[0].meta
     assert coulomb["model"] == "scene_coulomb.xml" and coulomb["friction"] == "coulomb"
     assert coulomb["model_sha256"] == om.model_digest(om.scene_path("coulomb"))
-    compiled = ex.simulate(exp, device=Device(om.load_model()))[0].meta
-    assert compiled["model_sha256"] == "in-memory model"
+    compiled = ex.simulate(Device(om.load_model()), exp)[0].meta
+    assert compiled["model_sha256"] == "in-memory model" == compiled["model"]  # no file to name
+    assert compiled["friction"] == "lugre"  # what its drive carries
+    # at another servo period the device keeps its source
+    slow = ex.simulate(Device.load(friction="coulomb"), exp, ex.Settings(control_period_s=2e-3))[0].meta
+    assert (slow["model"], slow["model_sha256"]) == (coulomb["model"], coulomb["model_sha256"])

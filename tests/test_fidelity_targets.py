@@ -92,8 +92,8 @@ ALPHA_CODE = {
     "identification/paper.py": ("table8", "table8_average", "table11_medians_row", "table11_summary"),
 }
 #: Files of which no code may run, and modules that may not be imported: the compiled alpha loop.
-ALPHA_FILES = ("omni_app/alpha_kernel.py", "omni_app/accel.py")
-ALPHA_MODULES = ("omni_app.alpha_kernel", "omni_app.accel")
+ALPHA_FILES = ("omni_studies/alpha_kernel.py", "omni_studies/accel.py")
+ALPHA_MODULES = ("omni_studies.alpha_kernel", "omni_studies.accel")
 #: The data files of the paper's validation of the alpha model; every column naming alpha is
 #: replaced by nonsense (signs alternating, magnitudes 1e3..1e5: comparisons flip, sums explode).
 ALPHA_DATA = ("table8_sine_errors.csv", "table8_sine_errors_average.csv",
@@ -212,7 +212,7 @@ def test_no_alpha_model_output_enters_any_residual(evaluation, tmp_path):
 
     Shown to fail (test_the_guard_catches_each_alpha_route, slow): an alpha route injected
     into the evaluation -- the simulator imported by name, paper.table() read for an alpha
-    column, table11_summary(), the compiled loop (omni_app.accel / alpha_kernel), the paper's
+    column, table11_summary(), the compiled loop (omni_studies.accel / alpha_kernel), the paper's
     step ratio -- each gives a non-empty list of routes."""
     got = _scratch_evaluation(tmp_path)
     assert _alpha_routes(got, cal.residuals(evaluation, "tables")) == []
@@ -257,12 +257,12 @@ cal.step_errors = step_errors
     "the compiled loop": ("""
 _orig = cal.step_errors
 def step_errors(*a, **k):
-    from omni_app.alpha_kernel import loop
+    from omni_studies.alpha_kernel import loop
     out = _orig(*a, **k)
     out["poses"][0]["median_rad"] += 0 * id(loop)
     return out
 cal.step_errors = step_errors
-""", "imported omni_app.alpha_kernel"),
+""", "imported omni_studies.alpha_kernel"),
     "the paper's step ratio": ("""
 _orig = cal.step_errors
 def step_errors(*a, **k):

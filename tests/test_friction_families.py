@@ -16,6 +16,7 @@ from omni_app import reproduce as rp
 from omni_app.cli import main
 from omni_sim import model as om
 from omni_sim.device import Device
+from omni_studies import reproduce as study_rp
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "identification" / "data"
@@ -392,22 +393,22 @@ def test_friction_study_records_failures(tmp_path, monkeypatch):
     study = _study_module()
     from identification.errors import UserError
 
-    def fail(**kw):
+    def fail(*a, **kw):
         raise UserError("identification failed on the generated campaign: sine_a: 2 Hz gives "
                         "non-physical local coefficients C_data=-1; sine_b: 1.5 Hz gives non-physical "
                         "local coefficients C_data=-2; alpha-invariant model not fitted: no pose has a "
                         "usable frequency")
 
-    monkeypatch.setattr(rp, "run_reproduce", fail)
+    monkeypatch.setattr(study_rp, "run_reproduce", fail)
     row = study.run_level(Device.load(friction="coulomb"), 0.0, "paper", 1)
     assert row["ok"] is False
     assert row["reason"].startswith("alpha-invariant model not fitted: no pose has a usable frequency")
     assert "(2 sine run(s) with non-physical" in row["reason"]
 
-    def diverge(**kw):
+    def diverge(*a, **kw):
         raise RuntimeError("sine_a: simulation diverged")
 
-    monkeypatch.setattr(rp, "run_reproduce", diverge)
+    monkeypatch.setattr(study_rp, "run_reproduce", diverge)
     row = study.run_level(Device.load(friction="coulomb"), 3.0, "paper", 1)
     assert row == {**row, "ok": False, "reason": "RuntimeError: sine_a: simulation diverged"}
 

@@ -6,7 +6,6 @@ import io
 import sys
 import time
 
-from tqdm import tqdm
 
 
 def test_discrepancy_progress_shows_elapsed_time_between_lines():
@@ -43,9 +42,9 @@ def test_reproduce_all_names_the_family_it_runs(tmp_path, monkeypatch, capsys):
 
     seen = []
 
-    def stage(model_path, jobs, progress, campaign):
-        seen.append((progress, sys.stderr.getvalue()))
-        return {"bar": tqdm(disable=True)}
+    def stage(device, jobs, campaign, progress):
+        seen.append((device.friction_family(), sys.stderr.getvalue()))
+        return {}
 
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     monkeypatch.setattr(rp, "run_reproduce", stage)
@@ -53,7 +52,7 @@ def test_reproduce_all_names_the_family_it_runs(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr("omni_app.comparison.write_comparison", lambda tmp, results: {"families": {}})
     monkeypatch.setattr(rp, "_print_summary", lambda *a, **k: None)
     assert rp.reproduce_all(tmp_path / "out", campaign="step") == 0
-    assert [p for p, _ in seen] == [True] * len(om.FRICTION_FAMILIES)
+    assert [fam for fam, _ in seen] == list(om.FRICTION_FAMILIES)
     for fam, (_, err) in zip(om.FRICTION_FAMILIES, seen):
         assert f"friction family {fam}" in err
 

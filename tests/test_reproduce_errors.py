@@ -20,7 +20,8 @@ def test_failed_reproduction_leaves_nothing(tmp_path, monkeypatch):
     def fail(runs, **kwargs):
         raise UserError("identification failed (test)")
 
-    monkeypatch.setattr(rp, "identify_runs", fail)
+    from omni_studies import reproduce as study
+    monkeypatch.setattr(study, "identify_runs", fail)
     # the workers as threads: the same jobs (the dataset written while identification runs),
     # without two processes started and matplotlib imported in them (~2 s)
     from concurrent.futures import ThreadPoolExecutor

@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from omni_sim.device import Device
 
 from identification import simulate as sim
 from identification.nonlinear import AlphaModel, paper_alpha_model
@@ -159,7 +160,7 @@ def test_validation_paper_campaign_equals_per_group_calls():
     from identification.validation import Params, _initial_velocity, _reference_derivatives, simulate_runs
     from omni_sim import experiments as ex
 
-    runs = ex.simulate(ex.campaign("paper"))
+    runs = ex.simulate(Device.load(), ex.campaign("paper"))
     ident = identify_runs(runs)
     params = Params(ident.inertia.params, ident.alpha_model, ident.to_params()["poses"])
     fast = simulate_runs(runs, params)

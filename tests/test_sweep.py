@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 
 from identification.errors import UserError
-from omni_app import sweep as sw
+from omni_app import sweep as sweep_app
+from omni_studies import sweep as sw
 from omni_app.cli import main
 
 # one short step run: the `simulate` pipeline costs ~0.1 s a variant
@@ -175,7 +176,7 @@ def test_one_vs_two_workers_resume_and_failed_variant(tmp_path):
     with pytest.raises(UserError, match="different spec"):
         sw.run_sweep(other, tmp_path / "w1", progress=False)
     # plots: one PNG per varied parameter
-    pngs = sw.plot(tmp_path / "w1")
+    pngs = sweep_app.plot(tmp_path / "w1")
     assert sorted(p.name for p in pngs) == ["sweep_body.upper_arm.mass.png", "sweep_joint.yaw.damping.png",
                                              "sweep_noise_rad.png"]
     assert all(p.stat().st_size > 10_000 for p in pngs)
@@ -183,7 +184,8 @@ def test_one_vs_two_workers_resume_and_failed_variant(tmp_path):
 
 def test_reproduce_pipeline_matches_run_reproduce(tmp_path):
     """The reproduce pipeline at default settings gives run_reproduce's summary figures."""
-    from omni_app.reproduce import run_reproduce
+    from omni_sim.device import Device
+    from omni_studies.reproduce import run_reproduce
 
     camp = """
 [sine]
@@ -204,10 +206,7 @@ duration_s = 4.0
                                  'name = "reproduce"\ncampaign = "camp.toml"'), "s", tmp_path)
     res = sw.run_variant(study.jobs()[0])
     assert res["result"]["status"] == "ok", res["result"]["error"]
-    from omni_sim import model as om
-
-    ref = run_reproduce(om.model_path(None, "lugre"), jobs=1, campaign=str(tmp_path / "camp.toml"))
-    ref["bar"].close()
+    ref = run_reproduce(Device.load(friction="lugre"), jobs=1, campaign=str(tmp_path / "camp.toml"))
     s = ref["scores"]["summary"]
     fig = res["result"]["figures"]
     assert fig["inertia_max_rel_error"] == pytest.approx(s["inertia"]["max_rel_error"], rel=1e-9)

@@ -47,7 +47,7 @@ def test_mujoco_discrete_truth_near_continuous():
 def frictionless():
     dev = Device.load().without_friction()
     # small amplitude: the servo-held arm does not lift under centrifugal load (see docs/results.md)
-    runs = ex.simulate(ex.campaign("sine", sine_amplitude_rad=0.02), device=dev)
+    runs = ex.simulate(dev, ex.campaign("sine", sine_amplitude_rad=0.02))
     return dev, identify_runs(runs)
 
 
@@ -73,7 +73,7 @@ def test_frictionless_inertia_model_predicts_all_25_poses(frictionless):
 
 def _inertia_errors(m):
     dev = Device(m)
-    runs = ex.simulate(ex.campaign("sine"), device=dev)
+    runs = ex.simulate(dev, ex.campaign("sine"))
     res = inertia_truth(dev, identify_runs(runs).inertia.params)["poses"]
     return [r["rel_error"] for r in res], [r["true_kg_m2"] for r in res]
 

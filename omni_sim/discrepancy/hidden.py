@@ -38,6 +38,7 @@ from identification.dataset import Run
 
 from .. import experiments as ex
 from .. import model as om
+from ..device import Device
 from . import experiment_set, servo_truth
 from .truth_models import OUTSIDE, TRUTH
 
@@ -316,7 +317,7 @@ def generate(hidden: HiddenCase, exps: list[ex.Experiment] | None = None, seed: 
     m = truth_spec(hidden).compile()
     exps = exps if exps is not None else experiment_set.experiments()
     st = experiment_set.measurement(hidden.exact or bool(exact), seed, noise_rad)
-    return ex.simulate(exps, model=m, settings=st, jobs=jobs, force_reference=True)
+    return ex.simulate(Device(m), exps, st, jobs=jobs, force_reference=True)
 
 
 def _assess_corrections(hidden: HiddenCase, corrections: list[dict]) -> tuple[bool, str]:

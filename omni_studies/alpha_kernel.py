@@ -6,7 +6,7 @@ can only vectorise over runs: ~200 k sequential steps of a few small-array calls
 module is the same loop, operation for operation, in compiled code: the arguments and the
 numbers (to a few ulps per step, see below) of ``identification.simulate._batch_loop_numpy``,
 which is its reference.  The method layer stays numpy/scipy only: the application registers the kernel
-(:func:`omni_app.accel.install`), and the numpy loop is used wherever it is not registered or
+(:func:`omni_studies.accel.install`), and the numpy loop is used wherever it is not registered or
 numba cannot compile.
 
 Every floating-point operation is the numpy loop's, in the same order, without fast-math (no
@@ -20,7 +20,7 @@ the two loops have given the same bits; on an AVX-512 CPU they differ by <= 4e-1
 scale, and the iteration's decisions are the same (``tests/test_alpha_kernel.py``: within
 4 ulp per step of each run's scale).
 
-This module imports numba; :mod:`omni_app.accel` registers it lazily (numba is imported and
+This module imports numba; :mod:`omni_studies.accel` registers it lazily (numba is imported and
 the loop compiled or loaded at the first α simulation; the numpy loop is kept if that fails).
 Compiled functions are cached on disk (``cache=True``): in ``__pycache__`` next to this file
 when that folder is writable, else in numba's user cache (``NUMBA_CACHE_DIR``, or

@@ -1,4 +1,4 @@
-"""The compiled α loop (:mod:`omni_app.alpha_kernel`, numba), registered by the application.
+"""The compiled α loop (:mod:`omni_studies.alpha_kernel`, numba), registered by the application.
 
 ``identification`` is numpy/scipy only: its α simulation runs a numpy time loop unless an
 application registers a compiled one (:func:`identification.simulate.set_kernel`).
@@ -6,7 +6,7 @@ application registers a compiled one (:func:`identification.simulate.set_kernel`
 compiled loop from its on-disk cache (or compiles it), registers it in its own place and runs
 it; so a command that simulates no α model never imports numba.  If numba is missing or fails,
 a warning is given and the numpy loop is registered instead (the same numbers to a few ulps
-per step, see :mod:`omni_app.alpha_kernel`).
+per step, see :mod:`omni_studies.alpha_kernel`).
 """
 
 from __future__ import annotations
