@@ -173,44 +173,35 @@ def read_table3() -> list[dict]:
     return _paper.table3()
 
 
+#: The LuGre actuator's name in the model files (the MJCF writers find it by it).
 FRICTION_ACTUATOR = "yaw_friction"
-
-
-def _friction_actuator(model: mujoco.MjModel) -> int:
-    """Id of the passive LuGre actuator on the yaw joint (see models/omni.xml)."""
-    a = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, FRICTION_ACTUATOR)
-    if a < 0 or model.actuator_biastype[a] != mujoco.mjtBias.mjBIAS_DCMOTOR:
-        raise RuntimeError(f"calibration: the model lacks the LuGre actuator {FRICTION_ACTUATOR!r}")
-    return int(a)
 
 
 def current_values(model: mujoco.MjModel, amplitude_rad: float | None = None) -> dict:
     """The calibrated quantities as they are in ``model`` (its family's friction and the shared
     robot), and the paper campaign's A_r."""
     amplitude_rad = ex.load_campaign("sine").sine[0]["amplitude_rad"] if amplitude_rad is None else amplitude_rad
-    bid = lambda n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n)  # noqa: E731
     device = Device(model)
-    ix = device.ix
     out = {
-        "m_upper_arm": float(model.body_mass[bid("upper_arm")]),
-        "m_forearm": float(model.body_mass[bid("forearm")]),
-        "m_stylus": float(model.body_mass[bid("stylus")]),
-        "I_turret": float(model.body_inertia[bid("turret")][2]),
-        "yaw_damping": float(model.dof_damping[ix.yaw_dof]),
+        "m_upper_arm": device.body("upper_arm")[0],
+        "m_forearm": device.body("forearm")[0],
+        "m_stylus": device.body("stylus")[0],
+        "I_turret": float(device.body("turret")[1][2]),
+        "yaw_damping": device.yaw_damping,
     }
     if family_of(device) == "lugre":
-        f = _friction_actuator(model)
+        lugre = device.lugre()
         out.update({
-            "lugre_stiffness": float(model.actuator_dynprm[f, 5]),
-            "lugre_friction": float(model.actuator_biasprm[f, 3]),
-            "stribeck_ratio": float(model.actuator_biasprm[f, 4] / max(model.actuator_biasprm[f, 3], 1e-12)),
-            "stribeck_speed": float(model.actuator_biasprm[f, 5]),
+            "lugre_stiffness": lugre["sigma0"],
+            "lugre_friction": lugre["Fc"],
+            "stribeck_ratio": float(lugre["Fs"] / max(lugre["Fc"], 1e-12)),
+            "stribeck_speed": lugre["vs"],
         })
     else:
-        out["yaw_frictionloss"] = float(model.dof_frictionloss[ix.yaw_dof])
+        out["yaw_frictionloss"] = device.yaw_frictionloss
     out.update({
-        "shoulder_kp": float(model.actuator_gainprm[ix.shoulder_act, 0]),
-        "elbow_kp": float(model.actuator_gainprm[ix.elbow_act, 0]),
+        "shoulder_kp": device.servo_gain("shoulder"),
+        "elbow_kp": device.servo_gain("elbow"),
         "sine_amplitude_rad": float(amplitude_rad),
     })
     return out
@@ -228,34 +219,27 @@ def apply(model: mujoco.MjModel, values: dict) -> mujoco.MjModel:
     import copy
 
     m = copy.deepcopy(model)
-    bid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n)  # noqa: E731
-    ix = Device(m).ix
+    device = Device(m)
     for body, key in (("upper_arm", "m_upper_arm"), ("forearm", "m_forearm")):
         if key in values:
-            b = bid(body)
-            m.body_mass[b] = values[key]
-            m.body_inertia[b] = _rod_inertia(values[key])
+            device.set_body(body, values[key], _rod_inertia(values[key]))
     if "m_stylus" in values:
-        s = bid("stylus")
-        scale = values["m_stylus"] / m.body_mass[s]
-        m.body_mass[s] = values["m_stylus"]
-        m.body_inertia[s] = m.body_inertia[s] * scale
+        mass, inertia = device.body("stylus")
+        device.set_body("stylus", values["m_stylus"], inertia * (values["m_stylus"] / mass))
     if "I_turret" in values:
-        m.body_inertia[bid("turret")][2] = values["I_turret"]
+        inertia = device.body("turret")[1]
+        inertia[2] = values["I_turret"]
+        device.set_body("turret", inertia=inertia)
     if "yaw_damping" in values:
-        m.dof_damping[ix.yaw_dof] = values["yaw_damping"]
+        device.yaw_damping = values["yaw_damping"]
     if "yaw_frictionloss" in values:
-        m.dof_frictionloss[ix.yaw_dof] = values["yaw_frictionloss"]
+        device.yaw_frictionloss = values["yaw_frictionloss"]
     if "lugre_friction" in values:
-        f = _friction_actuator(m)
-        m.actuator_dynprm[f, 5] = values["lugre_stiffness"]
-        m.actuator_biasprm[f, 3] = values["lugre_friction"]
-        m.actuator_biasprm[f, 4] = values["lugre_friction"] * values["stribeck_ratio"]
-        m.actuator_biasprm[f, 5] = values["stribeck_speed"]
-    for act, key in ((ix.shoulder_act, "shoulder_kp"), (ix.elbow_act, "elbow_kp")):
-        if key in values:
-            m.actuator_gainprm[act, 0] = values[key]
-            m.actuator_biasprm[act, 1] = -values[key]
+        device.set_lugre(values["lugre_stiffness"], values["lugre_friction"],
+                         values["lugre_friction"] * values["stribeck_ratio"], values["stribeck_speed"])
+    for joint in ("shoulder", "elbow"):
+        if f"{joint}_kp" in values:
+            device.set_servo_gain(joint, values[f"{joint}_kp"])
     mujoco.mj_setConst(m, mujoco.MjData(m))
     return m
 
@@ -516,8 +500,8 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
                                 "bounds": [p.lower, p.upper], "why": p.why} for p in params},
         "fixed": {"beta_bar_N_m_per_V": device.torque_constant,
                   "armature_kg_m2": float(base.dof_armature[device.ix.yaw_dof]),
-                  **({"yaw_frictionloss_N_m": float(base.dof_frictionloss[device.ix.yaw_dof]),
-                      "lugre_sigma1_N_m_s_per_rad": float(base.actuator_dynprm[_friction_actuator(base), 6])}
+                  **({"yaw_frictionloss_N_m": device.yaw_frictionloss,
+                      "lugre_sigma1_N_m_s_per_rad": device.lugre()["sigma1"]}
                      if family == "lugre" else {}),
                   "L1_m": L_LINK, "L2_m": L_LINK,
                   **({"shared_robot_and_campaign": fixed_shared,

@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from identification.errors import UserError
 from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim.device import (ENCODER_STEP_RAD, Device, Encoder, Engine, p_law, read_encoder,
@@ -204,3 +205,31 @@ def test_apply_per_step_is_apply_with_the_command_held(device):
     assert vs.shape == (2, 4) and np.ptp(a.yaw()) > 0
     with pytest.raises(ValueError, match="batch"):
         Engine([dev], [0.0], [(45, 90)]).apply_per_step(np.zeros((1, 4)))
+
+
+def test_named_parameters_are_the_model_fields():
+    """The device's named parameters read and write MuJoCo's own fields (found here by name,
+    independently of the device's index), and a missing name is a user error."""
+    dev = Device.load(friction="lugre")
+    m = dev.model
+    bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "forearm")
+    yaw = m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "yaw")]
+    servo = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, "elbow_servo")
+    lugre = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, "yaw_friction")
+    mass, inertia = dev.body("forearm")
+    assert mass == m.body_mass[bid] and np.array_equal(inertia, m.body_inertia[bid])
+    assert dev.lugre() == {"sigma0": m.actuator_dynprm[lugre, 5], "sigma1": m.actuator_dynprm[lugre, 6],
+                           "Fc": m.actuator_biasprm[lugre, 3], "Fs": m.actuator_biasprm[lugre, 4],
+                           "vs": m.actuator_biasprm[lugre, 5]}
+    dev.set_body("forearm", 0.05, (1e-6, 2e-5, 2e-5))
+    dev.yaw_damping, dev.yaw_frictionloss = 0.004, 0.002
+    dev.set_servo_gain("elbow", 3.5)
+    dev.set_lugre(sigma0=80.0, Fc=0.01, Fs=0.02, vs=0.3)
+    assert m.body_mass[bid] == 0.05 and list(m.body_inertia[bid]) == [1e-6, 2e-5, 2e-5]
+    assert (m.dof_damping[yaw], m.dof_frictionloss[yaw]) == (0.004, 0.002)
+    assert (m.actuator_gainprm[servo, 0], m.actuator_biasprm[servo, 1]) == (3.5, -3.5)
+    assert (m.actuator_dynprm[lugre, 5], *m.actuator_biasprm[lugre, 3:6]) == (80.0, 0.01, 0.02, 0.3)
+    with pytest.raises(UserError, match="no body 'wrist'"):
+        dev.body("wrist")
+    with pytest.raises(UserError, match="no LuGre"):
+        Device.load(friction="coulomb").lugre()
