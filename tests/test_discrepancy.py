@@ -288,3 +288,17 @@ def test_member_runner_up_is_the_best_set_without_it():
     assert member_runner_up(best, [best]) == [(None, 1.0)] * 3
     # the member dropped: the pair without it
     assert member_runner_up(best, [best, others[2]])[2] == (None, 1 - 1.0 / 5.0)
+
+
+def test_damped_step_is_the_least_squares_step():
+    """The damped Gauss-Newton step of a linear residual ``J z - b`` from z = 0 is the least-
+    squares solution up to the damping (1e-6 of the mean diagonal: relative 1e-5 here), more
+    damping shortens it, and an all-zero Jacobian gives no step."""
+    from omni_sim.discrepancy.fit import damped_step
+
+    rng = np.random.default_rng(0)
+    J, b = rng.normal(size=(40, 3)), rng.normal(size=40)
+    exact = np.linalg.lstsq(J, b, rcond=None)[0]
+    np.testing.assert_allclose(damped_step(J, -b), exact, rtol=1e-5)
+    assert np.linalg.norm(damped_step(J, -b, 10.0)) < 0.5 * np.linalg.norm(exact)
+    assert not np.any(damped_step(np.zeros((5, 2)), np.ones(5)))

@@ -425,6 +425,15 @@ class Problem:
         return FitResult(list(self.free), x, fit.x_start, gap(self.used(raw)), J, f, self.nsim, raw)
 
 
+def damped_step(J: np.ndarray, r: np.ndarray, damping: float = 1e-6) -> np.ndarray:
+    """The Gauss-Newton step ``dz`` of residual ``r`` with Jacobian ``J``, Levenberg-damped by
+    ``damping`` times the mean diagonal of ``J'J`` (and 1e-300, so an all-zero Jacobian solves
+    to no step): ``(J'J + damping tr(J'J)/p I) dz = -J' r``."""
+    p = J.shape[1]
+    A = J.T @ J
+    return np.linalg.solve(A + damping * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p), -J.T @ r)
+
+
 def jacobian_se(problem: Problem, fit: FitResult) -> np.ndarray:
     """Standard errors of the fitted parameters from the Jacobian at the optimum.
 

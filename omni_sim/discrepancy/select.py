@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fit import BASIN_SMALLEST, FitResult, Problem, gap, rough, unstable_count
+from .fit import BASIN_SMALLEST, FitResult, Problem, damped_step, gap, rough, unstable_count
 from .runs import ReplayRun
 
 #: Least share of the round's starting held-out gap the best candidate must remove.
@@ -281,9 +281,7 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[Fold], start: lis
             raw = [th[b + k] - runs[j].theta for k, j in enumerate(train[f])]
             b += len(train[f])
             problem.unstable += unstable_count(raw)
-            r, Jt = fps[f][0].weighted(raw), Jf[f]
-            A = Jt.T @ Jt
-            dz = np.linalg.solve(A + 1e-6 * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p), -Jt.T @ r)
+            dz = damped_step(Jf[f], fps[f][0].weighted(raw))
             xs[f] = np.clip(xs[f] + dz * problem.scale, problem.lower, problem.upper)
     return xs
 
@@ -559,9 +557,7 @@ def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], 
                 continue
             f0 = prob.weighted(raws[0])
             J = np.column_stack([(prob.weighted(raws[1 + i]) - f0) / h[i] for i in range(len(h))]) * prob.scale
-            A = J.T @ J
-            p = len(h)
-            dz = np.linalg.solve(A + lam[c] * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p), -J.T @ f0)
+            dz = damped_step(J, f0, lam[c])
             xs[c] = np.clip(xs[c] + dz * prob.scale, prob.lower, prob.upper)
     return best_x, best_gap
 

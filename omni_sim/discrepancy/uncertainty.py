@@ -59,7 +59,7 @@ import math
 
 import numpy as np
 
-from .fit import Problem, jacobian_se
+from .fit import Problem, damped_step, jacobian_se
 from .runs import ReplayRun
 from .select import Scored
 
@@ -194,19 +194,16 @@ def _refit_draws(prob: Problem, s: Scored, synth: list[ReplayRun], rep, draws: i
     start's measurement error, and a draw moves its parameters by a noise-sized amount, so a
     fresh Jacobian per draw and step (``p`` more replays of every run each) changes nothing
     but the cost (on the bench's 12-run servo case: 16 M of the workflow's 66 M physics steps)."""
-    p = len(s.fit.x)
     nr = len(synth) // draws
     w = prob.weights
     Js = prob.jacobian_at(s.fit) * prob.scale
-    A = Js.T @ Js
-    damped = A + 1e-6 * np.trace(A) / p * np.eye(p) + 1e-300 * np.eye(p)
     xs = [s.fit.x.copy() for _ in range(draws)]
     for _ in range(iterations):
         th = rep.simulate([prob.model(x) for x in xs], synth,
                           [(d, d * nr + j) for d in range(draws) for j in range(nr)])
         for d in range(draws):
             f0 = np.concatenate([(th[d * nr + j] - synth[d * nr + j].theta) * w[j] for j in range(nr)])
-            dz = np.linalg.solve(damped, -Js.T @ f0)
+            dz = damped_step(Js, f0)
             xs[d] = np.clip(xs[d] + dz * prob.scale, prob.lower, prob.upper)
     return xs
 
