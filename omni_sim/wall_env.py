@@ -56,7 +56,9 @@ from identification.errors import UserError
 
 from . import model as om
 from .device import CONTROL_PERIOD_S, ENCODER_STEP_RAD, Device, Engine, read_encoder
-from .env import RENDER_MODES, InvalidOptionError, _Viewport, available_render_modes
+from .options import InvalidOptionError
+from .rendering import RENDER_MODES, available_render_modes
+from .rendering import Viewport as _Viewport
 
 __all__ = ["OmniWallEnv", "wall_torque", "GRASPS", "TIP_RADIUS_M"]
 
