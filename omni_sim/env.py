@@ -24,6 +24,12 @@ Registered on ``import omni_sim`` as ``"omni_sim/OmniYaw-v0"``::
 
 :class:`AlphaInvariantObservation` appends the running alpha-invariant (33) of the applied
 voltage to the observation.
+
+The code is laid out as dm_control's suite: the physics is the device and its engine
+(:mod:`omni_sim.device`), a task owns the options, reference, observation, reward and
+termination (:mod:`omni_sim.tracking_task`; the wall's: :mod:`omni_sim.wall_task`), and one
+environment class, :class:`OmniEnv`, steps the physics and asks the task.  :class:`OmniYawEnv`
+is :class:`OmniEnv` with the tracking task; rendering is :mod:`omni_sim.rendering`.
 """
 
 from __future__ import annotations

@@ -3,8 +3,10 @@
 ``gym.make_vec("omni_sim/OmniYaw-v0", num_envs=N, vectorization_mode="vector_entry_point")``
 makes an :class:`OmniYawVectorEnv`.  Its N rows are one batch of the device's closed-loop
 :class:`~omni_sim.device.Engine`: every :meth:`~OmniYawVectorEnv.step` advances all N yaw axes
-by one control period in a single :func:`mujoco.rollout` call on all cores, and the encoder,
-velocity estimate, reward and bookkeeping are numpy over the batch.
+by one control period in a single :func:`mujoco.rollout` call on all cores.  The encoder,
+velocity estimate, observation and reward are the single environment's task
+(:class:`omni_sim.tracking_task.TrackingTask`) over N rows, numpy over the batch; this class
+adds the seeding per row, the reset mask and the autoreset.
 
 Sub-environment ``i`` is the single environment (:class:`omni_sim.env.OmniYawEnv`, same
 options) seeded ``seed + i`` (gymnasium's seeding rule): the same reference, noise, start state
