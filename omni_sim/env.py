@@ -289,6 +289,8 @@ class OmniYawEnv(OmniEnv):
     Attributes
     ----------
     device : omni_sim.device.Device
+    task : omni_sim.tracking_task.TrackingTask
+        The options, reference, observation, reward and termination of the episodes.
     model, data : mujoco.MjModel, mujoco.MjData
     control_period_s : float [s]
     substeps : int
