@@ -24,16 +24,18 @@ Registered on ``import omni_sim`` as ``"omni_sim/OmniYaw-v0"``::
 
 :class:`AlphaInvariantObservation` appends the running alpha-invariant (33) of the applied
 voltage to the observation.
+
+The code is laid out as dm_control's suite: the physics is the device and its engine
+(:mod:`omni_sim.device`), a task owns the options, reference, observation, reward and
+termination (:mod:`omni_sim.tracking_task`; the wall's: :mod:`omni_sim.wall_task`), and one
+environment class, :class:`OmniEnv`, steps the physics and asks the task.  :class:`OmniYawEnv`
+is :class:`OmniEnv` with the tracking task; rendering is :mod:`omni_sim.rendering`.
 """
 
 from __future__ import annotations
 
-import copy
 import math
 import os
-import sys
-from dataclasses import dataclass, fields, replace
-from typing import Any
 
 import gymnasium as gym
 import mujoco
@@ -44,176 +46,98 @@ from identification.errors import UserError
 
 from . import experiments as ex
 from . import model as om
-from .device import ENCODER_STEP_RAD, Device, Engine, read_encoder
+from .device import Device, Engine
+from .options import InvalidOptionError, finite
+from .rendering import RENDER_MODES, Viewport, available_render_modes, render_mode_problem
+from .tracking_task import OBSERVATION_NAMES, VELOCITY_FILTER_HZ, TrackingTask
 
-__all__ = ["OmniYawEnv", "AlphaInvariantObservation", "InvalidOptionError", "OBSERVATION_NAMES",
-           "RENDER_MODES", "VELOCITY_FILTER_HZ", "available_render_modes", "render_mode_problem"]
-
-#: Names of the observation entries, in order.
-OBSERVATION_NAMES = ("theta", "theta_dot", "r", "gamma1", "gamma2")
-#: Cut-off [Hz] of the first-order low-pass after the 2nd-order backward difference in the
-#: device-like velocity estimate (models/README.md: the Omni's drivers use a ~20 Hz low-pass).
-VELOCITY_FILTER_HZ = 20.0
-#: Largest encoder-noise standard deviation accepted [rad]: 0.05 rad is 120 encoder counts, far
-#: beyond any encoder, and keeps the measured angle inside its observation bound (+-pi) with
-#: overwhelming probability (|theta| <= 0.98 rad + 40 sigma).
-MAX_NOISE_RAD = 0.05
-REFERENCE_KINDS = ("sine", "square", "steps")
-VELOCITY_MODES = ("exact", "estimated")
-#: Defaults of the reference shapes [Hz], [rad]: sine 2 Hz (inside the paper's sweep, Section
-#: 2.4.2) at the paper campaign's calibrated A_r (``campaigns/paper.toml``, 0.0498 rad); square
-#: 0.25 Hz / 0.07 rad (Section 2.4.3); random steps 0.1 rad (our choice: twice A_r, well inside
-#: the yaw range).
-_DEFAULT_FREQUENCY_HZ = {"sine": 2.0, "square": ex.STEP_FREQUENCY_HZ}
-_DEFAULT_AMPLITUDE_RAD = {"sine": ex.SINE_AMPLITUDE_RAD, "square": ex.STEP_AMPLITUDE_RAD,
-                          "steps": 0.1}
-_DEFAULT_DURATION_S = 4.0
+__all__ = ["OmniEnv", "OmniYawEnv", "AlphaInvariantObservation", "InvalidOptionError",
+           "OBSERVATION_NAMES", "RENDER_MODES", "VELOCITY_FILTER_HZ", "available_render_modes",
+           "render_mode_problem"]
 
 
-class InvalidOptionError(UserError, ValueError):
-    """A bad option or action: both a :class:`ValueError` and the project's ``UserError``."""
+class OmniEnv(gym.Env):
+    """A task on the virtual Omni's yaw: the one environment class of ``OmniYaw-v0`` and
+    ``OmniWall-v0``.
 
+    The physics is the device's closed-loop :class:`~omni_sim.device.Engine` on this
+    environment's ``MjData``; the task (:class:`omni_sim.tracking_task.TrackingTask`,
+    :class:`omni_sim.wall_task.WallTask`) owns the options, the observation, the reward and the
+    end of an episode.  Every step the task turns the action into a voltage
+    (``task.before_step``), the engine holds it for one control period, and the task reports
+    what happened (``task.after_step``).  A reset asks the task where the device starts
+    (``task.start_episode``) and what it sees there (``task.first_observation``).
+    :class:`OmniYawEnv` and :class:`omni_sim.wall_env.OmniWallEnv` only build the device and the
+    task from their make-time arguments.
 
-# --- rendering (shared with omni_sim.wall_env) ------------------------------------------------
-#: The render modes the environments implement (their class ``metadata``).  An instance's
-#: ``metadata["render_modes"]`` lists those that can work in this process
-#: (:func:`available_render_modes`), so that gymnasium's ``check_env``, which tries every
-#: advertised mode, does not open a window without a display.
-RENDER_MODES = ("human", "rgb_array")
-#: MuJoCo's OpenGL backends that need no display: ``MUJOCO_GL=egl`` or ``osmesa`` (Linux), CGL
-#: (macOS); the default, GLFW, opens an invisible window and so needs one.
-_DISPLAYLESS_GL = ("mujoco.egl", "mujoco.osmesa", "mujoco.cgl")
-_HEADLESS_HINT = ("headless, use render_mode='rgb_array' with MUJOCO_GL=egl (or osmesa) set "
-                  "before mujoco is imported")
-
-
-def _has_display() -> bool:
-    """Whether a window can open: macOS and Windows have a desktop; elsewhere (X11, Wayland) a
-    display must be named by ``DISPLAY`` or ``WAYLAND_DISPLAY``."""
-    if sys.platform in ("darwin", "win32"):
-        return True
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
-def render_mode_problem(mode: str) -> str | None:
-    """Why ``mode`` cannot render in this process, or None when it can.
-
-    ``"human"`` (MuJoCo's passive viewer, a GLFW window) needs a display; without one GLFW's
-    failure ends the whole process, so it is refused here first.  ``"rgb_array"`` needs an
-    OpenGL context from the backend MuJoCo chose when it was imported (``MUJOCO_GL``): EGL,
-    OSMesa and CGL need no display, GLFW does.
+    Parameters
+    ----------
+    device : omni_sim.device.Device
+    task : TrackingTask or WallTask
+    render_mode, render_width, render_height, camera
+        As :class:`OmniYawEnv`'s (:class:`omni_sim.rendering.Viewport`).
     """
-    if mode == "human":
-        if _has_display():
-            return None
-        return ("render_mode='human' opens a window and needs a display (neither DISPLAY nor "
-                f"WAYLAND_DISPLAY is set); {_HEADLESS_HINT}")
-    backend = getattr(getattr(mujoco, "GLContext", None), "__module__", None)
-    if backend in _DISPLAYLESS_GL or (backend == "mujoco.glfw" and _has_display()):
-        return None
-    why = ("MuJoCo's default backend, GLFW, needs a display and none is set" if backend == "mujoco.glfw"
-           else f"MuJoCo has no usable OpenGL backend (MUJOCO_GL={os.environ.get('MUJOCO_GL')!r})")
-    return f"render_mode='rgb_array' needs an OpenGL context: {why}; {_HEADLESS_HINT}"
 
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 1000}
 
-def available_render_modes() -> list[str]:
-    """The render modes that can work in this process (see :func:`render_mode_problem`)."""
-    return [m for m in RENDER_MODES if render_mode_problem(m) is None]
+    def __init__(self, device: Device, task, render_mode: str | None = None,
+                 render_width: int = 640, render_height: int = 480, camera: str | None = "side"):
+        self.device = device
+        self.model = device.model
+        self.data = mujoco.MjData(self.model)  # the engine steps it; the rendering shows it
+        self.task = task
+        self.metadata = {**type(self).metadata, "render_modes": available_render_modes(),
+                         "render_fps": int(round(1.0 / self.dt))}
+        vlim = np.float32(device.voltage_limit)
+        self.action_space = spaces.Box(-vlim, vlim, shape=(1,), dtype=np.float32)
+        self.observation_space = task.observation_space
+        self._viewport = Viewport(self.model, render_mode, render_width, render_height, camera)
+        self.render_mode = render_mode
+        self._engine: Engine | None = None
 
+    @property
+    def dt(self) -> float:
+        """Control period [s]: ``model.opt.timestep * substeps``."""
+        return self.device.dt
 
-class _Viewport:
-    """The picture of a model's data for an environment: offscreen with :class:`mujoco.Renderer`
-    (``"rgb_array"``) or in MuJoCo's passive viewer (``"human"``).  The mode is checked when
-    the environment is made: unknown, or unable to work here, raises :class:`InvalidOptionError`."""
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode where the task says (the arm at the equilibrium of its set points,
+        the yaw at rest); ``seed`` seeds the task's draws, ``options`` are the task's
+        per-episode options."""
+        super().reset(seed=seed)
+        theta0, gamma_set = self.task.start_episode(options, self.np_random)
+        if self._engine is not None:
+            self._engine.close()
+        self._engine = Engine([self.device], [theta0], [gamma_set], data=self.data)
+        obs, info = self.task.first_observation(self._engine)
+        if self.render_mode == "human":
+            self.render()
+        return obs, info
 
-    def __init__(self, model: mujoco.MjModel, render_mode: str | None, width: int, height: int,
-                 camera: str | None):
-        if render_mode is not None and render_mode not in RENDER_MODES:
-            raise InvalidOptionError(f"render_mode must be one of {list(RENDER_MODES)} or None, "
-                                     f"got {render_mode!r}")
-        problem = render_mode_problem(render_mode) if render_mode is not None else None
-        if problem is not None:
-            raise InvalidOptionError(problem)
-        self.mode, self.model = render_mode, model
-        self.size = (int(height), int(width))
-        if min(self.size) < 1:
-            raise InvalidOptionError(f"render size must be positive, got {width}x{height}")
-        if camera is not None and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera) < 0:
-            if camera != "side":  # the default falls back to the free camera
-                raise InvalidOptionError(f"the model has no camera named {camera!r}")
-            camera = None
-        self.camera = camera
-        self._renderer = None
-        self._viewer = None
+    def step(self, action):
+        """Apply the task's voltage for the action over one control period; see the task."""
+        v = self.task.before_step(action)
+        if self._engine is None:
+            raise RuntimeError("step() before reset()")
+        v = float(self._engine.apply(v)[0])
+        obs, reward, terminated, truncated, info = self.task.after_step(self._engine, v)
+        if self.render_mode == "human" and not terminated:
+            self.render()
+        return obs, reward, terminated, truncated, info
 
-    def render(self, data: mujoco.MjData):
+    def render(self):
         """An RGB image ``(height, width, 3)`` uint8 (``"rgb_array"``), or update the viewer."""
-        if self.mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' "
-                            "or 'human' when making the environment")
-            return None
-        if self.mode == "human":
-            if self._viewer is None:
-                from mujoco import viewer  # needs a display (checked when made)
-                self._viewer = viewer.launch_passive(self.model, data)
-            self._viewer.sync()
-            return None
-        if self._renderer is None:
-            h, w = self.size
-            vis = self.model.vis.global_
-            vis.offheight, vis.offwidth = max(vis.offheight, h), max(vis.offwidth, w)
-            self._renderer = mujoco.Renderer(self.model, h, w)
-        self._renderer.update_scene(data, camera=self.camera if self.camera else -1)
-        return self._renderer.render().copy()
+        return self._viewport.render(self.data)
 
-    def close(self) -> None:
-        """Release the renderer and the viewer (safe to call twice)."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        if self._viewer is not None:
-            self._viewer.close()
-            self._viewer = None
+    def close(self):
+        """Release the engine, the renderer and the viewer (safe to call twice)."""
+        if self._engine is not None:
+            self._engine.close()
+            self._engine = None
+        self._viewport.close()
 
 
-@dataclass(frozen=True)
-class _Options:
-    """The per-episode options (see :class:`OmniYawEnv` for their meaning and units)."""
-
-    gamma1_set_deg: float = 65.0
-    gamma2_set_deg: float = 90.0
-    reference: Any = "sine"
-    frequency_hz: float | None = None
-    amplitude_rad: float | None = None
-    step_period_s: float = 0.5
-    duration_s: float | None = None
-    theta0_rad: float | None = None
-    friction_scale: float = 1.0
-    quantize: bool = False
-    noise_rad: float = 0.0
-    velocity: str = "exact"
-    effort_weight: float = 0.0
-
-
-_OPTION_NAMES = tuple(f.name for f in fields(_Options))
-_MAKE_ONLY = ("model_path", "friction", "control_period_s", "render_mode", "render_width",
-              "render_height", "camera")
-
-
-def _finite(name: str, value, lo: float = -math.inf, hi: float = math.inf,
-            lo_open: bool = False) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InvalidOptionError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(x) or x < lo or x > hi or (lo_open and x == lo):
-        rel = ">" if lo_open else ">="
-        rng = f"{rel} {lo:g}" if math.isinf(hi) else f"in [{lo:g}, {hi:g}]"
-        raise InvalidOptionError(f"{name} must be finite and {rng}, got {value!r}")
-    return x
-
-
-class OmniYawEnv(gym.Env):
+class OmniYawEnv(OmniEnv):
     """The virtual Phantom Omni's yaw axis as a gymnasium environment.
 
     Plain :class:`gymnasium.Env` over :mod:`mujoco` (not ``MujocoEnv``).  The arm is placed at
@@ -365,6 +289,8 @@ class OmniYawEnv(gym.Env):
     Attributes
     ----------
     device : omni_sim.device.Device
+    task : omni_sim.tracking_task.TrackingTask
+        The options, reference, observation, reward and termination of the episodes.
     model, data : mujoco.MjModel, mujoco.MjData
     control_period_s : float [s]
     substeps : int
@@ -372,284 +298,28 @@ class OmniYawEnv(gym.Env):
     voltage_limit : float [V]
     """
 
-    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 1000}
-
     def __init__(self, model_path: str | os.PathLike | None = None,
                  control_period_s: float = ex.CONTROL_PERIOD_S, render_mode: str | None = None,
                  render_width: int = 640, render_height: int = 480,
                  camera: str | None = "side", friction: str | None = None, **options):
         try:
             model = om.load_model(model_path, friction)
-            self.device = Device(model, _finite("control_period_s", control_period_s, 0.0,
-                                                lo_open=True))
+            device = Device(model, finite("control_period_s", control_period_s, 0.0, lo_open=True))
         except UserError as exc:
             if isinstance(exc, InvalidOptionError):
                 raise
             raise InvalidOptionError(str(exc)) from None
-        self.model = model
         self.model_path = model_path
-        self.friction = self.device.friction_family(om.model_path(model_path, friction))
-        self.data = mujoco.MjData(self.model)
-        self._ix = self.device.ix
-        self.substeps = self.device.substeps
+        self.friction = device.friction_family(om.model_path(model_path, friction))
+        self.substeps = device.substeps
         self.control_period_s = float(control_period_s)
-        self.metadata = {**type(self).metadata, "render_modes": available_render_modes(),
-                         "render_fps": int(round(1.0 / self.dt))}
-
-        self.voltage_limit = self.device.voltage_limit
+        self.voltage_limit = device.voltage_limit
         if not math.isfinite(self.voltage_limit):
             raise InvalidOptionError("the model's yaw_motor needs a ctrlrange (the drive's "
                                      "voltage limit) to bound the action space")
-        yaw_j = self.device.joint_id
-        self._yaw_range = (tuple(float(x) for x in self.model.jnt_range[yaw_j])
-                           if self.model.jnt_limited[yaw_j] else (-math.pi, math.pi))
-        self._device0 = Device(copy.deepcopy(self.model), self.device.control_period_s)  # friction levels of the model file
-        self._yaw_damping0 = self.device.yaw_damping
-
-        vlim = np.float32(self.voltage_limit)
-        self.action_space = spaces.Box(-vlim, vlim, shape=(1,), dtype=np.float32)
-        vel_bound = 4 * math.pi / self.dt
-        self.observation_space = spaces.Box(
-            low=np.array([-math.pi, -vel_bound, self._yaw_range[0], -math.pi, -math.pi]),
-            high=np.array([math.pi, vel_bound, self._yaw_range[1], math.pi, math.pi]),
-            dtype=np.float64)
-
-        self._viewport = _Viewport(self.model, render_mode, render_width, render_height, camera)
-        self.render_mode = render_mode
-
-        self._defaults = self._merge(_Options(), options)
-        self._engine: Engine | None = None
-        self._diverged = False
-        self._opt = self._defaults
-        self._r = np.zeros(1)
-        self._noise = np.zeros(2)
-        self._k = 0
-        self._n = 1
-
-    # --- options -------------------------------------------------------------------------
-    @property
-    def dt(self) -> float:
-        """Control period [s]: ``model.opt.timestep * substeps``."""
-        return float(self.model.opt.timestep) * self.substeps
-
-    def _merge(self, base: _Options, options: dict | None) -> _Options:
-        options = dict(options or {})
-        for key in options:
-            if key in _MAKE_ONLY:
-                raise InvalidOptionError(f"option {key!r} can only be given when the environment "
-                                         "is made (the spaces derive from it)")
-            if key not in _OPTION_NAMES:
-                raise InvalidOptionError(f"unknown option {key!r}; known options: "
-                                         f"{', '.join(_OPTION_NAMES)}")
-        if "reference" in options and not isinstance(options["reference"], str):
-            options["reference"] = np.array(options["reference"], dtype=float, copy=True)
-        opt = replace(base, **options)
-        self._validate(opt)
-        return opt
-
-    def _validate(self, o: _Options) -> None:
-        try:
-            self.device.check_pose(_finite("gamma1_set_deg", o.gamma1_set_deg),
-                                   _finite("gamma2_set_deg", o.gamma2_set_deg))
-        except UserError as exc:
-            if isinstance(exc, InvalidOptionError):
-                raise
-            raise InvalidOptionError(f"arm set point: {exc}") from None
-        lo, hi = self._yaw_range
-        half = min(-lo, hi)
-        if isinstance(o.reference, str):
-            if o.reference not in REFERENCE_KINDS:
-                raise InvalidOptionError(f"reference must be one of {REFERENCE_KINDS} or an "
-                                         f"array, got {o.reference!r}")
-        else:
-            r = o.reference
-            if r.ndim != 1 or r.size < 1 or not np.all(np.isfinite(r)):
-                raise InvalidOptionError("an array reference must be 1-D, non-empty and finite "
-                                         f"[rad], got shape {r.shape}")
-            if r.min() < lo or r.max() > hi:
-                raise InvalidOptionError(f"the reference leaves the yaw joint range "
-                                         f"[{lo:g}, {hi:g}] rad")
-        if o.frequency_hz is not None:
-            _finite("frequency_hz", o.frequency_hz, 0.0, lo_open=True)
-        if o.amplitude_rad is not None:
-            _finite("amplitude_rad [rad] (the yaw joint range bounds it)", o.amplitude_rad, 0.0, half)
-        _finite("step_period_s", o.step_period_s, 0.0, lo_open=True)
-        if o.duration_s is not None:
-            _finite("duration_s", o.duration_s, self.dt)
-            if not isinstance(o.reference, str) and round(o.duration_s / self.dt) > o.reference.size:
-                raise InvalidOptionError(f"duration_s = {o.duration_s} s is longer than the array "
-                                         f"reference ({o.reference.size} samples of {self.dt} s)")
-        if o.theta0_rad is not None:
-            _finite("theta0_rad", o.theta0_rad, lo, hi)
-        _finite("friction_scale", o.friction_scale, 0.0)
-        _finite("noise_rad", o.noise_rad, 0.0, MAX_NOISE_RAD)
-        if not isinstance(o.quantize, (bool, np.bool_)):
-            raise InvalidOptionError(f"quantize must be a bool, got {o.quantize!r}")
-        if o.velocity not in VELOCITY_MODES:
-            raise InvalidOptionError(f"velocity must be one of {VELOCITY_MODES}, got {o.velocity!r}")
-        _finite("effort_weight", o.effort_weight, 0.0)
-
-    def _build_reference(self, o: _Options) -> tuple[np.ndarray, float]:
-        """The episode's reference (one sample per control period) and initial yaw [rad]."""
-        dt = self.dt
-        if not isinstance(o.reference, str):
-            n = o.reference.size if o.duration_s is None else int(round(o.duration_s / dt))
-            r = o.reference[:n].copy()
-            theta0 = float(r[0])
-        else:
-            duration = _DEFAULT_DURATION_S if o.duration_s is None else o.duration_s
-            amp = _DEFAULT_AMPLITUDE_RAD[o.reference] if o.amplitude_rad is None else o.amplitude_rad
-            t = np.arange(int(round(duration / dt))) * dt  # as experiments._time
-            if o.reference == "sine":
-                f = _DEFAULT_FREQUENCY_HZ["sine"] if o.frequency_hz is None else o.frequency_hz
-                r = amp * np.sin(2 * np.pi * f * t)
-                theta0 = 0.0
-            elif o.reference == "square":
-                f = _DEFAULT_FREQUENCY_HZ["square"] if o.frequency_hz is None else o.frequency_hz
-                exp = ex.square_experiment(o.gamma1_set_deg, o.gamma2_set_deg, f, amp, duration, dt)
-                r, theta0 = exp.r, exp.theta0_rad
-            else:  # random steps from the seeded RNG
-                hold = max(1, int(round(o.step_period_s / dt)))
-                levels = self.np_random.uniform(-amp, amp, size=-(-t.size // hold))
-                r = np.repeat(levels, hold)[: t.size]
-                theta0 = 0.0
-        if o.theta0_rad is not None:
-            theta0 = float(o.theta0_rad)
-        return np.asarray(r, dtype=float), theta0
-
-    # --- measurement -----------------------------------------------------------------------
-    def _measure(self) -> float:
-        """Encoder reading at the current time [rad] (:func:`omni_sim.device.read_encoder`)."""
-        return float(read_encoder(self.data.qpos[self._ix.yaw_qpos], self._noise[self._k],
-                                  ENCODER_STEP_RAD if self._opt.quantize else 0.0))
-
-    def _instabilities(self) -> int:
-        """How often MuJoCo has reset this data for a bad qpos, qvel or qacc."""
-        w = self.data.warning
-        return int(sum(w[int(k)].number for k in (mujoco.mjtWarning.mjWARN_BADQPOS,
-                                                 mujoco.mjtWarning.mjWARN_BADQVEL,
-                                                 mujoco.mjtWarning.mjWARN_BADQACC)))
-
-    def _observe(self, y: float) -> tuple[np.ndarray, str | None]:
-        """The observation, and why it is invalid (None when it is finite and in bounds)."""
-        if self._opt.velocity == "exact":
-            w = float(self.data.qvel[self._ix.yaw_dof])
-        else:
-            d = (3.0 * y - 4.0 * self._y_hist[0] + self._y_hist[1]) / (2.0 * self.dt)
-            self._w_est += self._lp_gain * (d - self._w_est)
-            self._y_hist = (y, self._y_hist[0])
-            w = self._w_est
-        r = self._r[min(self._k, self._r.size - 1)]
-        obs = np.array([y, w, r, self.data.qpos[self._ix.shoulder_qpos],
-                        self.data.qpos[self._ix.elbow_qpos]], dtype=np.float64)
-        box = self.observation_space
-        bad = ~(np.isfinite(obs) & (obs >= box.low) & (obs <= box.high))
-        if not bad.any():
-            return obs, None
-        reason = (f"simulation diverged at t = {self.data.time:.6f} s: "
-                  + ", ".join(f"{OBSERVATION_NAMES[i]} = {obs[i]:g} outside "
-                              f"[{box.low[i]:g}, {box.high[i]:g}]" for i in np.flatnonzero(bad)))
-        return np.clip(np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0), box.low, box.high), reason
-
-    def _info(self, v: float) -> dict:
-        theta = float(self.data.qpos[self._ix.yaw_qpos])
-        r = float(self._r[min(self._k, self._r.size - 1)])
-        return {"time": float(self.data.time), "theta_true": theta, "tracking_error": r - theta,
-                "voltage": v}
-
-    # --- gymnasium API -----------------------------------------------------------------------
-    def _apply_friction_scale(self, o: _Options) -> None:
-        """Scale the model's yaw dry friction and viscous damping to the episode's option."""
-        self.device.scale_friction(o.friction_scale, base=self._device0)
-        self.model.dof_damping[self._ix.yaw_dof] = self._yaw_damping0 * o.friction_scale
-
-    def _episode(self, o: _Options) -> tuple[np.ndarray, float, np.ndarray]:
-        """An episode's random draws from ``self.np_random``, in this order: the reference and
-        initial yaw [rad], then the encoder noise [rad] (one sample per control period + 1).
-        The vector environment draws each sub-environment's episode with this too."""
-        r, theta0 = self._build_reference(o)
-        noise = (self.np_random.normal(0.0, o.noise_rad, r.size + 1) if o.noise_rad > 0
-                 else np.zeros(r.size + 1))
-        return r, theta0, noise
-
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        """Start an episode: arm at its equilibrium pose, yaw at ``theta0_rad`` at rest.
-
-        Parameters
-        ----------
-        seed : int, optional
-            Seeds the RNG (random steps, encoder noise); equal seeds and options give equal
-            episodes.
-        options : dict, optional
-            Per-episode overrides of the make-time options (see the class docstring).
-        """
-        super().reset(seed=seed)
-        o = self._merge(self._defaults, options) if options else self._defaults
-        self._opt = o
-        if self._engine is not None:
-            self._engine.close()
-        self._apply_friction_scale(o)
-        self._r, theta0, self._noise = self._episode(o)
-        self._n = self._r.size
-        # the device's start state and engine, on this environment's MjData
-        self._engine = Engine([self.device], [theta0],
-                              [(float(o.gamma1_set_deg), float(o.gamma2_set_deg))], data=self.data)
-        self._diverged = False
-
-        self._k = 0
-        y = self._measure()
-        self._y_hist = (y, y)  # at rest before the episode
-        self._w_est = 0.0
-        self._lp_gain = 1.0 - math.exp(-2 * math.pi * VELOCITY_FILTER_HZ * self.dt)
-        obs, reason = self._observe(y)
-        if reason is not None:  # the options are validated, so the start state is in bounds
-            raise RuntimeError(reason)
-        if self.render_mode == "human":
-            self.render()
-        return obs, self._info(0.0)
-
-    def step(self, action):
-        """Apply voltage ``action[0]`` [V] for one control period; see the class docstring."""
-        a = np.asarray(action, dtype=float)
-        if a.shape != (1,):
-            raise InvalidOptionError(f"action must have shape (1,) (yaw voltage [V]), got shape "
-                                     f"{a.shape}")
-        v = float(a[0])
-        if not math.isfinite(v):
-            raise InvalidOptionError(f"action must be finite, got {v}")
-        if self._engine is None:
-            raise RuntimeError("step() before reset()")
-        if self._diverged:
-            raise RuntimeError("step() after the episode terminated (diverged); call reset()")
-        if self._k >= self._n:
-            raise RuntimeError("step() after the episode was truncated; call reset()")
-        bad_before = self._instabilities()
-        v = float(self._engine.apply(v)[0])
-        self._k += 1
-        obs, reason = self._observe(self._measure())
-        if reason is None and self._instabilities() > bad_before:
-            reason = (f"simulation diverged at t = {self.data.time:.6f} s: MuJoCo found a "
-                      "non-finite or huge state and reset it (mjWARN_BADQPOS/QVEL/QACC)")
-        info = self._info(v)
-        if reason is not None:
-            self._diverged = True
-            info.update(diverged=True, reason=reason)
-            return obs, 0.0, True, False, info
-        reward = -info["tracking_error"] ** 2 - self._opt.effort_weight * v * v
-        truncated = self._k >= self._n
-        if self.render_mode == "human":
-            self.render()
-        return obs, float(reward), False, truncated, info
-
-    def render(self):
-        """An RGB image ``(height, width, 3)`` uint8 (``"rgb_array"``), or update the viewer."""
-        return self._viewport.render(self.data)
-
-    def close(self):
-        """Release the renderer and the viewer (safe to call twice)."""
-        if self._engine is not None:
-            self._engine.close()
-        self._viewport.close()
+        super().__init__(device, TrackingTask(device), render_mode, render_width, render_height,
+                         camera)
+        self.task.defaults = self.task.merge(self.task.defaults, options)
 
 
 class AlphaInvariantObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
@@ -691,7 +361,7 @@ class AlphaInvariantObservation(gym.ObservationWrapper, gym.utils.RecordConstruc
     def __init__(self, env: gym.Env, time_constant_s: float = 0.1):
         gym.utils.RecordConstructorArgs.__init__(self, time_constant_s=time_constant_s)
         gym.ObservationWrapper.__init__(self, env)
-        self.time_constant_s = _finite("time_constant_s", time_constant_s, 0.0, lo_open=True)
+        self.time_constant_s = finite("time_constant_s", time_constant_s, 0.0, lo_open=True)
         self._dt = float(env.unwrapped.dt)
         self._gain = 1.0 - math.exp(-self._dt / self.time_constant_s)
         box = env.observation_space

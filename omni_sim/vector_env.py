@@ -3,8 +3,10 @@
 ``gym.make_vec("omni_sim/OmniYaw-v0", num_envs=N, vectorization_mode="vector_entry_point")``
 makes an :class:`OmniYawVectorEnv`.  Its N rows are one batch of the device's closed-loop
 :class:`~omni_sim.device.Engine`: every :meth:`~OmniYawVectorEnv.step` advances all N yaw axes
-by one control period in a single :func:`mujoco.rollout` call on all cores, and the encoder,
-velocity estimate, reward and bookkeeping are numpy over the batch.
+by one control period in a single :func:`mujoco.rollout` call on all cores.  The encoder,
+velocity estimate, observation and reward are the single environment's task
+(:class:`omni_sim.tracking_task.TrackingTask`) over N rows, numpy over the batch; this class
+adds the seeding per row, the reset mask and the autoreset.
 
 Sub-environment ``i`` is the single environment (:class:`omni_sim.env.OmniYawEnv`, same
 options) seeded ``seed + i`` (gymnasium's seeding rule): the same reference, noise, start state
@@ -19,7 +21,6 @@ terms: ``render`` is not offered; a divergence is detected from the observation'
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -27,8 +28,9 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from .device import ENCODER_STEP_RAD, Engine, read_encoder
-from .env import OBSERVATION_NAMES, VELOCITY_FILTER_HZ, InvalidOptionError, OmniYawEnv
+from .device import Engine
+from .env import OBSERVATION_NAMES, InvalidOptionError, OmniYawEnv
+from .tracking_task import TrackingTask
 
 __all__ = ["OmniYawVectorEnv"]
 
@@ -58,8 +60,11 @@ class OmniYawVectorEnv(VectorEnv):
                                      "environments to render")
         kwargs.pop("max_episode_steps", None)  # gymnasium passes the spec's (None) along
         self.num_envs = int(num_envs)
-        self._env = OmniYawEnv(**kwargs)  # options, spaces, references: the single env's own
+        self._env = OmniYawEnv(**kwargs)  # the make-time options and spaces: the single env's
         self.device = self._env.device
+        # the single env's task over N rows: sub-environment i is row i
+        self.task = TrackingTask(self.device, rows=self.num_envs)
+        self.task.defaults = self._env.task.defaults
         self.single_action_space = self._env.action_space
         self.single_observation_space = self._env.observation_space
         self.action_space = spaces.Box(np.tile(self.single_action_space.low, (self.num_envs, 1)),
@@ -75,22 +80,7 @@ class OmniYawVectorEnv(VectorEnv):
         self._engine: Engine | None = None
         N = self.num_envs
         self._rngs: list[np.random.Generator | None] = [None] * N
-        self._opts = [self._env._defaults] * N
-        # per-row episode data as padded matrices (row i: its reference, then its noise), and
-        # per-row settings, so that a step gathers them without a Python loop over the rows
-        self._R = np.zeros((N, 1))
-        self._NZ = np.zeros((N, 2))
-        self._quantum = np.zeros(N)
-        self._exact = np.ones(N, dtype=bool)
-        self._weight = np.zeros(N)
-        self._rows = np.arange(N)
-        self._k = np.zeros(N, dtype=np.int64)
-        self._n = np.ones(N, dtype=np.int64)
         self._done = np.zeros(N, dtype=bool)
-        self._y_hist = np.zeros((N, 2))
-        self._w_est = np.zeros(N)
-        self._lp_gain = 1.0 - math.exp(-2 * math.pi * VELOCITY_FILTER_HZ * self.dt)
-        self._box = (self.single_observation_space.low, self.single_observation_space.high)
         self._last_obs = np.zeros((N, len(OBSERVATION_NAMES)))
 
     # --- episodes -----------------------------------------------------------------------------
@@ -98,31 +88,14 @@ class OmniYawVectorEnv(VectorEnv):
         """Draw sub-environment ``i``'s episode exactly as the single env's reset does."""
         if seed is not None or self._rngs[i] is None:
             self._rngs[i], _ = seeding.np_random(seed)
-        env = self._env
-        o = env._merge(env._defaults, options) if options else env._defaults
-        self._opts[i] = o
-        env._np_random = self._rngs[i]  # the single env's episode draws, on this row's RNG
-        r, theta0, noise = env._episode(o)
-        if r.size > self._R.shape[1]:  # grow the padded matrices to the longest episode
-            grow = r.size - self._R.shape[1]
-            self._R = np.pad(self._R, ((0, 0), (0, grow)))
-            self._NZ = np.pad(self._NZ, ((0, 0), (0, grow)))
-        self._R[i, : r.size] = r
-        self._NZ[i, : noise.size] = noise
-        self._quantum[i] = ENCODER_STEP_RAD if o.quantize else 0.0
-        self._exact[i] = o.velocity == "exact"
-        self._weight[i] = o.effort_weight
-        self._k[i] = 0
-        self._n[i] = r.size
         self._done[i] = False
-        self._w_est[i] = 0.0
-        return theta0, (float(o.gamma1_set_deg), float(o.gamma2_set_deg))
+        return self.task.start_row(i, options, self._rngs[i])
 
     def _check_uniform_model_options(self) -> None:
-        scales = {o.friction_scale for o in self._opts}
-        if len(scales) > 1:
+        opts = self.task.options
+        if len({o.friction_scale for o in opts}) > 1:
             raise InvalidOptionError("friction_scale must be the same for every sub-environment")
-        self._env._apply_friction_scale(self._opts[0])
+        self.task.apply_friction_scale(opts[0])
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         """Reset every sub-environment (or those in ``options["reset_mask"]``).
@@ -156,47 +129,24 @@ class OmniYawVectorEnv(VectorEnv):
             self._engine = Engine([self.device] * N, th0, gs, nthread=self._nthread)
         else:
             self._engine.reset_rows(rows, [t for t, _ in starts], [g for _, g in starts])
-        keep = ~mask  # the others keep their estimator state and last observation
-        hist, w = self._y_hist.copy(), self._w_est.copy()
-        y = self._measure()
-        self._y_hist[rows] = y[rows, None]
+        task, keep = self.task, ~mask  # the others keep their estimator state and last observation
+        hist, w = task.y_hist.copy(), task.w_est.copy()
+        y = task.measure(self._engine)
+        task.y_hist[rows] = y[rows, None]
         obs, _ = self._observe(y)
-        self._y_hist[keep], self._w_est[keep] = hist[keep], w[keep]
+        task.y_hist[keep], task.w_est[keep] = hist[keep], w[keep]
         if keep.any():
             obs[keep] = self._last_obs[keep]
         self._last_obs = obs.copy()
-        return obs, self._info(np.zeros(N))
-
-    # --- measurement ------------------------------------------------------------------------------
-    def _measure(self) -> np.ndarray:
-        th = self._engine.yaw()
-        noise = self._NZ[self._rows, np.minimum(self._k, self._n)]
-        return read_encoder(th, noise, self._quantum)
-
-    def _reference(self) -> np.ndarray:
-        """Every row's current reference sample [rad] (held at its last after the end)."""
-        return self._R[self._rows, np.minimum(self._k, self._n - 1)]
+        return obs, task.info(self._engine, np.zeros(N))
 
     def _observe(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        exact = self._exact
-        d = (3.0 * y - 4.0 * self._y_hist[:, 0] + self._y_hist[:, 1]) / (2.0 * self.dt)
-        self._w_est = np.where(exact, self._w_est, self._w_est + self._lp_gain * (d - self._w_est))
-        self._y_hist = np.column_stack([y, self._y_hist[:, 0]])
-        w = np.where(exact, self._engine.yaw_velocity(), self._w_est)
-        r = self._reference()
-        q = self._engine.qpos()
-        obs = np.column_stack([y, w, r, q[:, 1], q[:, 2]])
-        lo, hi = self._box
-        bad = ~(np.isfinite(obs) & (obs >= lo) & (obs <= hi)).all(axis=1)
+        """The rows' observations, those out of bounds clipped, and which rows those are."""
+        obs = self.task.observe(self._engine, y)
+        bad = self.task.out_of_bounds(obs).any(axis=1)
         if bad.any():
-            obs[bad] = np.clip(np.nan_to_num(obs[bad], nan=0.0, posinf=0.0, neginf=0.0), lo, hi)
+            obs[bad] = self.task.clip(obs[bad])
         return obs, bad
-
-    def _info(self, v: np.ndarray) -> dict:
-        theta = self._engine.yaw()
-        r = self._reference()
-        return {"time": self._engine.time(), "theta_true": theta, "tracking_error": r - theta,
-                "voltage": v}
 
     # --- stepping -------------------------------------------------------------------------------
     def step(self, actions):
@@ -209,6 +159,7 @@ class OmniYawVectorEnv(VectorEnv):
                                      f"voltage [V] per sub-environment), got shape {a.shape}")
         if not np.all(np.isfinite(a)):
             raise InvalidOptionError("actions must be finite")
+        task = self.task
         again = np.flatnonzero(self._done)  # NextStep autoreset: these start a new episode
         run = ~self._done
         v = self._engine.vmax.copy()
@@ -218,17 +169,17 @@ class OmniYawVectorEnv(VectorEnv):
             starts = [self._start(int(i), None, None) for i in again]
             self._check_uniform_model_options()
         self._engine.apply(v)  # rows that start again are overwritten below
-        self._k[run] += 1
+        task.k[run] += 1
         if again.size:
             self._engine.reset_rows(again, [t for t, _ in starts], [g for _, g in starts])
-        y = self._measure()
+        y = task.measure(self._engine)
         if again.size:
-            self._y_hist[again] = y[again, None]
+            task.y_hist[again] = y[again, None]
         obs, bad = self._observe(y)
-        info = self._info(v)
-        reward = -info["tracking_error"] ** 2 - self._weight * v * v
+        info = task.info(self._engine, v)
+        reward = task.reward(info)
         terminated = bad & run
-        truncated = run & ~terminated & (self._k >= self._n)
+        truncated = run & ~terminated & (task.k >= task.n)
         reward[again] = 0.0
         reward[terminated] = 0.0
         self._done = terminated | truncated

@@ -45,40 +45,22 @@ environment seeded ``seed + i``); no native batch version.
 from __future__ import annotations
 
 import copy
-import math
-
-import gymnasium as gym
-import mujoco
-import numpy as np
-from gymnasium import spaces
 
 from identification.errors import UserError
 
 from . import model as om
-from .device import CONTROL_PERIOD_S, ENCODER_STEP_RAD, Device, Engine, read_encoder
-from .env import RENDER_MODES, InvalidOptionError, _Viewport, available_render_modes
+from .device import CONTROL_PERIOD_S, Device
+from .env import OmniEnv
+from .options import InvalidOptionError
+from .wall_task import (GRASPS, TIP_RADIUS_M, WallTask, add_hand, check_wall_settings,
+                        grasp_impedance, wall_torque)
 
 __all__ = ["OmniWallEnv", "wall_torque", "GRASPS", "TIP_RADIUS_M"]
 
-#: Tip radius from the yaw axis [m]: ~0.2 m, the radius at which the drive's limit gives the
-#: 3.3 N peak tip force (models/omni.xml's ctrlrange comment).
-TIP_RADIUS_M = 0.2
-#: Grasp impedances at the tip: (mass [kg], damping [N s/m], stiffness [N/m]); see module doc.
-GRASPS = {"loose": (0.05, 1.5, 50.0), "medium": (0.2, 3.0, 200.0), "firm": (0.55, 6.5, 400.0)}
 
-
-def wall_torque(y, y_prev, wall_rad, K, B, T, torque_limit=math.inf):
-    """The standard virtual wall's torque [N*m]: ``-(K pen + B (y - y_prev) / T)`` while the
-    measured penetration ``pen = y - wall_rad`` is positive, 0 outside, clipped to
-    ``+-torque_limit`` (elementwise)."""
-    y = np.asarray(y, dtype=float)
-    pen = y - wall_rad
-    tau = np.where(pen > 0, -(K * pen + B * (y - y_prev) / T), 0.0)
-    return np.clip(tau, -torque_limit, torque_limit)
-
-
-class OmniWallEnv(gym.Env):
-    """A virtual wall on the virtual Omni's yaw, pushed by a hand model (see the module doc).
+class OmniWallEnv(OmniEnv):
+    """A virtual wall on the virtual Omni's yaw, pushed by a hand model (see the module doc):
+    :class:`omni_sim.env.OmniEnv` asking a :class:`omni_sim.wall_task.WallTask`.
 
     Parameters (all make-time): ``model_path``/``friction`` (as ``OmniYaw-v0``), ``stiffness``
     K [N*m/rad] (default 5) and ``damping`` B [N*m*s/rad] (default 0.002) of the built-in
@@ -90,9 +72,11 @@ class OmniWallEnv(gym.Env):
     ``render_height`` (640 x 480) and ``camera`` (``"side"``) as ``OmniYaw-v0``'s: a mode that
     cannot work in this process raises :class:`InvalidOptionError` when made and is not in the
     instance's ``metadata["render_modes"]`` (:func:`omni_sim.env.render_mode_problem`).
-    """
 
-    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 1000}
+    The settings are read back as the task's: ``K``, ``B``, ``wall_rad``, ``push_rad``,
+    ``quantize``, ``delay``, ``n`` (periods per episode), ``start_rad``, ``gamma_set``, ``hand``
+    (the grasp at the yaw), ``T`` [s], ``kt`` [N*m/V], ``vlim`` [V].
+    """
 
     def __init__(self, model_path=None, friction=None, stiffness=5.0, damping=0.002,
                  wall_rad=0.0, push_rad=0.02, grasp="medium", quantize=True, delay=0,
@@ -105,114 +89,28 @@ class OmniWallEnv(gym.Env):
             dev.check_pose(float(gamma1_set_deg), float(gamma2_set_deg))
         except UserError as exc:
             raise InvalidOptionError(str(exc)) from None
-        for name, val in (("stiffness", stiffness), ("damping", damping), ("wall_rad", wall_rad),
-                          ("push_rad", push_rad), ("duration_s", duration_s)):
-            if not math.isfinite(float(val)):
-                raise InvalidOptionError(f"{name} must be finite, got {val!r}")
-        if float(duration_s) <= 0 or float(stiffness) < 0:
-            raise InvalidOptionError("duration_s must be > 0 and stiffness >= 0")
-        if isinstance(delay, bool) or int(delay) != delay or delay < 0:
-            raise InvalidOptionError(f"delay must be a whole number of periods >= 0, got {delay!r}")
-        if isinstance(grasp, str):
-            if grasp not in GRASPS:
-                raise InvalidOptionError(f"grasp must be one of {sorted(GRASPS)} or (m, c, k), got {grasp!r}")
-            m_h, c_h, k_h = GRASPS[grasp]
-        else:
-            m_h, c_h, k_h = (float(x) for x in grasp)
-            if min(m_h, c_h, k_h) < 0:
-                raise InvalidOptionError("grasp mass, damping and stiffness must be >= 0")
-        r2 = TIP_RADIUS_M ** 2
-        self.hand = {"inertia": m_h * r2, "damping": c_h * r2, "stiffness": k_h * r2}
-        ix = dev.ix
-        self.wall_rad, self.push_rad = float(wall_rad), float(push_rad)
-        model.dof_armature[ix.yaw_dof] += self.hand["inertia"]
-        model.dof_damping[ix.yaw_dof] += self.hand["damping"]
-        model.jnt_stiffness[dev.joint_id] = self.hand["stiffness"]
-        model.qpos_spring[ix.yaw_qpos] = self.wall_rad + self.push_rad
-        self.device = Device(model, float(control_period_s))
-        self.model = model
-        self.K, self.B = float(stiffness), float(damping)
-        self.quantize, self.delay = bool(quantize), int(delay)
-        self.T = self.device.control_period_s
-        self.kt = self.device.torque_constant
-        self.vlim = self.device.voltage_limit
-        self.n = int(round(float(duration_s) / self.T))
-        self.start_rad = self.wall_rad - 0.005 if start_rad is None else float(start_rad)
-        self.gamma_set = (float(gamma1_set_deg), float(gamma2_set_deg))
-        self.data = mujoco.MjData(model)  # the engine steps it; the rendering shows it
-        self._viewport = _Viewport(model, render_mode, render_width, render_height, camera)
-        self.render_mode = render_mode
-        self.metadata = {**type(self).metadata, "render_modes": available_render_modes(),
-                         "render_fps": int(round(1.0 / self.T))}
-        self.action_space = spaces.Box(-np.float32(self.vlim), np.float32(self.vlim), (1,), np.float32)
-        vb = 4 * math.pi / self.T
-        self.observation_space = spaces.Box(np.array([-math.pi, -vb, -2 * math.pi]),
-                                            np.array([math.pi, vb, 2 * math.pi]), dtype=np.float64)
-        self._engine = None
+        check_wall_settings(stiffness, damping, wall_rad, push_rad, duration_s, delay)
+        hand = grasp_impedance(grasp)
+        add_hand(model, dev, hand, float(wall_rad) + float(push_rad))
+        device = Device(model, float(control_period_s))
+        task = WallTask(device, hand, stiffness, damping, wall_rad, push_rad, quantize, delay,
+                        duration_s, start_rad, (float(gamma1_set_deg), float(gamma2_set_deg)))
+        super().__init__(device, task, render_mode, render_width, render_height, camera)
 
-    def _read(self) -> float:
-        return float(read_encoder(self._engine.yaw()[0], 0.0,
-                                  ENCODER_STEP_RAD if self.quantize else 0.0))
-
-    def _obs(self) -> np.ndarray:
-        return np.array([self._y, (self._y - self._y_prev) / self.T, self._y - self.wall_rad])
-
-    def _info(self, v: float) -> dict:
-        th = float(self._engine.yaw()[0])
-        return {"energy": self._E, "wall_energy": -self._E, "penetration": th - self.wall_rad,
-                "voltage": v, "time": float(self._engine.time()[0]), "theta_true": th}
-
-    def wall_command(self) -> np.ndarray:
+    def wall_command(self):
         """The built-in renderer's command [V] for the current reading (shape (1,))."""
-        tau = wall_torque(self._y, self._y_prev, self.wall_rad, self.K, self.B, self.T)
-        return np.array([float(tau) / self.kt], dtype=np.float32)
+        return self.task.wall_command()
 
-    def reset(self, *, seed=None, options=None):
-        super().reset(seed=seed)
-        if options:
-            raise InvalidOptionError("OmniWall-v0 takes its options when made")
-        if self._engine is not None:
-            self._engine.close()
-        self._engine = Engine([self.device], [self.start_rad], [self.gamma_set], data=self.data)
-        self._y = self._y_prev = self._read()
-        self._queue = [0.0] * self.delay
-        self._E = 0.0
-        self._k = 0
-        if self.render_mode == "human":
-            self.render()
-        return self._obs(), self._info(0.0)
-
-    def step(self, action):
-        a = np.asarray(action, dtype=float)
-        if a.shape != (1,) or not np.isfinite(a).all():
-            raise InvalidOptionError(f"action must be one finite voltage [V], shape (1,), got {a!r}")
-        if self._engine is None:
-            raise RuntimeError("step() before reset()")
-        v = min(max(float(a[0]), -self.vlim), self.vlim)
-        if self.delay:
-            self._queue.append(v)
-            v = self._queue.pop(0)
-        self._engine.apply(v)
-        y = self._read()
-        self._E += v * self.kt * (y - self._y)
-        self._y_prev, self._y = self._y, y
-        self._k += 1
-        obs = self._obs()
-        info = self._info(v)
-        box = self.observation_space
-        if not (np.isfinite(obs).all() and (obs >= box.low).all() and (obs <= box.high).all()):
-            info["diverged"] = True
-            return np.clip(np.nan_to_num(obs), box.low, box.high), 0.0, True, False, info
-        if self.render_mode == "human":
-            self.render()
-        return obs, -info["penetration"] ** 2, False, self._k >= self.n, info
-
-    def render(self):
-        """An RGB image ``(height, width, 3)`` uint8 (``"rgb_array"``), or update the viewer."""
-        return self._viewport.render(self.data)
-
-    def close(self):
-        if self._engine is not None:
-            self._engine.close()
-            self._engine = None
-        self._viewport.close()
+    K = property(lambda self: self.task.K)
+    B = property(lambda self: self.task.B)
+    wall_rad = property(lambda self: self.task.wall_rad)
+    push_rad = property(lambda self: self.task.push_rad)
+    quantize = property(lambda self: self.task.quantize)
+    delay = property(lambda self: self.task.delay)
+    n = property(lambda self: self.task.n)
+    start_rad = property(lambda self: self.task.start_rad)
+    gamma_set = property(lambda self: self.task.gamma_set)
+    hand = property(lambda self: self.task.hand)
+    T = property(lambda self: self.task.T)
+    kt = property(lambda self: self.task.kt)
+    vlim = property(lambda self: self.task.vlim)

@@ -167,7 +167,7 @@ def test_env_divergence_terminates_with_reason(quiet_mujoco):
     raise; info says why, and the observation stays inside its box."""
     env = OmniYawEnv(duration_s=1.0)
     env.reset(seed=0)
-    env.data.qvel[env._ix.yaw_dof] = 1e6  # a blown-up state [rad/s] (finite: MuJoCo resets on inf)
+    env.data.qvel[env.device.ix.yaw_dof] = 1e6  # a blown-up state [rad/s] (finite: MuJoCo resets on inf)
     obs, reward, terminated, truncated, info = env.step(np.array([0.0]))
     assert terminated and not truncated
     assert info["diverged"] and "diverged" in info["reason"]
