@@ -24,7 +24,7 @@ from gymnasium import spaces
 from identification.errors import UserError
 
 from . import experiments as ex
-from .device import ENCODER_STEP_RAD, Device, Engine, read_encoder
+from .device import ENCODER_STEP_RAD, Device, Engine, encoder_reader
 from .options import InvalidOptionError, finite
 
 __all__ = ["OBSERVATION_NAMES", "VELOCITY_FILTER_HZ", "MAX_NOISE_RAD", "TrackingOptions",
@@ -124,6 +124,7 @@ class TrackingTask:
         self._R = np.zeros((self.rows, 1))
         self._NZ = np.zeros((self.rows, 2))
         self._quantum = np.zeros(self.rows)
+        self._read = encoder_reader(self._quantum.copy())  # made again when a row's step changes
         self._exact = np.ones(self.rows, dtype=bool)
         self._weight = np.zeros(self.rows)
         self._all = np.arange(self.rows)
@@ -242,7 +243,10 @@ class TrackingTask:
             self._NZ = np.pad(self._NZ, ((0, 0), (0, grow)))
         self._R[i, : r.size] = r
         self._NZ[i, : noise.size] = noise
-        self._quantum[i] = ENCODER_STEP_RAD if o.quantize else 0.0
+        quantum = ENCODER_STEP_RAD if o.quantize else 0.0
+        if self._quantum[i] != quantum:
+            self._quantum[i] = quantum
+            self._read = encoder_reader(self._quantum.copy())
         self._exact[i] = o.velocity == "exact"
         self._weight[i] = o.effort_weight
         self.k[i] = 0
@@ -261,7 +265,7 @@ class TrackingTask:
         """Every row's encoder reading at its current time [rad]
         (:func:`omni_sim.device.read_encoder`)."""
         noise = self._NZ[self._all, np.minimum(self.k, self.n)]
-        return read_encoder(engine.yaw(), noise, self._quantum)
+        return self._read(engine.yaw(), noise)
 
     def reference(self) -> np.ndarray:
         """Every row's current reference sample [rad] (held at its last after the end)."""
@@ -274,10 +278,15 @@ class TrackingTask:
         exact = self._exact
         d = (3.0 * y - 4.0 * self.y_hist[:, 0] + self.y_hist[:, 1]) / (2.0 * self.dt)
         self.w_est = np.where(exact, self.w_est, self.w_est + self.lp_gain * (d - self.w_est))
-        self.y_hist = np.column_stack([y, self.y_hist[:, 0]])
-        w = np.where(exact, engine.yaw_velocity(), self.w_est)
+        self.y_hist[:, 1] = self.y_hist[:, 0]
+        self.y_hist[:, 0] = y
         q = engine.qpos()
-        return np.column_stack([y, w, self.reference(), q[:, 1], q[:, 2]])
+        obs = np.empty((self.rows, 5))  # filled column by column: one allocation a step
+        obs[:, 0] = y
+        obs[:, 1] = np.where(exact, engine.yaw_velocity(), self.w_est)
+        obs[:, 2] = self.reference()
+        obs[:, 3:5] = q[:, 1:3]
+        return obs
 
     def out_of_bounds(self, obs: np.ndarray) -> np.ndarray:
         """Which entries of ``obs`` are non-finite or outside the observation box."""
