@@ -17,9 +17,12 @@ ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 #: One or two screens.
 MAX_README_LINES = 200
-#: The pages the README's documentation table links (docs/*.md) and the changelog.
-PAGES = ("results", "model", "calibration", "friction-families", "discrepancy", "sweeps",
-         "performance", "paper-errata", "gymnasium", "haptics", "campaigns", "architecture")
+#: The pages the README's documentation table links (docs/READER/*.md, one folder per reader:
+#: usage, method, studies, reference) and the changelog.
+PAGES = ("studies/reproduce/results", "reference/model", "studies/calibration/calibration",
+         "method/friction-families", "method/discrepancy", "usage/sweeps", "reference/performance",
+         "method/paper-errata", "usage/gymnasium", "studies/haptics/haptics", "usage/campaigns",
+         "reference/architecture")
 #: Words that tell how the code came to be instead of what it is (split so that this file
 #: does not match itself).
 HISTORY = re.compile("sess" + r"ion|issue\s+\d", re.IGNORECASE)
@@ -29,7 +32,7 @@ ALLOWED = re.compile("start_new_" + "sess" + "ion=True")
 SCANNED = (("README.md", None), ("docs", "**/*"), ("omni_sim", "**/*.py"), ("omni_sim", "**/*.toml"),
            ("omni_app", "**/*.py"), ("omni_studies", "**/*.py"), ("identification", "**/*.py"), ("identification/data", "*.md"),
            ("tests", "**/*.py"), ("scripts", "*.py"), ("examples", "**/*"), ("models/README.md", None))
-#: Repository paths named in backticks in the README and docs/*.md (checked to exist): a file
+#: Repository paths named in backticks in the README and docs/**/*.md (checked to exist): a file
 #: (with a suffix) or a folder (ending in ``/``) under one of the project's top-level folders.
 CODE_PATH = re.compile(r"`((?:omni_sim|omni_app|identification|scripts|tests|models|docs|examples)"
                        r"/[A-Za-z0-9_/-]*(?:\.[A-Za-z0-9_.]+|/))`")
