@@ -293,7 +293,7 @@ def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict
             "n_poses": whole["n_poses"],
             "ratio_of_medians": whole["ratio_of_medians"],
             "statistic": "median over runs of each run's median |error| over the whole record",
-            # the rest of the story beside the headline (docs/results.md): the same ratio
+            # the rest of the story beside the headline (docs/studies/reproduce/results.md): the same ratio
             # with means (the paper's "2.6" is a ratio of means), the whole-record p90 and the
             # pose counts by p90 and in the first second after the edges
             "ratio_of_means": whole["ratio_of_means"],

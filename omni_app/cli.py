@@ -78,7 +78,7 @@ def _add_generate(sub) -> None:
     p.add_argument("--campaign", default="paper", metavar="{paper,sine,step,FILE.toml}",
                    help="paper (Table 1 sines + Table 2 squares; the file omni_sim/campaigns/paper.toml), "
                         "sine or step (its halves), or a campaign file of your own (format: "
-                        "docs/campaigns.md); default: paper")
+                        "docs/usage/campaigns.md); default: paper")
     p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
     _friction_option(p)
     p.add_argument("--out", default="dataset", help="output folder (default: ./dataset)")

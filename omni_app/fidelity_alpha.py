@@ -1,6 +1,6 @@
 """The alpha model's verdict on every candidate of the table-level search within Table 11's band.
 
-The table-level search (:mod:`omni_studies.fidelity`, record ``docs/fidelity/search.json``)
+The table-level search (:mod:`omni_studies.fidelity`, record ``docs/studies/fidelity/search.json``)
 calibrated 35 candidate virtual Omnis to the published tables that describe the device; it never
 simulated the alpha model.  Here the paper's validation of the alpha model is run on **every**
 candidate whose linear model errs on the steps as much as the real Omni's did (Table 11's band,
@@ -28,8 +28,8 @@ from omni_studies import calibration as cal
 from omni_studies import fidelity as fs
 
 ROOT = Path(__file__).resolve().parents[1]
-SEARCH = ROOT / "docs" / "fidelity" / "search.json"
-OUT = ROOT / "docs" / "fidelity" / "alpha_verdict.json"
+SEARCH = ROOT / "docs" / "studies" / "fidelity" / "search.json"
+OUT = ROOT / "docs" / "studies" / "fidelity" / "alpha_verdict.json"
 
 #: The verdict's rules, the reproduction report's targets (omni_app/report.py, fixed before this
 #: script existed): the paper's step gain is a ratio of medians linear/alpha >= 3 (whole record,

@@ -90,7 +90,7 @@ def format_markdown(doc: dict) -> str:
         "columns: the residuals do not change). Table 10's fall of C(α) is a quantity of the "
         "*identified* α model (its fitted C(α) at 65/90, not its validation) and a residual here as "
         "in the calibration, which gained it after an α-model score of the virtual Omni had been "
-        "seen ([calibration](../calibration.md#what-was-and-was-not-a-target)).",
+        "seen ([calibration](../calibration/calibration.md#what-was-and-was-not-a-target)).",
         "",
         f"Real Omni: linear step error, median over 25 poses, **{_mrad(ref['step_linear_median_over_poses_rad'])} "
         f"mrad**; resonance {ref['resonance_hz']:.2f} Hz. Acceptance: that median within "

@@ -71,7 +71,7 @@ LOAD_FRICTION = "load_friction"
 #: fit stalls wherever it starts (on the bank's load_friction_nominal_off runs, fits from the
 #: truth, from a point 20 % off and from the nominal stopped at training gaps of 6.2e-4,
 #: 8.7e-4 and 1.3e-3 rad), while with the blend all three land on one point, 6.0e-4 rad
-#: (docs/discrepancy/valley_scan.json).  0 makes the law that switch (mu_back at rest), kept
+#: (docs/studies/discrepancy/valley_scan.json).  0 makes the law that switch (mu_back at rest), kept
 #: for that record.
 LOAD_FRICTION_BLEND_RAD_S = 0.05
 #: ``<custom><numeric name="friction_asymmetry" data="a"/>`` [N*m]: the joint's Coulomb level is
@@ -429,7 +429,7 @@ class Device:
         gear = float(model.actuator_gear[act, 0])
         if model.actuator_gaintype[act] == mujoco.mjtGain.mjGAIN_DCMOTOR:
             # a dcmotor's torque per volt is gear * K / R (gainprm[1] = K, gainprm[0] = R;
-            # docs/servo-actuators.md)
+            # docs/method/servo-actuators.md)
             gear *= float(model.actuator_gainprm[act, 1] / model.actuator_gainprm[act, 0])
         else:
             gear *= float(model.actuator_gainprm[act, 0])  # a motor's gain is 1

@@ -31,8 +31,8 @@ MODELS_DIR = _models_dir()
 #: The built-in scene (the default friction family; includes ``omni.xml``).
 DEFAULT_SCENE = MODELS_DIR / "scene.xml"
 #: The friction families of the built-in model: one scene each around the shared robot
-#: ``omni.xml`` (docs/friction-families.md).  ``lugre`` is the default (``scene.xml``);
-#: ``matched`` is both at once, fitted to every published table (docs/fidelity/search.md).
+#: ``omni.xml`` (docs/method/friction-families.md).  ``lugre`` is the default (``scene.xml``);
+#: ``matched`` is both at once, fitted to every published table (docs/studies/fidelity/search.md).
 FRICTION_FAMILIES = ("coulomb", "lugre", "matched")
 DEFAULT_FRICTION = "lugre"
 

@@ -5,7 +5,7 @@ on the virtual Omni and matching what it reports, so the testbed stands in for t
 
 * Table 3: ``C_linear`` and ``beta_tilde_linear`` at the 9 Table 1 poses (relative residuals,
   scale 5 %), and the actual (sagged) arm angles (scale 0.75 deg);
-* Table 10 (rows reordered, see docs/paper-errata.md): the local damping ``C_data`` of the 65/90
+* Table 10 (rows reordered, see docs/method/paper-errata.md): the local damping ``C_data`` of the 65/90
   pose at alpha = 2.2, 25 and 250 V^2/s^2 (Table 7's breakpoints) should be 10.6, 6.49 and 3.71 1/s
   (interpolated over log alpha among the frequencies up to resonance; scale 20 %);
 * section 2.3: some low frequency at some pose gives non-physical (negative) local coefficients
@@ -24,8 +24,8 @@ with it free drove it to its 0 bound: the soft LuGre stick fits the paper, a har
 not; see models/README.md) and the bristle damping sigma1 = 0 (not identified).
 
 Why LuGre: with Coulomb + viscous friction alone the best fit left the C(alpha) fall at 2.0x
-(paper 4.6x) and no frequency non-physical (docs/calibration_coulomb_run.json and
-docs/calibration.md).  A pre-sliding range Fc/sigma0 of several mrad makes the low-energy
+(paper 4.6x) and no frequency non-physical (docs/studies/calibration/calibration_coulomb_run.json and
+docs/studies/calibration/calibration.md).  A pre-sliding range Fc/sigma0 of several mrad makes the low-energy
 response stiff (a spring to the stuck point) rather than only damped, which is what drives the
 paper's C_data and beta_data up, and then negative, at low frequency.
 

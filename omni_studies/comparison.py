@@ -146,4 +146,4 @@ def compare(results: dict) -> dict:
             "note": "Each family runs its own scene file as it is; how each was calibrated, "
                     "and which calibration and method choices were made after an alpha-model "
                     "score had been seen, is in models/calibration*.json and "
-                    "docs/friction-families.md. " + STEP_NOTE}
+                    "docs/method/friction-families.md. " + STEP_NOTE}

@@ -10,7 +10,7 @@ linear column).  The search looks for the missing effect with the table-level ta
 (:func:`candidates`) is calibrated jointly with its family's friction by :func:`fit`;
 :func:`search_record` is the record of a set of results, :func:`write_scene` writes the chosen
 one into ``models/scene_matched.xml``.  The study reads records of a checkout
-(``docs/fidelity/coulomb_all_free.json``, ``models/``): it runs from one.
+(``docs/studies/fidelity/coulomb_all_free.json``, ``models/``): it runs from one.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from omni_studies import calibration as cal
 ROOT = Path(__file__).resolve().parents[1]
 
 #: The all-free Coulomb refit (the coulomb family's footing).
-COULOMB_ALL_FREE = ROOT / "docs" / "fidelity" / "coulomb_all_free.json"
+COULOMB_ALL_FREE = ROOT / "docs" / "studies" / "fidelity" / "coulomb_all_free.json"
 SCENES = {"lugre": ROOT / "models" / "scene_lugre.xml", "coulomb": ROOT / "models" / "scene_coulomb.xml"}
 #: Simulations per candidate (each 1-1.5 s; 5-6 s with a delay or lag, which the batched fast
 #: path cannot run): ~9 Jacobians of a 6-parameter fit.
@@ -87,8 +87,8 @@ LEFT_OUT = {
     "torque_saturation": "the steps' voltages stay far below the drive's limit",
     "arm_mass": "the robot's masses are the footing's calibration (Table 3)",
     "load_friction": "a geared servo's load-dependent friction: the Omni's capstan is not "
-                     "self-locking (docs/servo-actuators.md)",
-    "asymmetric_friction": "not in the library: its bank case failed (docs/discrepancy.md)",
+                     "self-locking (docs/method/servo-actuators.md)",
+    "asymmetric_friction": "not in the library: its bank case failed (docs/method/discrepancy.md)",
 }
 #: Extra starts, added after the first pass: the structure that met the acceptance on the
 #: coulomb footing (hard stick + a soft LuGre element), started on the lugre footing (the shared
@@ -393,7 +393,7 @@ def write_scene(doc: dict, cid: str) -> list[Path]:
         "steps": fig["steps"],
         "why_this_candidate": "the most published tables met, then the lowest cost, among the "
                               "candidates a scene can declare on the shared robot and campaign "
-                              "(docs/fidelity/search.md, 'The matched scene')",
+                              "(docs/studies/fidelity/search.md, 'The matched scene')",
         "candidates_tried": others,
         "code_commit": doc.get("code_commit"),
     }
@@ -402,7 +402,7 @@ def write_scene(doc: dict, cid: str) -> list[Path]:
 
 
 def search_record(results: list[dict], code_commit: str | None) -> dict:
-    """The search's record of ``results`` (``docs/fidelity/search.json``), candidates sorted."""
+    """The search's record of ``results`` (``docs/studies/fidelity/search.json``), candidates sorted."""
     import mujoco
     import scipy
 

@@ -29,7 +29,7 @@ dry, LuGre) minus what the wall generated; it is divided by the viscous damping'
 ``D_b`` over the same steps: ``index = W / D_b``.  A cell is passive iff ``index >= -TOL``
 under every probe (an input that draws net energy out of device and wall proves them active)
 and every run stayed finite and inside the yaw range; for the ideal linear device ``index`` is
-``1 - (K T / 2 + |B|) / b`` (measured, ``docs/haptics/zwidth_ideal.json``: its boundary
+``1 - (K T / 2 + |B|) / b`` (measured, ``docs/studies/haptics/zwidth_ideal.json``: its boundary
 lies above Colgate & Schenkel's by at most 1.3 % up to 0.92 b (+0.05 to +1.3 % on those rows),
 7.6 % at 0.99 b).
 The largest passive K of a damping row is interpolated where ``index`` crosses ``-TOL``
@@ -92,7 +92,7 @@ MAX_SUBSTEPS = 1000
 #: proportionally more substeps.
 MIN_SPEED_X_SUBSTEPS = PROBE_SPEED * SUBSTEPS
 #: Memory budget [bytes] of one map: 2 GB, the project's peak-memory target for one command on
-#: the 2-core machine (docs/performance.md).  :func:`map_memory_bytes` estimates a map before it
+#: the 2-core machine (docs/reference/performance.md).  :func:`map_memory_bytes` estimates a map before it
 #: runs; a larger one is refused (an unbounded 10^8-column grid was killed for its memory
 #: without a message).
 MEMORY_BUDGET_BYTES = 2.0e9
@@ -391,10 +391,10 @@ def map_notes(doc: dict) -> list[str]:
     if beyond.any():
         rows = [f"{doc['damping'][i]:.3g}" for i in np.flatnonzero(beyond.any(axis=1))]
         if sub_count:
-            why = ("they come with quantisation and a probe below one encoder count (docs/haptics.md: "
+            why = ("they come with quantisation and a probe below one encoder count (docs/studies/haptics/haptics.md: "
                    "the exact-encoder maps and the quantised map with a one-count probe have none)")
         elif s["delay_periods"]:
-            why = "with a loop delay the probes miss the worst frequency (docs/haptics.md)"
+            why = "with a loop delay the probes miss the worst frequency (docs/studies/haptics/haptics.md)"
         else:
             why = "the probes' verdict is not monotone in K there"
         notes.append(f"{int(beyond.sum())} passive cell(s) lie beyond their row's boundary, past "
@@ -403,11 +403,11 @@ def map_notes(doc: dict) -> list[str]:
     if sub_count:
         notes.append(f"every probe moves less than one encoder count (at most {counts:.2f} counts): "
                      f"the encoder hardly sees the probe, and the boundary is the quantised loop's, "
-                     f"not Colgate & Schenkel's (docs/haptics.md); the Nyquist probe reaches one "
+                     f"not Colgate & Schenkel's (docs/studies/haptics/haptics.md); the Nyquist probe reaches one "
                      f"count at --probe-speed {_one_count_speed(doc):.3g} rad/s")
     if s["delay_periods"]:
         notes.append(f"a loop delay of {s['delay_periods']} period(s): the probes miss the delayed "
-                     f"wall's worst frequency, so the map is optimistic (docs/haptics.md, delay "
+                     f"wall's worst frequency, so the map is optimistic (docs/studies/haptics/haptics.md, delay "
                      f"caveat)")
     return notes
 

@@ -36,7 +36,7 @@ def main() -> int:
                            start=json.loads(args.start) if args.start else None)
     print(json.dumps(record["achieved"], indent=2))
     if not args.dry_run:
-        figs = cal.finalize(record, Path(__file__).resolve().parent.parent / "docs")
+        figs = cal.finalize(record, Path(__file__).resolve().parent.parent / "docs" / "studies" / "calibration")
         print(f"wrote the model files, {cal.RECORDS[args.friction].name} and",
               ", ".join(str(f) for f in figs))
     else:

@@ -1,4 +1,4 @@
-"""Run the hidden-effect bank through ``omni discrepancy`` and write docs/discrepancy/bank.md.
+"""Run the hidden-effect bank through ``omni discrepancy`` and write docs/studies/discrepancy/bank.md.
 
 For every case of :data:`omni_sim.discrepancy.hidden.CASES` a truth model (the virtual Omni
 with the effect written by :mod:`omni_sim.discrepancy.truth_models` with MuJoCo's own features,
@@ -9,7 +9,7 @@ parameters (truth vs fitted ± 95 % uncertainty), the held-out gap before/after,
 the margin and the verdict of :func:`omni_sim.discrepancy.hidden.assess`.  Beside the table, a
 JSON (same name, ``.json``) holds the run's settings (commit, dates, machine load) and every
 case's full workflow report; it is rewritten after each case, so a stopped run keeps what it
-did.  A worked example with figures is written to docs/discrepancy_example/ (``--no-example``:
+did.  A worked example with figures is written to docs/studies/discrepancy/example/ (``--no-example``:
 not).
 
 A case with a truth of its own (``truth="servo"``: the geared-servo pendulum of
@@ -18,8 +18,8 @@ A case with a truth of its own (``truth="servo"``: the geared-servo pendulum of
 ``--merge`` runs the given cases and puts them into the existing JSON in the bank's order (the
 other cases kept as they are); each merged entry records its own commit and dates.
 
-``--table`` prints the bank table of docs/discrepancy.md made from the JSON
-(``tests/test_discrepancy_bank.py`` checks that docs/discrepancy.md holds exactly that).
+``--table`` prints the bank table of docs/method/discrepancy.md made from the JSON
+(``tests/test_discrepancy_bank.py`` checks that docs/method/discrepancy.md holds exactly that).
 
 ``--gear-efficiency`` runs the case whose truth is written in another form than the library's
 law (:func:`omni_sim.discrepancy.servo_truth.generate_efficiency`: a gear efficiency law with a
@@ -29,7 +29,7 @@ record to ``bank_gear_efficiency.json`` beside the table and the table's page wi
 
 Usage: python scripts/discrepancy_bank.py [--cases NAME ...] [--no-example] [--jobs N] [--out MD]
                                          [--commit TEXT] [--note TEXT] [--merge]
-       python scripts/discrepancy_bank.py --table [--json JSON]      (docs/discrepancy.md's table)
+       python scripts/discrepancy_bank.py --table [--json JSON]      (docs/method/discrepancy.md's table)
        python scripts/discrepancy_bank.py --markdown [--json JSON] [--out MD]   (MD from JSON)
        python scripts/discrepancy_bank.py --gear-efficiency [--only-load-friction] [--jobs N] [--commit TEXT]
                                          [--note TEXT]
@@ -51,8 +51,8 @@ from omni_sim.discrepancy import experiment_set, hidden, servo_truth
 
 ROOT = Path(__file__).resolve().parent.parent
 
-#: Where the bank's table and its JSON live (docs/discrepancy.md links them).
-DEFAULT_OUT = ROOT / "docs" / "discrepancy" / "bank.md"
+#: Where the bank's table and its JSON live (docs/method/discrepancy.md links them).
+DEFAULT_OUT = ROOT / "docs" / "studies" / "discrepancy" / "bank.md"
 #: The record of the gear_efficiency case (a truth of another form), beside the table.
 EFFICIENCY_JSON = DEFAULT_OUT.with_name("bank_gear_efficiency.json")
 
@@ -130,7 +130,7 @@ def _other_truths(cases: dict) -> str:
 
 
 def bank_markdown(data: dict) -> str:
-    """docs/discrepancy/bank.md from the JSON."""
+    """docs/studies/discrepancy/bank.md from the JSON."""
     meta, cases = data["meta"], data["cases"]
     # the bank run's load and time: merged cases (their own "commit") ran at another time
     load = [c["load_after"] for c in cases.values() if "load_after" in c and not c.get("commit")]
@@ -143,7 +143,7 @@ def bank_markdown(data: dict) -> str:
         + (f", {min(load):.2f}-{max(load):.2f} at the end of each case (mean {sum(load) / len(load):.2f})"
            if load else "") + f" (nice {meta['nice']})."
         + (f" {meta['note']}" if meta.get("note") else "") + " Every case's full report is in "
-        f"`{meta['json']}` beside this file (the bank table of docs/discrepancy.md is made from it: "
+        f"`{meta['json']}` beside this file (the bank table of docs/method/discrepancy.md is made from it: "
         "`python scripts/discrepancy_bank.py --table`).", "",
         "Each truth model is the virtual Omni (`models/scene.xml`) with effects written by "
         "`omni_sim/discrepancy/truth_models.py` with MuJoCo's own features, independently of the "
@@ -190,7 +190,7 @@ def _fitted_cell(c: dict) -> str:
 
 
 def readme_table(data: dict) -> str:
-    """The bank table of docs/discrepancy.md (section "The hidden-effect bank: what it proves"),
+    """The bank table of docs/method/discrepancy.md (section "The hidden-effect bank: what it proves"),
     from the JSON."""
     rows = ["| case | named (confidence) | fitted ± 95 % (truth) | held-out gap shrink | result | time |",
             "|---|---|---|---|---|---|"]
@@ -400,7 +400,7 @@ def main(argv=None) -> int:
     ap.add_argument("--commit", default=None, help="what the header names as the code's commit "
                     "(default: the checkout's, with its uncommitted code paths)")
     ap.add_argument("--note", default="", help="a sentence for the header (e.g. how the code was checked out)")
-    ap.add_argument("--table", action="store_true", help="print docs/discrepancy.md's bank table made from --json")
+    ap.add_argument("--table", action="store_true", help="print docs/method/discrepancy.md's bank table made from --json")
     ap.add_argument("--markdown", action="store_true", help="rewrite --out's table from --json (no run)")
     ap.add_argument("--json", default=str(DEFAULT_OUT.with_suffix(".json")))
     ap.add_argument("--gear-efficiency", action="store_true", help="run the gear_efficiency case (a truth "
@@ -472,7 +472,7 @@ def main(argv=None) -> int:
     if not args.no_example:
         from omni_app.discrepancy import demo
 
-        ex_dir = ROOT / "docs" / "discrepancy_example"
+        ex_dir = ROOT / "docs" / "studies" / "discrepancy" / "example"
         demo(ex_dir, force=True)
         shutil.rmtree(ex_dir / "measured", ignore_errors=True)  # keep the docs small
     print(f"wrote {out} and {out.with_suffix('.json')} ({time.perf_counter() - t_all:.0f} s)")

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Time ``omni discrepancy`` on the whole paper campaign with the whole library
-(docs/performance.md; the same measurement as ``omni bench --discrepancy-campaign``).
+(docs/reference/performance.md; the same measurement as ``omni bench --discrepancy-campaign``).
 
 The truth model is the bank's ``viscous_damping`` case (the virtual Omni with the yaw viscous
 damping raised to 0.012 N m s/rad, written independently of the effect library); it generates

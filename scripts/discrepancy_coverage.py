@@ -13,7 +13,7 @@ the median width of the intervals relative to the truth) and ``coverage.png`` to
 resumes from an existing ``coverage.json`` with the same settings (draws already done are kept).
 
 Usage: python scripts/discrepancy_coverage.py [--effects NAME ...] [--n 20] [--seed 0]
-       [--conditions noisy exact] [--out docs/discrepancy] [--jobs 1] [--experiments bank|small]
+       [--conditions noisy exact] [--out docs/studies/discrepancy] [--jobs 1] [--experiments bank|small]
        [--merge OTHER/coverage.json ...]
 """
 
@@ -172,7 +172,7 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=0, help="seed of the magnitudes and of the noise")
     ap.add_argument("--conditions", nargs="*", default=list(CONDITIONS), choices=CONDITIONS,
                     help="noisy: quantised encoder + 1e-4 rad noise; exact: neither")
-    ap.add_argument("--out", default=str(ROOT / "docs" / "discrepancy"), help="output folder")
+    ap.add_argument("--out", default=str(ROOT / "docs" / "studies" / "discrepancy"), help="output folder")
     ap.add_argument("--experiments", default="bank", choices=("bank", "small"),
                     help="bank: the bank's 16 runs of 2 s; small: 10 runs of 1.2 s")
     ap.add_argument("--jobs", type=int, default=1, help="rollout threads (default 1)")

@@ -1,15 +1,15 @@
-"""The results tables and quoted figures of docs/*.md, generated from the files they summarise.
+"""The results tables and quoted figures of docs/**/*.md, generated from the files they summarise.
 
 The documentation's results pages copy figures from files the tools write:
 
-* ``docs/reproduce/summary.json`` (``omni reproduce``), ``docs/friction/comparison.json``,
-  ``docs/friction/lugre/params.json`` and ``docs/friction/friction_study.json``
+* ``docs/studies/reproduce/summary.json`` (``omni reproduce``), ``docs/studies/friction/comparison.json``,
+  ``docs/studies/friction/lugre/params.json`` and ``docs/studies/friction/friction_study.json``
   (``omni reproduce --friction all``, ``scripts/friction_study.py``);
 * ``models/calibration.json``, ``models/calibration_coulomb.json``, and the records of two
-  calibrations not adopted, ``docs/calibration_coulomb_run.json`` (a hard stick, every robot
-  parameter free) and ``docs/calibration_weighted_run.json`` (``scripts/calibrate.py``);
-* ``docs/bench.json`` (``omni bench``), ``docs/sweep/results.csv`` (``omni sweep``);
-* ``docs/haptics/zwidth_ideal.json`` (``omni zwidth --ideal``) and
+  calibrations not adopted, ``docs/studies/calibration/calibration_coulomb_run.json`` (a hard stick, every robot
+  parameter free) and ``docs/studies/calibration/calibration_weighted_run.json`` (``scripts/calibrate.py``);
+* ``docs/reference/bench.json`` (``omni bench``), ``docs/studies/sweep/results.csv`` (``omni sweep``);
+* ``docs/studies/haptics/zwidth_ideal.json`` (``omni zwidth --ideal``) and
   ``examples/real_servo/report/report.json`` (``omni discrepancy`` on the real-servo example);
 * the paper's tables (``identification/paper.py``).
 
@@ -23,7 +23,7 @@ real-servo paragraph) every figure must lie inside such a phrase or be checked b
 without a record is reported too (:func:`unchecked_figures`).
 
     python scripts/docs_tables.py            # check: list what drifted, exit status 1 if any
-    python scripts/docs_tables.py --write    # rewrite the generated tables in docs/*.md
+    python scripts/docs_tables.py --write    # rewrite the generated tables in docs/**/*.md
 
 ``--write`` replaces only the text between the markers; the quoted figures are checked, never
 written (the prose around them is the author's).  ``tests/test_docs_claims.py`` runs the check.
@@ -43,10 +43,11 @@ from identification import paper
 ROOT = Path(__file__).resolve().parents[1]
 
 #: The pages that hold generated tables or quoted figures, by short name (paths from the root).
-PAGES = {"results": "docs/results.md", "model": "docs/model.md", "calibration": "docs/calibration.md",
-         "friction": "docs/friction-families.md", "errata": "docs/paper-errata.md",
-         "performance": "docs/performance.md", "gymnasium": "docs/gymnasium.md",
-         "sweeps": "docs/sweeps.md", "readme": "README.md",
+PAGES = {"results": "docs/studies/reproduce/results.md", "model": "docs/reference/model.md",
+         "calibration": "docs/studies/calibration/calibration.md",
+         "friction": "docs/method/friction-families.md", "errata": "docs/method/paper-errata.md",
+         "performance": "docs/reference/performance.md", "gymnasium": "docs/usage/gymnasium.md",
+         "sweeps": "docs/usage/sweeps.md", "readme": "README.md",
          "real_servo": "examples/real_servo/README.md"}
 #: The targets the tables state (the report's: omni_app/report.py).
 TARGET_INERTIA_REL = 0.02
@@ -62,7 +63,7 @@ TARGET_ALPHA_LSIM = 3.0
 TARGET_REPRODUCE_RATIO = 6.0
 TARGET_VECTOR_RATIO = 0.3
 TARGET_SWEEP_SPEEDUP = 1.7
-#: docs/calibration.md's "close" candidates of the table-level search: a step error (Table 11's
+#: docs/studies/calibration/calibration.md's "close" candidates of the table-level search: a step error (Table 11's
 #: linear column, median over poses) within this share of the real Omni's.
 CLOSE_STEP_REL = 0.25
 MINUS = "\u2212"
@@ -84,22 +85,22 @@ def _servo_model(rel) -> dict:
 
 def load_sources() -> dict:
     """Every file the pages' results quote, parsed."""
-    with open(ROOT / "docs" / "sweep" / "results.csv") as fh:
+    with open(ROOT / "docs" / "studies" / "sweep" / "results.csv") as fh:
         sweep = list(csv.DictReader(fh))
-    return {"summary": _json("docs/reproduce/summary.json"),
-            "comparison": _json("docs/friction/comparison.json"),
-            "lugre_params": _json("docs/friction/lugre/params.json"),
-            "study": _json("docs/friction/friction_study.json"),
+    return {"summary": _json("docs/studies/reproduce/summary.json"),
+            "comparison": _json("docs/studies/friction/comparison.json"),
+            "lugre_params": _json("docs/studies/friction/lugre/params.json"),
+            "study": _json("docs/studies/friction/friction_study.json"),
             "cal": _json("models/calibration.json"),
             "cal_coulomb": _json("models/calibration_coulomb.json"),
-            "cal_hard_stick": _json("docs/calibration_coulomb_run.json"),
-            "cal_coulomb_all_free": _json("docs/fidelity/coulomb_all_free.json"),
-            "cal_weighted": _json("docs/calibration_weighted_run.json"),
+            "cal_hard_stick": _json("docs/studies/calibration/calibration_coulomb_run.json"),
+            "cal_coulomb_all_free": _json("docs/studies/fidelity/coulomb_all_free.json"),
+            "cal_weighted": _json("docs/studies/calibration/calibration_weighted_run.json"),
             "cal_matched": _json("models/calibration_matched.json"),
-            "matched_summary": _json("docs/friction/matched/summary.json"),
-            "search": _json("docs/fidelity/search.json"),
-            "bench": _json("docs/bench.json"),
-            "zwidth_ideal": _json("docs/haptics/zwidth_ideal.json"),
+            "matched_summary": _json("docs/studies/friction/matched/summary.json"),
+            "search": _json("docs/studies/fidelity/search.json"),
+            "bench": _json("docs/reference/bench.json"),
+            "zwidth_ideal": _json("docs/studies/haptics/zwidth_ideal.json"),
             "real_servo": _json("examples/real_servo/report/report.json"),
             "real_servo_model": _servo_model("examples/real_servo/model.xml"),
             "sweep": sweep}
@@ -167,7 +168,7 @@ def _beta_tilde_65_90(params: dict) -> dict:
 
 # -- tables -------------------------------------------------------------------------------------
 def results_targets(src: dict) -> str:
-    """docs/results.md: the project's targets, measured (docs/reproduce, docs/bench.json)."""
+    """docs/studies/reproduce/results.md: the project's targets, measured (docs/studies/reproduce, docs/reference/bench.json)."""
     s, b = src["summary"], src["bench"]["reproduce"]
     inr, st, sn, asim = s["inertia"], s["step"], s["sine"], s["alpha_simulation"]
     whole, after = st["windows"]["whole_record"], st["windows"]["after_edges"]
@@ -209,12 +210,12 @@ def results_targets(src: dict) -> str:
         f"cycle or creep where C(α) is steep) and are solved by a bracketed bisection of the same "
         f"equation | {_met(nbad == 0)} (with the fallback) |",
         f"| `omni reproduce` real-time factor ≥ {TARGET_RTF:.0f} | {b['real_time_factor']:.0f} "
-        f"(`omni bench`, `docs/bench.json`: {b['simulated_time_s']:.0f} s simulated in "
+        f"(`omni bench`, `docs/reference/bench.json`: {b['simulated_time_s']:.0f} s simulated in "
         f"{b['wall_s']:.2f} s, the fastest of {len(b['wall_s_runs'])} runs of the whole command in a "
         f"child process, start-up and imports included). The report's own figure, "
-        f"`run.real_time_factor` of `docs/reproduce/summary.json`, is "
+        f"`run.real_time_factor` of `docs/studies/reproduce/summary.json`, is "
         f"{s['run']['real_time_factor']:.0f}: timed inside the command, from after its imports to "
-        f"the last file written, in the one run that wrote `docs/reproduce` (on a shared machine) | "
+        f"the last file written, in the one run that wrote `docs/studies/reproduce` (on a shared machine) | "
         f"{_met(b['real_time_factor'] >= TARGET_RTF)} |",
     ]
     return "\n".join(rows)
@@ -225,7 +226,7 @@ def _cal_detail(rec: dict) -> dict:
 
 
 def calibration_targets(src: dict) -> str:
-    """docs/calibration.md: the LuGre calibration (models/calibration.json) against the paper."""
+    """docs/studies/calibration/calibration.md: the LuGre calibration (models/calibration.json) against the paper."""
     from omni_studies.calibration import TABLE10_ALPHA, TABLE10_C, TABLE10_FALL, c_at_alpha
 
     rec = src["cal"]
@@ -293,7 +294,7 @@ def calibration_targets(src: dict) -> str:
 
 
 def families_calibration(src: dict) -> str:
-    """docs/friction-families.md: both calibration records side by side."""
+    """docs/method/friction-families.md: both calibration records side by side."""
     from omni_studies.calibration import TABLE10_FALL
 
     recs = {"coulomb": src["cal_coulomb"], "lugre": src["cal"]}
@@ -336,7 +337,7 @@ def families_calibration(src: dict) -> str:
 
 
 def families_verdict(src: dict) -> str:
-    """docs/friction-families.md: the alpha model's verdict per family (comparison.json)."""
+    """docs/method/friction-families.md: the alpha model's verdict per family (comparison.json)."""
     comp = src["comparison"]
     F, P = comp["families"], comp["paper"]
     ps = P["step"]
@@ -384,7 +385,7 @@ def families_verdict(src: dict) -> str:
 
 
 def sweep_table(src: dict) -> str:
-    """docs/sweeps.md: docs/sweep/results.csv, one row per variant."""
+    """docs/usage/sweeps.md: docs/studies/sweep/results.csv, one row per variant."""
     rows = ["| friction scale | inertia max error | step ratio whole / after edges | "
             "sine phase p90 lin → α [deg] | magnitude p90 lin → α |", "|---|---|---|---|---|"]
     for r in src["sweep"]:
@@ -402,7 +403,7 @@ def sweep_table(src: dict) -> str:
 
 
 def performance_table(src: dict) -> str:
-    """docs/performance.md: ``omni bench``'s figures (docs/bench.json) against their targets."""
+    """docs/reference/performance.md: ``omni bench``'s figures (docs/reference/bench.json) against their targets."""
     b = src["bench"]
     ps, asim, rep = b["paper_campaign"], b["alpha_simulation"], b["reproduce"]
     vec, sw, dis = b["vector_env"], b["sweep"], b["discrepancy"]
@@ -645,12 +646,12 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
         f"({min(n_nonphys)} to {max(n_nonphys)} of 81)",
     ], "performance": [
         f"{bench['reproduce']['ratio_to_raw_rollout']:.1f} ({bench['reproduce']['wall_s']:.2f} s vs "
-        f"{bench['reproduce']['raw_rollout_s']:.2f} s, the run in `docs/bench.json`)",
+        f"{bench['reproduce']['raw_rollout_s']:.2f} s, the run in `docs/reference/bench.json`)",
     ], "gymnasium": [
         f"{b_vec['num_envs']} Omnis at {b_vec['env_steps_per_s'] / 1e3:.0f} k steps/s against "
         f"{b_vec['rollout_ceiling_steps_per_s'] / 1e3:.0f} k steps/s of a raw `mujoco.rollout` of the "
         f"same model on {bench['cores']} threads ({b_vec['ratio_to_raw_rollout']:.2f}×; `omni bench`, "
-        f"`docs/bench.json`)",
+        f"`docs/reference/bench.json`)",
     ]}
     for page, found in record_claims(src).items():
         out[page] = out.get(page, []) + found
@@ -689,7 +690,7 @@ def _digits(x: float, like: str) -> str:
 
 def zwidth_bound(text: str, rec: dict) -> tuple[list[str], list[tuple[int, int]]]:
     """The sentence of ``text`` that compares the ideal Z-width map with Colgate & Schenkel's
-    bound, checked against the map's record (``docs/haptics/zwidth_ideal.json``) whatever its
+    bound, checked against the map's record (``docs/studies/haptics/zwidth_ideal.json``) whatever its
     wording.  A percentage followed by "up to x b" must be the worst error of the boundary
     against the bound (:func:`zwidth_row_errors`, to the digits printed) over the rows with
     B <= x b, one followed by "at x b" that row's error.  The m others, smallest first, must be
@@ -718,7 +719,7 @@ def zwidth_bound(text: str, rec: dict) -> tuple[list[str], list[tuple[int, int]]
         want = _digits(max(sel), m.group(1)) if sel else f"(no row {m.group(2)} {x} b)"
         if m.group(1) != want:
             problems.append(f"Z-width sentence {sentence.strip()!r}: {m.group(1)} % {m.group(2)} {x} b should be "
-                            f"{want} % (docs/haptics/zwidth_ideal.json)")
+                            f"{want} % (docs/studies/haptics/zwidth_ideal.json)")
         spans += [(start + m.start(1), start + m.end(1)), (start + m.start(3), start + m.end(3))]
     free.sort(key=lambda m: float(m.group(1)))
     for i, m in enumerate(free):
@@ -726,7 +727,7 @@ def zwidth_bound(text: str, rec: dict) -> tuple[list[str], list[tuple[int, int]]
         want = _digits(max(errs[:n]), m.group(1)) if n > 0 else "(no such rows)"
         if m.group(1) != want:
             problems.append(f"Z-width sentence {sentence.strip()!r}: {m.group(1)} % should be {want} % "
-                            f"(the worst of the first {n} rows of docs/haptics/zwidth_ideal.json)")
+                            f"(the worst of the first {n} rows of docs/studies/haptics/zwidth_ideal.json)")
         spans.append((start + m.start(1), start + m.end(1)))
     for m in re.finditer(r"(\d+(?:\.\d+)?) ?b\b", sentence):
         if any(a <= start + m.start(1) < b for a, b in spans):
@@ -797,8 +798,8 @@ def unchecked_figures(pages: dict[str, str], src: dict, phrases: dict[str, list[
 
 def record_claims(src: dict) -> dict[str, list[str]]:
     """The phrases of the README's haptics and real-servo passages and of the real-servo
-    example's page, rendered from their records (``docs/haptics/zwidth_ideal.json``,
-    ``examples/real_servo/report/report.json``, ``docs/bench.json``, the example's
+    example's page, rendered from their records (``docs/studies/haptics/zwidth_ideal.json``,
+    ``examples/real_servo/report/report.json``, ``docs/reference/bench.json``, the example's
     ``model.xml``)."""
     zw, rs, srv = src["zwidth_ideal"], src["real_servo"], src["bench"]["discrepancy_servo"]
     gap, noise = rs["gap_after"], rs["noise_floor_rad"]
@@ -907,7 +908,7 @@ def write(pages: dict[str, str], src: dict | None = None) -> dict[str, str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--write", action="store_true", help="rewrite the generated tables in docs/*.md")
+    ap.add_argument("--write", action="store_true", help="rewrite the generated tables in docs/**/*.md")
     args = ap.parse_args(argv)
     pages = load_pages()
     if args.write:

@@ -1,10 +1,10 @@
 #!/usr/bin/env python
 """The alpha model's verdict on every candidate of the table-level search within Table 11's band.
 
-Reads ``docs/fidelity/search.json``, selects the candidates whose linear model errs on the steps
+Reads ``docs/studies/fidelity/search.json``, selects the candidates whose linear model errs on the steps
 as much as the real Omni's (:func:`scripts.fidelity_alpha_verdict.in_band`, from the record's
 linear figures only), rebuilds each one's device and runs ``omni reproduce``'s stages on it, and
-writes ``docs/fidelity/alpha_verdict.json`` (with the code commit), ``alpha_verdict.md`` and
+writes ``docs/studies/fidelity/alpha_verdict.json`` (with the code commit), ``alpha_verdict.md`` and
 ``alpha_verdict.png`` (rendered from the JSON).  The verdict is reported, never used to choose.
 
     nice -n 10 python scripts/fidelity_alpha.py          # every in-band candidate (a few minutes)

@@ -17,7 +17,7 @@ Fc, Fs/Fc, vs; family coulomb: damping, frictionloss; plus the effect's free par
 pairs of the best single effects.  Every candidate of a family starts from that family's
 footing: ``lugre`` = the calibrated default scene (robot and A_r of models/calibration.json, 12
 parameters fitted in six chained runs), ``coulomb`` = the all-free Coulomb refit under the
-calibration's targets (robot, friction and A_r: ``docs/fidelity/coulomb_all_free.json``, from
+calibration's targets (robot, friction and A_r: ``docs/studies/fidelity/coulomb_all_free.json``, from
 ``scripts/calibrate.py --friction coulomb --free all --dry-run``).  The robot and A_r stay at the
 footing; each effect starts from the same magnitude in both families.
 
@@ -27,7 +27,7 @@ linear column (``tests/test_fidelity_targets.py`` checks it).  The fall of C(alp
 is a fitted coefficient, a description of the device, and stays a residual as in the
 calibration.
 
-The study is :mod:`omni_studies.fidelity`; this is its command line.  Writes ``docs/fidelity/search.json`` (every candidate: free parameters with start, bounds,
+The study is :mod:`omni_studies.fidelity`; this is its command line.  Writes ``docs/studies/fidelity/search.json`` (every candidate: free parameters with start, bounds,
 fitted value and plausible range; cost per table; the acceptance figures), ``search.md`` and
 ``search.png``.
 
@@ -47,7 +47,7 @@ from omni_app.fidelity_report import write_report
 from omni_app.provenance import git_commit
 from omni_studies import fidelity as fs
 
-OUT = fs.ROOT / "docs" / "fidelity" / "search.json"
+OUT = fs.ROOT / "docs" / "studies" / "fidelity" / "search.json"
 
 
 def main(argv=None) -> int:

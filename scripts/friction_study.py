@@ -15,7 +15,7 @@ bias.  A level whose identification or simulation fails is recorded with the rea
 Writes ``OUT/friction_study.json`` and ``OUT/friction_study.png`` (alpha-model advantage on
 steps and sines, and the inertia bias, against the friction scale; one line per family).
 
-    python scripts/friction_study.py --out docs/friction
+    python scripts/friction_study.py --out docs/studies/friction
     python scripts/friction_study.py --out /tmp/study --levels 0,1,3 --families lugre
 """
 
@@ -195,7 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--families", default=",".join(FRICTION_FAMILIES),
                    help="comma-separated friction families (default: %(default)s)")
     p.add_argument("--campaign", default="paper",
-                   help="campaign name or file (default: paper; see docs/campaigns.md)")
+                   help="campaign name or file (default: paper; see docs/usage/campaigns.md)")
     p.add_argument("--jobs", type=int, default=None, help="threads (default: all cores)")
     p.add_argument("--force", action="store_true", help="replace existing friction_study.* files")
     return p

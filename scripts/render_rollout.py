@@ -4,10 +4,10 @@ Headless: picks ``MUJOCO_GL=egl`` when no display is set (override with ``MUJOCO
 before mujoco is imported.  Frames are written with matplotlib (``plt.imsave``), no imageio.
 
     python scripts/render_rollout.py [--out docs/rollout] [--frames 8] [--duration 1.0]
-                                     [--pose 65 90] [--still docs/env_render.png]
+                                     [--pose 65 90] [--still docs/reference/env_render.png]
 
 ``--still PATH`` also writes the first frame (the arm at rest in the requested pose) to PATH;
-``docs/env_render.png`` in the README was made with the defaults.
+``docs/reference/env_render.png`` in the README was made with the defaults.
 """
 
 from __future__ import annotations

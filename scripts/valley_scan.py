@@ -6,7 +6,7 @@ library holds it (``blend``: the coefficient passes from mu_back to mu_drive ove
 of tau*w, mu_back at rest: the blend speed set to 0, in the engine and in the case's truth
 alike, so the truth's runs change with it).
 
-Writes ``valley_scan.json`` (``--out``, default docs/discrepancy) with, per law:
+Writes ``valley_scan.json`` (``--out``, default docs/studies/discrepancy) with, per law:
 
 * ``truth_gap``: the training gap [rad] at the truth (every parameter at its true value);
 * ``mu_back_scan``: the training gap along mu_back (every other parameter at its truth);
@@ -23,7 +23,7 @@ parameters at those corrections and at the nominal's own values, and where the p
 The training gap is :func:`omni_sim.discrepancy.fit.gap` on all runs.  Deterministic (the
 case's seed); a few minutes on 2 cores.
 
-Usage: python scripts/valley_scan.py [--out docs/discrepancy]
+Usage: python scripts/valley_scan.py [--out docs/studies/discrepancy]
 """
 
 from __future__ import annotations
@@ -114,7 +114,7 @@ def _prescreen(builder, fixed: list, x_own: np.ndarray, rr: list, rep) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default="docs/discrepancy")
+    ap.add_argument("--out", default="docs/studies/discrepancy")
     args = ap.parse_args(argv)
     case = hidden.case(CASE)
     blend = device.LOAD_FRICTION_BLEND_RAD_S

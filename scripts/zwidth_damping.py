@@ -20,14 +20,14 @@ points gamma_set = (65, 90) deg; the actual, sagged angles from ``Device.equilib
   whether alpha was outside.
 
 Each is turned into Colgate & Schenkel's boundary 2(b_x - |B|)/T and compared with the measured
-boundary of docs/haptics/study.json (``scripts/zwidth_study.py``) for the lugre and coulomb maps,
+boundary of docs/studies/haptics/study.json (``scripts/zwidth_study.py``) for the lugre and coulomb maps,
 exact and quantised encoder, probe speeds 0.02 and 1 rad/s.
 
-Writes ``--out`` (JSON, default docs/haptics/damping_prediction.json) and the figure beside it
+Writes ``--out`` (JSON, default docs/studies/haptics/damping_prediction.json) and the figure beside it
 (same stem, .png).
 
     python scripts/zwidth_damping.py
-    python scripts/zwidth_damping.py --params lugre=docs/friction/lugre/params.json,coulomb=...
+    python scripts/zwidth_damping.py --params lugre=docs/studies/friction/lugre/params.json,coulomb=...
 """
 
 from __future__ import annotations
@@ -123,9 +123,9 @@ def probe_alpha(case: str, measured: list, damping: np.ndarray, pose: dict) -> d
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--study", default=str(ROOT / "docs/haptics/study.json"),
+    p.add_argument("--study", default=str(ROOT / "docs/studies/haptics/study.json"),
                    help="the study's JSON with the measured boundaries (scripts/zwidth_study.py)")
-    p.add_argument("--out", default=str(ROOT / "docs/haptics/damping_prediction.json"),
+    p.add_argument("--out", default=str(ROOT / "docs/studies/haptics/damping_prediction.json"),
                    help="output JSON; the figure is written beside it (.png)")
     p.add_argument("--params", default=None,
                    help="FAMILY=params.json[,FAMILY=...]: use these identifications instead of "

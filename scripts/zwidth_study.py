@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""What moves the Z-width boundary: the table of docs/haptics.md's "What moves the boundary".
+"""What moves the Z-width boundary: the table of docs/studies/haptics/haptics.md's "What moves the boundary".
 
 Each case is one passivity map of the virtual Omni's yaw (:func:`omni_studies.zwidth.passivity_map`,
 the current energy test) on the same 7 x 41 grid: wall damping B from 0 to 0.012 N*m*s/rad in 7
@@ -15,7 +15,7 @@ passive K, :func:`omni_studies.zwidth.boundary`) of every damping row, K_max at 
 Colgate & Schenkel's 2(b - |B|)/T, the passive cells and the energy index, and how many rows are
 not monotone (a passive cell beyond a non-passive one along K: rows and cells).
 
-    python scripts/zwidth_study.py                        # all cases -> docs/haptics/study.json
+    python scripts/zwidth_study.py                        # all cases -> docs/studies/haptics/study.json
     python scripts/zwidth_study.py --cases ideal,coulomb_exact_v1 --out /tmp/study.json
 
 Runs one map at a time (each uses the machine's cores through the Engine's thread pool).
@@ -163,8 +163,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter,
                                 epilog="cases: " + ", ".join(CASES))
-    p.add_argument("--out", default=str(ROOT / "docs/haptics/study.json"),
-                   help="output JSON (default docs/haptics/study.json)")
+    p.add_argument("--out", default=str(ROOT / "docs/studies/haptics/study.json"),
+                   help="output JSON (default docs/studies/haptics/study.json)")
     p.add_argument("--cases", default=",".join(CASES),
                    help="comma-separated subset of the cases (default: all)")
     p.add_argument("--merge", action="store_true",

@@ -101,7 +101,7 @@ def data(csv: str | None = None, folder: str = "data", **meta_changes) -> dict:
 
 GOOD = data()
 #: A params.json that omni validate accepts: the committed identification of the lugre family.
-PARAMS_DICT = json.loads((ROOT / "docs" / "friction" / "lugre" / "params.json").read_text())
+PARAMS_DICT = json.loads((ROOT / "docs" / "studies" / "friction" / "lugre" / "params.json").read_text())
 PARAMS = {"params.json": json.dumps(PARAMS_DICT)}
 
 

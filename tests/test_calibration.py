@@ -164,7 +164,7 @@ def test_coulomb_record_matches_its_scene():
               "resonance_65_90_hz", "C_alpha_fall_65_90", "min_physical_margin"):
         assert record["achieved"][k] == pytest.approx(s[k], rel=1e-9), k
     # the design card's model meets Table 3 and the resonance; it cannot give the paper's
-    # low-frequency signature (docs/friction-families.md)
+    # low-frequency signature (docs/method/friction-families.md)
     assert s["max_rel_error_C_linear"] <= 0.10 and s["max_rel_error_beta_tilde_linear"] <= 0.10
     assert s["max_angle_error_deg"] <= 1.5 and abs(s["resonance_65_90_hz"] - 3.4) <= 0.3
     assert s["C_alpha_fall_65_90"] < 3 and s["min_physical_margin"] > 0

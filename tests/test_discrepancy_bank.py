@@ -584,17 +584,17 @@ def test_assess_outside_effects_are_checked_against_expect():
 
 
 # --- the whole bank (slow) -----------------------------------------------------------------
-#: Cases the workflow fails, by the bank's criteria, on record (docs/discrepancy/bank.md): run
+#: Cases the workflow fails, by the bank's criteria, on record (docs/studies/discrepancy/bank.md): run
 #: as strict xfails, so each still runs, and a change of its outcome either way is reported.
 KNOWN_FAILURES = {
     "end_stop": "names viscous_damping with low confidence (x2.0), a stand-in not on the case's "
                 "expect list (none, torque_saturation, joint_stiffness); the list was set before any "
-                "run and is not widened to the result (docs/discrepancy/bank.json at 84fc339)",
+                "run and is not widened to the result (docs/studies/discrepancy/bank.json at 84fc339)",
     "asymmetric_friction": "with the effect in the library (commit 33a9091) it was named with high "
                            "confidence and a = 7.57 +- 0.33 mN*m covered the truth 7.5, but the "
                            "held-out gap shrank only x2.6 (1.54e-3 -> 6.04e-4 rad, noise floor "
                            "6.3e-4): the effect left the library again, so the workflow cannot "
-                           "name it (docs/discrepancy/bank.md)",
+                           "name it (docs/studies/discrepancy/bank.md)",
 }
 
 
@@ -613,7 +613,7 @@ def test_bank(case_name):
 
 
 #: The gear_efficiency case (a truth of another form, servo_truth.simulate_efficiency) on record
-#: (docs/discrepancy/bank_gear_efficiency.json): None while the workflow does what the case asks
+#: (docs/studies/discrepancy/bank_gear_efficiency.json): None while the workflow does what the case asks
 #: (servo_truth.assess_efficiency), else the measured figures of its failure (the docs test checks
 #: them against the record).
 GEAR_EFFICIENCY_FAILURE = (
@@ -621,7 +621,7 @@ GEAR_EFFICIENCY_FAILURE = (
     "corrections alone take the held-out gap 0.0194 -> 0.00994 rad (x1.96; damping 0.37 -> 0.4737, "
     "frictionloss 0.03 -> 0.05913 N*m), after which no candidate removes a clear share (time_delay "
     "0.019, load_friction -0.52 at mu_drive 0.271 > mu_back 0.154); noise floor 0.000597 rad "
-    "(docs/discrepancy/bank.md)")
+    "(docs/studies/discrepancy/bank.md)")
 
 
 @pytest.mark.slow
@@ -641,7 +641,7 @@ def test_bank_gear_efficiency():
 
 
 def test_docs_gear_efficiency_section_is_the_record():
-    """docs/discrepancy/bank.md ends with the gear_efficiency section rendered from its record;
+    """docs/studies/discrepancy/bank.md ends with the gear_efficiency section rendered from its record;
     the record's verdict is what assess_efficiency says of its report, its case is the truth's
     as the code states it now, and the slow test's expected outcome is the record's."""
     from omni_sim.discrepancy import servo_truth
@@ -721,8 +721,8 @@ def test_coverage_merge_refuses_other_settings(tmp_path, capsys):
     assert err.startswith("error: --merge") and "--experiments small" in err and err.count("\n") == 1
 
 
-# --- docs/discrepancy.md's figures are the JSONs' -------------------------------------------
-PAGE = ROOT / "docs" / "discrepancy.md"
+# --- docs/method/discrepancy.md's figures are the JSONs' -------------------------------------------
+PAGE = ROOT / "docs" / "method" / "discrepancy.md"
 
 
 def _section(title: str, next_title: str) -> str:
@@ -744,10 +744,10 @@ def _sci(x: float) -> str:
 
 
 def test_docs_coverage_figures_are_the_json():
-    """The coverage study's section of docs/discrepancy.md says what docs/discrepancy/coverage.json holds:
+    """The coverage study's section of docs/method/discrepancy.md says what docs/studies/discrepancy/coverage.json holds:
     the experiment set (and its size), the table's figures, the fit times, the lowest effect."""
     cov = _script("discrepancy_coverage")
-    res = json.loads((ROOT / "docs" / "discrepancy" / "coverage.json").read_text())
+    res = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "coverage.json").read_text())
     sec = _flat(_section("## Uncertainty that holds", "## Your own robot"))
     kind = res["settings"]["experiments"]
     assert [m for m in ("bank", "small") if f"--experiments {m}" in sec] == [kind]
@@ -775,16 +775,16 @@ def test_docs_coverage_figures_are_the_json():
     assert f"percentile of |error| / half-width is {np.percentile(ratio, 95):.2f}" in sec
 
 
-BANK_TABLE_START = "<!-- bank table: made by `python scripts/discrepancy_bank.py --table` from docs/discrepancy/bank.json -->"
+BANK_TABLE_START = "<!-- bank table: made by `python scripts/discrepancy_bank.py --table` from docs/studies/discrepancy/bank.json -->"
 BANK_TABLE_END = "<!-- end of bank table -->"
 
 
 def test_docs_bank_table_is_the_json():
-    """docs/discrepancy.md's bank table is exactly what ``discrepancy_bank.py --table`` makes from
-    docs/discrepancy/bank.json; the JSON's verdicts are what bank.assess says of its reports;
+    """docs/method/discrepancy.md's bank table is exactly what ``discrepancy_bank.py --table`` makes from
+    docs/studies/discrepancy/bank.json; the JSON's verdicts are what bank.assess says of its reports;
     the bank section links the table's current location and no stale one."""
     script = _script("discrepancy_bank")
-    data = json.loads((ROOT / "docs" / "discrepancy" / "bank.json").read_text())
+    data = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "bank.json").read_text())
     assert list(data["cases"]) == [c.name for c in hidden.CASES]  # every case, in the bank's order
     for name, c in data["cases"].items():
         if "report" in c:
@@ -792,17 +792,17 @@ def test_docs_bank_table_is_the_json():
     sec = _section("## The hidden-effect bank: what it proves", "## Uncertainty that holds")
     block = sec[sec.index(BANK_TABLE_START) + len(BANK_TABLE_START):sec.index(BANK_TABLE_END)]
     assert block.strip("\n") == script.readme_table(data).strip("\n")
-    assert "docs/discrepancy/bank.md" in sec
+    assert "docs/studies/discrepancy/bank.md" in sec
     for stale in ("docs/discrepancy_bank.md", "bank_rerun.md"):
         assert stale not in PAGE.read_text() and stale not in (ROOT / "README.md").read_text()
-    assert script.DEFAULT_OUT == ROOT / "docs" / "discrepancy" / "bank.md"
+    assert script.DEFAULT_OUT == ROOT / "docs" / "studies" / "discrepancy" / "bank.md"
 
 
 def test_docs_search_examples_are_the_bank_json():
-    """The two examples of the search docs/discrepancy.md quotes are what the bank's run did: the stand-in
+    """The two examples of the search docs/method/discrepancy.md quotes are what the bank's run did: the stand-in
     pair of delay+friction+armature (Coulomb + a lag beats Coulomb + delay, whose Coulomb and
     delay stand in for the armature) and the set backlash+coulomb's backward step thinned."""
-    data = json.loads((ROOT / "docs" / "discrepancy" / "bank.json").read_text())
+    data = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "bank.json").read_text())
     sec = _flat(_section("# Where model and measurements disagree", "## The hidden-effect bank"))
     rep = data["cases"]["delay+friction+armature"]["report"]
     pairs = {c["name"]: c for rnd in rep["candidates"] for c in rnd if c["method"] != "prescreen"}

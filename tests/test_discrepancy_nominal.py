@@ -1,4 +1,4 @@
-"""The discrepancy workflow on a nominal that is uncertain too (docs/discrepancy.md, "Your own
+"""The discrepancy workflow on a nominal that is uncertain too (docs/method/discrepancy.md, "Your own
 robot"): the corrections of the nominal's constants, the folds of time blocks beside folds of
 runs, replays that go unstable (excluded and counted, never scored), parameters on their bounds,
 and the bank's check of the corrections.  The whole geared-servo cases run in the bank
@@ -225,7 +225,7 @@ def test_nominal_off_is_the_truth_with_the_stated_constants():
 
 
 def test_docs_fold_figures_are_the_examples_record():
-    """docs/discrepancy.md's figures on the two fold schemes are the Feetech example's record."""
+    """docs/method/discrepancy.md's figures on the two fold schemes are the Feetech example's record."""
     import json
     from pathlib import Path
 
@@ -235,7 +235,7 @@ def test_docs_fold_figures_are_the_examples_record():
     phrase = (f"{g['runs']['corrected'] / g['runs']['nominal']:.1f} times worse, {g['runs']['corrected']:.2e} "
               f"against the nominal's {g['runs']['nominal']:.2e} rad, where blocked folds find them "
               f"{100 * (1 - g['blocked']['corrected'] / g['blocked']['nominal']):.0f} %").replace("e-0", "e-")
-    text = " ".join((root / "docs/discrepancy.md").read_text().split())
+    text = " ".join((root / "docs/method/discrepancy.md").read_text().split())
     assert phrase in text, phrase
 
 
@@ -253,15 +253,15 @@ def test_written_servo_runs_read_back(tmp_path):
 
 
 def test_performance_page_stage_figures_are_the_bench_record():
-    """docs/performance.md's physics steps per stage of the geared-servo figure are
-    docs/bench.json's."""
+    """docs/reference/performance.md's physics steps per stage of the geared-servo figure are
+    docs/reference/bench.json's."""
     import json
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    srv = json.loads((root / "docs/bench.json").read_text())["discrepancy_servo"]
+    srv = json.loads((root / "docs/reference/bench.json").read_text())["discrepancy_servo"]
     per = srv["physics_steps_per_stage"]
-    text = " ".join((root / "docs/performance.md").read_text().split())
+    text = " ".join((root / "docs/reference/performance.md").read_text().split())
     for phrase in (f"{srv['physics_steps'] / 1e6:.1f} M physics steps, {per['naming'] / 1e6:.1f} M of them naming",
                    f"{per['uncertainty_and_evaluation'] / 1e6:.1f} M the uncertainty",
                    f"{per['other_fold_scheme'] / 1e6:.1f} M the other fold scheme, "
@@ -270,14 +270,14 @@ def test_performance_page_stage_figures_are_the_bench_record():
 
 
 def test_blend_paragraph_is_the_valley_record():
-    """docs/discrepancy.md's figures on why the load law is blended and the prescreen starts
-    twice are docs/discrepancy/valley_scan.json's (scripts/valley_scan.py)."""
+    """docs/method/discrepancy.md's figures on why the load law is blended and the prescreen starts
+    twice are docs/studies/discrepancy/valley_scan.json's (scripts/valley_scan.py)."""
     import json
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    rec = json.loads((root / "docs/discrepancy/valley_scan.json").read_text())
-    text = " ".join((root / "docs/discrepancy.md").read_text().split())
+    rec = json.loads((root / "docs/studies/discrepancy/valley_scan.json").read_text())
+    text = " ".join((root / "docs/method/discrepancy.md").read_text().split())
 
     def e(x):  # 6.32e-04 -> 6.32e-4, as the page writes it
         return f"{x:.2e}".replace("e-0", "e-")
@@ -316,21 +316,21 @@ def test_blend_paragraph_is_the_valley_record():
 
 
 def test_load_friction_verdicts_on_the_pages():
-    """The bench's and the bank's load_friction verdicts on docs/discrepancy.md and
-    docs/performance.md are their records'."""
+    """The bench's and the bank's load_friction verdicts on docs/method/discrepancy.md and
+    docs/reference/performance.md are their records'."""
     import json
     import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    text = " ".join((root / "docs/discrepancy.md").read_text().split())
+    text = " ".join((root / "docs/method/discrepancy.md").read_text().split())
     phrases = []
     def verdict(why):  # "mu_drive: 0.1777 vs truth 0.15 (± 0.02)" -> ("mu_drive", "0.1777", "0.02")
         m = re.fullmatch(r"(\w+): ([\d.]+) vs truth [\d.]+ \(± ([\d.e-]+)\)", why)
         return m.groups()
 
-    srv = json.loads((root / "docs/bench.json").read_text())["discrepancy_servo"]
-    perf = " ".join((root / "docs/performance.md").read_text().split())
+    srv = json.loads((root / "docs/reference/bench.json").read_text())["discrepancy_servo"]
+    perf = " ".join((root / "docs/reference/performance.md").read_text().split())
     if srv["bank_verdict"] == "ok":
         assert 'meets the bank\'s criteria here (`bank_verdict` "ok")' in perf
         assert f"gap ×{srv['shrink_factor']:.1f}" in perf
@@ -343,7 +343,7 @@ def test_load_friction_verdicts_on_the_pages():
             f"other fold scheme, {st['corrections']:.1f} M the corrections; {srv['unstable_replays']} replays "
             "went unstable") in perf
     # the bank's load_friction row (the table is the record's, test_discrepancy_bank) and the prose
-    lf = json.loads((root / "docs/discrepancy/bank.json").read_text())["cases"]["load_friction"]
+    lf = json.loads((root / "docs/studies/discrepancy/bank.json").read_text())["cases"]["load_friction"]
     assert lf["why"] == "ok"
     row = next(line for line in text.split("| load_friction | load_friction (high) |")[1:2])
     fitted = re.findall(r"(mu_drive|mu_back) ([\d.]+ ± [\d.e-]+) \(", row.split("|")[0])

@@ -1,9 +1,9 @@
-"""The results tables and quoted figures of docs/*.md against the files they summarise.
+"""The results tables and quoted figures of docs/**/*.md against the files they summarise.
 
-``scripts/docs_tables.py`` renders the pages' results tables from docs/bench.json,
-docs/reproduce/summary.json, docs/friction/*.json, docs/sweep/results.csv,
-docs/calibration_*_run.json and models/calibration*.json, and the figures their prose quotes
-from them and from docs/haptics/zwidth_ideal.json and examples/real_servo/report/report.json;
+``scripts/docs_tables.py`` renders the pages' results tables from docs/reference/bench.json,
+docs/studies/reproduce/summary.json, docs/studies/friction/*.json, docs/studies/sweep/results.csv,
+docs/studies/calibration/calibration_*_run.json and models/calibration*.json, and the figures their prose quotes
+from them and from docs/studies/haptics/zwidth_ideal.json and examples/real_servo/report/report.json;
 these tests fail when a page and those files drift apart (re-run the tool that writes the
 file, then ``python scripts/docs_tables.py --write`` and fix the prose it lists), and when a
 figure of the README's haptics section or real-servo paragraph is checked against no record.
@@ -66,7 +66,7 @@ def test_a_changed_source_figure_is_caught(dt, src, pages):
     assert any(p.startswith("table families_verdict") for p in problems), problems
     bad = copy.deepcopy(src)
     bad["cal_weighted"]["achieved"]["C_alpha_fall_65_90"] = 3.0
-    assert any("docs/calibration.md" in p for p in dt.check(pages, bad))
+    assert any("docs/studies/calibration/calibration.md" in p for p in dt.check(pages, bad))
 
 
 def test_an_edited_page_figure_is_caught(dt, src, pages):

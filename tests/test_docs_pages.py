@@ -17,9 +17,14 @@ ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 #: One or two screens.
 MAX_README_LINES = 200
-#: The pages the README's documentation table links (docs/*.md) and the changelog.
-PAGES = ("results", "model", "calibration", "friction-families", "discrepancy", "sweeps",
-         "performance", "paper-errata", "gymnasium", "haptics", "campaigns", "architecture")
+#: The pages the README's documentation table links (docs/READER/*.md, one folder per reader:
+#: usage, method, studies, reference) and the changelog.
+PAGES = ("studies/reproduce/results", "reference/model", "studies/calibration/calibration",
+         "method/friction-families", "method/discrepancy", "usage/sweeps", "reference/performance",
+         "method/paper-errata", "usage/gymnasium", "studies/haptics/haptics", "usage/campaigns",
+         "reference/architecture")
+#: The folders of docs/, one per reader; docs/README.md indexes them.
+READERS = ("usage", "method", "studies", "reference")
 #: Words that tell how the code came to be instead of what it is (split so that this file
 #: does not match itself).
 HISTORY = re.compile("sess" + r"ion|issue\s+\d", re.IGNORECASE)
@@ -29,7 +34,7 @@ ALLOWED = re.compile("start_new_" + "sess" + "ion=True")
 SCANNED = (("README.md", None), ("docs", "**/*"), ("omni_sim", "**/*.py"), ("omni_sim", "**/*.toml"),
            ("omni_app", "**/*.py"), ("omni_studies", "**/*.py"), ("identification", "**/*.py"), ("identification/data", "*.md"),
            ("tests", "**/*.py"), ("scripts", "*.py"), ("examples", "**/*"), ("models/README.md", None))
-#: Repository paths named in backticks in the README and docs/*.md (checked to exist): a file
+#: Repository paths named in backticks in the README and docs/**/*.md (checked to exist): a file
 #: (with a suffix) or a folder (ending in ``/``) under one of the project's top-level folders.
 CODE_PATH = re.compile(r"`((?:omni_sim|omni_app|identification|scripts|tests|models|docs|examples)"
                        r"/[A-Za-z0-9_/-]*(?:\.[A-Za-z0-9_.]+|/))`")
@@ -90,16 +95,61 @@ def test_pages_exist_and_the_readme_links_them():
     assert (ROOT / "CHANGELOG.md").is_file() and "(CHANGELOG.md)" in text
 
 
-@pytest.mark.parametrize("page", ["README.md"] + [f"docs/{p}.md" for p in PAGES])
+#: Every Markdown page of the README and docs/, the generated reports included.
+MARKDOWN = ["README.md"] + sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("**/*.md"))
+
+
+def _broken_links(path: Path) -> list[str]:
+    """The relative links of a Markdown page (``[text](target)``, images too) whose file or
+    folder does not exist; web and mail addresses and in-page anchors are skipped."""
+    broken = []
+    for target in re.findall(r"\]\(([^)\s]+)\)", path.read_text()):
+        if re.match(r"[a-z]+:", target) or target.startswith("#"):
+            continue
+        if not (path.parent / target.split("#")[0]).exists():
+            broken.append(target)
+    return broken
+
+
+@pytest.mark.parametrize("page", MARKDOWN)
+def test_every_relative_link_resolves(page):
+    """Every relative link of the README and of every page under docs/ (the reader folders,
+    the studies' generated reports) names a file or folder that exists."""
+    assert _broken_links(ROOT / page) == [], page
+
+
+def test_the_link_check_sees_every_folder_and_a_broken_link(tmp_path):
+    assert {"usage", "method", "studies", "reference"} <= {Path(p).parts[1] for p in MARKDOWN[1:]}
+    assert "docs/README.md" in MARKDOWN and len(MARKDOWN) > 20
+    (tmp_path / "there.md").write_text("x")
+    page = tmp_path / "page.md"
+    page.write_text("[a](there.md) [b](there.md#top) [c](missing.md) ![d](gone/fig.png) "
+                    "[e](https://example.org/x.md) [f](#anchor)")
+    assert _broken_links(page) == ["missing.md", "gone/fig.png"]
+
+
+def test_docs_index_lists_every_page_by_reader():
+    """docs/ holds only the index and the four reader folders, and the index links every page
+    under them (the studies' generated reports too)."""
+    docs = ROOT / "docs"
+    # docs/rollout/: scripts/render_rollout.py's frames, ignored by git
+    assert sorted(p.name for p in docs.iterdir() if p.name != "rollout") == sorted(["README.md", *READERS])
+    index = (docs / "README.md").read_text()
+    assert _broken_links(docs / "README.md") == []
+    for reader in READERS:
+        pages = sorted((docs / reader).glob("**/*.md"))
+        assert pages, reader
+        for p in pages:
+            assert f"]({p.relative_to(docs)})" in index, p
+
+
+@pytest.mark.parametrize("page", ["README.md", "docs/README.md"] + [f"docs/{p}.md" for p in PAGES])
 def test_links_and_code_paths_exist(page):
     """Every relative link of a page resolves, and every repository path it names in backticks
     exists (a renamed module shows up here)."""
     path = ROOT / page
     text = path.read_text()
-    for target in re.findall(r"\]\(([^)\s]+)\)", text):
-        if re.match(r"[a-z]+:", target) or target.startswith("#"):
-            continue
-        assert (path.parent / target.split("#")[0]).exists(), f"{page}: link {target}"
+    assert _broken_links(path) == [], page
     for name in CODE_PATH.findall(text):
         if "*" in name or "<" in name:
             continue
@@ -127,7 +177,7 @@ def test_the_history_search_finds_them():
 def test_the_readme_says_what_torque_off_does():
     """The dataset's ``enabled`` = 0 (torque off): the replay zeroes the actuator's gain and
     bias (``Device.off_model``), not its command, which on a ``dcmotor`` or a back-EMF bias is
-    a shorted winding that brakes (docs/servo-actuators.md); the README says so."""
+    a shorted winding that brakes (docs/method/servo-actuators.md); the README says so."""
     import mujoco
 
     from omni_sim.device import Device

@@ -22,8 +22,8 @@ from omni_studies.fidelity import SCENE_EFFECTS, meets
 
 ROOT = Path(__file__).resolve().parents[1]
 
-SEARCH = json.loads((ROOT / "docs/fidelity/search.json").read_text())
-RECORD = json.loads((ROOT / "docs/fidelity/alpha_verdict.json").read_text())
+SEARCH = json.loads((ROOT / "docs/studies/fidelity/search.json").read_text())
+RECORD = json.loads((ROOT / "docs/studies/fidelity/alpha_verdict.json").read_text())
 
 
 def _ids(rows):
@@ -75,7 +75,7 @@ def test_band_edges(median_rel, poses, selected):
 
 # -- the record and its report -----------------------------------------------------------------------
 def test_committed_report_is_the_record_rendered():
-    assert fav.format_markdown(RECORD) == (ROOT / "docs/fidelity/alpha_verdict.md").read_text()
+    assert fav.format_markdown(RECORD) == (ROOT / "docs/studies/fidelity/alpha_verdict.md").read_text()
 
 
 def test_rows_are_the_search_candidates_rebuilt_as_searched():
@@ -174,7 +174,7 @@ def _page(rel):
 
 
 def test_pages_quote_the_verdict():
-    """README.md and docs/calibration.md quote the record's counts and ranges (white space
+    """README.md and docs/studies/calibration/calibration.md quote the record's counts and ranges (white space
     collapsed), each rendered here from the record."""
     rows = RECORD["candidates"]
     n, nl = len(rows), sum(r["family"] == "lugre" for r in rows)
@@ -193,13 +193,13 @@ def test_pages_quote_the_verdict():
            f"ratio of medians {ranges[0]}, of means {ranges[1]} (paper {ps['ratio_of_medians']:.2f}, "
            f"{ps['ratio_of_means']:.2f}); the paper's step gain on {steps} of {n}, its sine gain (α halves "
            f"the phase p90) on {sines} of {n}")
-    assert cal in _page("docs/calibration.md")
+    assert cal in _page("docs/studies/calibration/calibration.md")
     better = [sum(r["verdict"][k] for r in rows) for k in ("steps_alpha_better", "sines_alpha_better")]
     lower = {f: sum(r["verdict"]["sines_alpha_better"] for r in rows if r["family"] == f) for f in ("lugre", "coulomb")}
     assert (f"better at all on the steps (ratio of medians > 1) on {better[0]} of {n} and lowers the sine "
             f"phase p90 on {better[1]} of {n} ({lower['lugre']} of the {nl} lugre-footed, "
             + ("none" if lower["coulomb"] == 0 else f"{lower['coulomb']}") + " of the coulomb-footed)"
-            ) in _page("docs/calibration.md")
+            ) in _page("docs/studies/calibration/calibration.md")
 
 
 def test_pages_quote_what_the_rules_fixed_before_the_search_say():
@@ -209,7 +209,7 @@ def test_pages_quote_what_the_rules_fixed_before_the_search_say():
     assert passed and all(i.startswith("coulomb/presliding_friction") for i in passed)
     phrase = "only the coulomb-footed pre-sliding candidates pass"
     assert phrase in _page("README.md")
-    assert phrase[0].upper() + phrase[1:] in _page("docs/calibration.md")
+    assert phrase[0].upper() + phrase[1:] in _page("docs/studies/calibration/calibration.md")
     doc = copy.deepcopy(SEARCH)
     report._refresh(doc)
     by_id = {r["id"]: r for r in doc["candidates"]}
@@ -220,6 +220,6 @@ def test_pages_quote_what_the_rules_fixed_before_the_search_say():
                     and all(e in SCENE_EFFECTS for e in r["effects"])),
                    key=lambda r: (-report._n_figures(r), r["cost"]))
     assert scene[0]["id"] == matched  # "picks the same scene candidate"
-    assert "picks the same scene candidate" in _page("docs/calibration.md")
+    assert "picks the same scene candidate" in _page("docs/studies/calibration/calibration.md")
     assert (f"the matched scene ({n_matched} of 5 figures) is ahead of the shipped default "
-            f"({n_default} of 5)") in _page("docs/calibration.md")
+            f"({n_default} of 5)") in _page("docs/studies/calibration/calibration.md")

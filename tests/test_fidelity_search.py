@@ -56,13 +56,13 @@ def test_meets_figure_by_figure(over, missed):
 
 
 def test_committed_report_is_the_record_rendered():
-    doc = json.loads((ROOT / "docs/fidelity/search.json").read_text())
+    doc = json.loads((ROOT / "docs/studies/fidelity/search.json").read_text())
     report._refresh(doc)
-    assert report.format_markdown(doc) == (ROOT / "docs/fidelity/search.md").read_text()
+    assert report.format_markdown(doc) == (ROOT / "docs/studies/fidelity/search.md").read_text()
 
 
 def test_only_declarable_candidates_become_a_scene():
-    doc = json.loads((ROOT / "docs/fidelity/search.json").read_text())
+    doc = json.loads((ROOT / "docs/studies/fidelity/search.json").read_text())
     with pytest.raises(ValueError, match="not a lugre-footed candidate"):
         search.write_scene(doc, "lugre/position_offset")
     with pytest.raises(ValueError, match="not a lugre-footed candidate"):

@@ -284,7 +284,7 @@ def test_the_guard_catches_each_alpha_route(evaluation, tmp_path, route):
 
 
 #: The committed record of `omni reproduce --friction all`.
-COMPARISON = ROOT / "docs" / "friction" / "comparison.json"
+COMPARISON = ROOT / "docs" / "studies" / "friction" / "comparison.json"
 #: Relative tolerance of a step figure against that record.  Measured (this AMD EPYC against the
 #: machine or library build the record was written on): the record's sine figures (Table 3, 18
 #: numbers) are met to 7e-16, its step figures to 3.4e-7 at worst (pose 55/60; 2e-8 typical).

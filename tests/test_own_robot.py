@@ -1,4 +1,4 @@
-"""Your own robot (docs/discrepancy.md): the device, the replay and ``omni discrepancy`` on a user's
+"""Your own robot (docs/method/discrepancy.md): the device, the replay and ``omni discrepancy`` on a user's
 single-joint model without the Omni's arm (``--joint``/``--actuator``), the P law's saturation
 from the metadata, the two-mass start state, and the pendulum example (examples/pendulum)."""
 
@@ -260,7 +260,7 @@ def test_pendulum_quick_names_the_hidden_friction(quick_data):
 
 @pytest.mark.slow
 def test_pendulum_example_through_the_cli(tmp_path, capsys):
-    """docs/discrepancy.md's worked example: the full data set, the whole library, the command line."""
+    """docs/method/discrepancy.md's worked example: the full data set, the whole library, the command line."""
     md = _make_data()
     assert md.main(["--out", str(tmp_path / "measured")]) == 0
     assert main(["discrepancy", "--measured", str(tmp_path / "measured"), "--model", str(MODEL),

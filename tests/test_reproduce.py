@@ -44,7 +44,7 @@ def test_outputs(reproduced):
 
 
 #: The headline of ``summary.json`` of the built-in model's reproduction, as measured by this
-#: code (also in docs/reproduce/summary.json, which docs/results.md quotes: checked below).  The
+#: code (also in docs/studies/reproduce/summary.json, which docs/studies/reproduce/results.md quotes: checked below).  The
 #: same code differs in the last digits between CPUs and code paths: numpy picks SIMD kernels
 #: per CPU at run time and numba compiles the alpha kernel for the host CPU.  Measured here:
 #: the numba kernel against the numpy loop, and numpy with its AVX2/AVX-512 kernels disabled,
@@ -115,10 +115,10 @@ def test_headline_results_pinned(reproduced):
 
 
 def test_docs_reproduce_is_this_code():
-    """docs/reproduce/summary.json (what docs/results.md quotes) holds the same headline."""
+    """docs/studies/reproduce/summary.json (what docs/studies/reproduce/results.md quotes) holds the same headline."""
     from pathlib import Path
 
-    docs = Path(__file__).resolve().parents[1] / "docs" / "reproduce" / "summary.json"
+    docs = Path(__file__).resolve().parents[1] / "docs" / "studies" / "reproduce" / "summary.json"
     assert _headline_mismatches(json.loads(docs.read_text())) == []
 
 

@@ -1,6 +1,6 @@
 """Servo actuators as nominal models: MuJoCo 4's ``dcmotor`` and a ``motor`` with the back-EMF
 as joint damping, closed in the device's P loop and held to hand-derived closed forms
-(docs/servo-actuators.md).
+(docs/method/servo-actuators.md).
 
 The plant is one hinge about a vertical axis (gravity puts no torque on it), inertia ``J``, no
 friction, driven by a DC motor with torque constant ``K`` [N*m/A] and winding resistance ``R``

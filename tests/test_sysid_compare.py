@@ -23,8 +23,8 @@ if str(ROOT) not in sys.path:
 from omni_sim.discrepancy import servo_truth  # noqa: E402
 from scripts import sysid_compare as sc  # noqa: E402
 
-RECORD = json.loads((ROOT / "docs/discrepancy" / sc.JSON_NAME).read_text())
-PAGE = (ROOT / "docs/discrepancy" / sc.MD_NAME).read_text()
+RECORD = json.loads((ROOT / "docs/studies/discrepancy" / sc.JSON_NAME).read_text())
+PAGE = (ROOT / "docs/studies/discrepancy" / sc.MD_NAME).read_text()
 CASES = {c["id"]: c for c in RECORD["cases"]}
 METHODS = ("ours", "ours_workflow", "sysid_open", "sysid_closed", "sysid_closed_scaled")
 
@@ -124,9 +124,9 @@ def test_sysid_is_not_a_dependency():
 
 
 def test_the_discrepancy_page_quotes_the_record():
-    """docs/discrepancy.md's summary of the comparison: the closed-loop variants' physics steps
+    """docs/method/discrepancy.md's summary of the comparison: the closed-loop variants' physics steps
     against ours, over the cases, are the record's."""
-    text = " ".join((ROOT / "docs/discrepancy.md").read_text().split())
+    text = " ".join((ROOT / "docs/method/discrepancy.md").read_text().split())
 
     def ends(k):
         r = [c["methods"][k]["physics_steps"] / c["methods"]["ours"]["physics_steps"] for c in RECORD["cases"]]

@@ -1,4 +1,4 @@
-"""The identification against the simulator's ground truth (docs/results.md, "Ground-truth checks").
+"""The identification against the simulator's ground truth (docs/studies/reproduce/results.md, "Ground-truth checks").
 
 Truth comes from the model itself: MuJoCo's mass matrix (yaw inertia), the joint damping, the
 torque constant and the gain -- never from the identification code.
@@ -46,7 +46,7 @@ def test_mujoco_discrete_truth_near_continuous():
 @pytest.fixture(scope="module")
 def frictionless():
     dev = Device.load().without_friction()
-    # small amplitude: the servo-held arm does not lift under centrifugal load (see docs/results.md)
+    # small amplitude: the servo-held arm does not lift under centrifugal load (see docs/studies/reproduce/results.md)
     runs = ex.simulate(dev, ex.campaign("sine", sine_amplitude_rad=0.02))
     return dev, identify_runs(runs)
 
@@ -86,7 +86,7 @@ def test_dry_friction_biases_the_inertia_by_its_kind():
     makes low-energy motion stiffer, raising beta_data: inertia under-estimated, clearly so at the
     heavy poses (measured: -4 to -7 % for the top third, up to +2 % at the lightest pose)."""
     hard = Device(om.load_model()).without_friction().model
-    hard.dof_frictionloss[om.index(hard).yaw_dof] = 0.0209  # the hard-stick calibration's Fc (docs/calibration_coulomb_run.json)
+    hard.dof_frictionloss[om.index(hard).yaw_dof] = 0.0209  # the hard-stick calibration's Fc (docs/studies/calibration/calibration_coulomb_run.json)
     errs, _ = _inertia_errors(hard)
     assert min(errs) > 0, errs
     errs, inertia = _inertia_errors(om.load_model())

@@ -204,7 +204,7 @@ CASES: tuple[HiddenCase, ...] = (
 
 #: The geared-servo cases whose nominal is off (:attr:`HiddenCase.nominal_joint`): the workflow
 #: must correct the nominal's constants back and name only what is hidden.  Apart from
-#: :data:`CASES` (whose records are docs/discrepancy/bank.json): their bank test runs them and
+#: :data:`CASES` (whose records are docs/studies/discrepancy/bank.json): their bank test runs them and
 #: judges them with :func:`assess` like the others; ``omni bench --only discrepancy_servo``
 #: times the first.
 NOMINAL_OFF_CASES = (
@@ -351,7 +351,7 @@ def _finite(x) -> bool:
 
 
 def assess(hidden: HiddenCase, report: dict) -> tuple[bool, str]:
-    """Did the workflow pass this case?  (the bank's criteria; docs/discrepancy.md, the hidden-effect bank)
+    """Did the workflow pass this case?  (the bank's criteria; docs/method/discrepancy.md, the hidden-effect bank)
 
     * library effects: exactly the hidden effects named (``hidden.expect``, nothing else), each
       with ``confidence == "high"``; each named effect reports as many parameters as the truth

@@ -467,7 +467,7 @@ def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: li
     load_friction_nominal_off runs the torque gain drops 11 % to mimic the gearbox's drive
     losses); from there every grid point of the missing effect is worse than none and the
     prescreen's Gauss-Newton steps point its coefficient below its bound, while the steps from
-    the best grid point about the user's values reach the truth (docs/discrepancy.md, "Why the
+    the best grid point about the user's values reach the truth (docs/method/discrepancy.md, "Why the
     load law is blended, and why the prescreen starts twice")."""
     if name is None:
         prob = Problem(builder, [], list(base), runs, rep)

@@ -71,7 +71,7 @@ JOINT, ACTUATOR = "pivot", "servo"
 #: forward efficiency eta_f = 0.85 of a 4-5 stage spur gearbox (0.96-0.97 per mesh, textbook
 #: spur-gear figure, over ~350:1) -> mu_drive = 1 - 0.85 = 0.15; back-driving efficiency
 #: eta_b = 0.69 -> mu_back = 1/0.69 - 1 = 0.45.  eta_b is an ESTIMATE: back-driving a small
-#: servo's gearbox loses markedly more than driving it (docs/servo-actuators.md, "Typical
+#: servo's gearbox loses markedly more than driving it (docs/method/servo-actuators.md, "Typical
 #: geared servos": the friction is larger when the load back-drives the motor, up to
 #: self-locking), while the
 #: textbook mesh-friction relation eta_b = 2 - 1/eta per mesh would give ~0.83; 0.69 stands for
@@ -90,7 +90,7 @@ MU_BACK = 0.45
 #: "a few to ~30 % of the Coulomb level" (effects/drive.py).
 ASYMMETRY_NM = 0.0075
 #: The servo's loop period [s] (1 kHz: the usual rate of a servo's internal loop,
-#: docs/servo-actuators.md, "Typical geared servos"); the model's timestep is the same.
+#: docs/method/servo-actuators.md, "Typical geared servos"); the model's timestep is the same.
 CONTROL_PERIOD_S = 1e-3
 #: The host's log period [s] (200 Hz: the top of the 50-200 Hz hosts log at, same page).
 LOG_PERIOD_S = 5e-3
@@ -433,7 +433,7 @@ def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK)),), seed: int = 1, e
 
 #: The efficiencies [-]: the load_friction case's (eta_f = 1 - MU_DRIVE = 0.85: 4-5 spur
 #: meshes at 0.96-0.97; eta_b = 1 / (1 + MU_BACK) = 0.69, an ESTIMATE of the larger
-#: back-driving losses; provenance at MU_DRIVE, MU_BACK above and docs/servo-actuators.md,
+#: back-driving losses; provenance at MU_DRIVE, MU_BACK above and docs/method/servo-actuators.md,
 #: "Typical geared servos"): the same gearbox, its law written in another form.
 ETA_DRIVE = 1.0 - MU_DRIVE
 ETA_BACK = 1.0 / (1.0 + MU_BACK)

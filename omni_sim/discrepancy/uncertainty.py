@@ -48,7 +48,7 @@ standard uncertainty ``b / sqrt(3)``, root-sum-squared with the three statistica
 into ``se``.  The reported 95 % half-width (``workflow.py``) is the Student-t factor of the
 jackknife times ``se`` plus the bootstrap's mean shift; since ``t / sqrt(3) >= 1.13`` for any
 number of folds, a numerical term alone is always covered.  The coverage study
-(``scripts/discrepancy_coverage.py``, docs/discrepancy/) checks the whole interval on data with
+(``scripts/discrepancy_coverage.py``, docs/studies/discrepancy/) checks the whole interval on data with
 known truth, with and without noise, and reports the intervals' median width too.
 """
 

@@ -13,7 +13,7 @@ transmitted torque or the direction of motion, so the effects write the law's co
   ``mu_drive`` 0.1-0.4 (estimate); back-driving a multi-stage reduction runs each mesh at a
   lower efficiency (the friction moment adds to the load instead of the motor), so ``mu_back``
   is larger, 0.2-1 (estimate; actuator-model work on Dynamixel and Feetech servos finds the
-  back-driven efficiency markedly lower than the forward one, docs/servo-actuators.md).
+  back-driven efficiency markedly lower than the forward one, docs/method/servo-actuators.md).
   Bounds from the efficiencies they stand for (:class:`omni_sim.device.DriveFriction`: ``F = Fc +
   mu |tau|`` with ``tau`` the motor's transmitted torque): driving, the load gets ``tau - F``, a
   forward efficiency ``1 - mu_drive``; back-driven, the load must supply ``tau + F``, a back-driven
@@ -26,7 +26,7 @@ transmitted torque or the direction of motion, so the effects write the law's co
 (The engine's direction-dependent Coulomb law, ``friction_asymmetry``, is not a library
 effect: its case on the independent bank, ``asymmetric_friction`` (the geared servo with
 a = 7.5 mN*m, 25 % of its Coulomb level), failed with the effect in the library (commit
-33a9091, docs/discrepancy/bank.json): named with high confidence, 7.57 +- 0.33 mN*m, but the
+33a9091, docs/studies/discrepancy/bank.json): named with high confidence, 7.57 +- 0.33 mN*m, but the
 held-out gap shrank only x2.6, 1.54e-3 -> 6.04e-4 rad, the nominal gap being 2.5x the noise
 floor of 6.3e-4 rad.  The restored effect, a :class:`Effect` over the numeric with one
 parameter ``asymmetry_nm`` in +-0.3 N*m, is in that commit.)
