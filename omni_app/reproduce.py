@@ -35,7 +35,7 @@ def _model_label(model_path) -> str:
     if model_path is None:
         return "built-in scene.xml"
     p = Path(model_path)
-    if p.resolve().parent == om.MODELS_DIR.resolve():
+    if p.resolve().parent == om.OMNI_DIR.resolve():
         return f"built-in {p.name}"
     return str(model_path)
 

@@ -52,7 +52,7 @@ __all__ = ["OmniYawEnv", "AlphaInvariantObservation", "InvalidOptionError", "OBS
 #: Names of the observation entries, in order.
 OBSERVATION_NAMES = ("theta", "theta_dot", "r", "gamma1", "gamma2")
 #: Cut-off [Hz] of the first-order low-pass after the 2nd-order backward difference in the
-#: device-like velocity estimate (models/README.md: the Omni's drivers use a ~20 Hz low-pass).
+#: device-like velocity estimate (models/omni/README.md: the Omni's drivers use a ~20 Hz low-pass).
 VELOCITY_FILTER_HZ = 20.0
 #: Largest encoder-noise standard deviation accepted [rad]: 0.05 rad is 120 encoder counts, far
 #: beyond any encoder, and keeps the measured angle inside its observation bound (+-pi) with
@@ -304,7 +304,7 @@ class OmniYawEnv(gym.Env):
         MJCF file keeping the contract's names (default: the built-in scene).  Make-time only:
         the spaces derive from it.
     friction : {"coulomb", "lugre", "matched"}, optional
-        The built-in scene of this friction family (``models/scene_<friction>.xml``; default
+        The built-in scene of this friction family (``models/omni/scene_<friction>.xml``; default
         ``scene.xml``, the ``lugre`` family).  Make-time only; not together with
         ``model_path``.  The attribute ``friction`` names the family in use (for a user's
         file: what its yaw carries, :meth:`omni_sim.device.Device.friction_family`).

@@ -61,7 +61,7 @@ from .env import RENDER_MODES, InvalidOptionError, _Viewport, available_render_m
 __all__ = ["OmniWallEnv", "wall_torque", "GRASPS", "TIP_RADIUS_M"]
 
 #: Tip radius from the yaw axis [m]: ~0.2 m, the radius at which the drive's limit gives the
-#: 3.3 N peak tip force (models/omni.xml's ctrlrange comment).
+#: 3.3 N peak tip force (models/omni/omni.xml's ctrlrange comment).
 TIP_RADIUS_M = 0.2
 #: Grasp impedances at the tip: (mass [kg], damping [N s/m], stiffness [N/m]); see module doc.
 GRASPS = {"loose": (0.05, 1.5, 50.0), "medium": (0.2, 3.0, 200.0), "firm": (0.55, 6.5, 400.0)}

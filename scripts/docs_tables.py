@@ -5,7 +5,7 @@ The documentation's results pages copy figures from files the tools write:
 * ``docs/reproduce/summary.json`` (``omni reproduce``), ``docs/friction/comparison.json``,
   ``docs/friction/lugre/params.json`` and ``docs/friction/friction_study.json``
   (``omni reproduce --friction all``, ``scripts/friction_study.py``);
-* ``models/calibration.json``, ``models/calibration_coulomb.json``, and the records of two
+* ``models/omni/calibration.json``, ``models/omni/calibration_coulomb.json``, and the records of two
   calibrations not adopted, ``docs/calibration_coulomb_run.json`` (a hard stick, every robot
   parameter free) and ``docs/calibration_weighted_run.json`` (``scripts/calibrate.py``);
 * ``docs/bench.json`` (``omni bench``), ``docs/sweep/results.csv`` (``omni sweep``);
@@ -90,12 +90,12 @@ def load_sources() -> dict:
             "comparison": _json("docs/friction/comparison.json"),
             "lugre_params": _json("docs/friction/lugre/params.json"),
             "study": _json("docs/friction/friction_study.json"),
-            "cal": _json("models/calibration.json"),
-            "cal_coulomb": _json("models/calibration_coulomb.json"),
+            "cal": _json("models/omni/calibration.json"),
+            "cal_coulomb": _json("models/omni/calibration_coulomb.json"),
             "cal_hard_stick": _json("docs/calibration_coulomb_run.json"),
             "cal_coulomb_all_free": _json("docs/fidelity/coulomb_all_free.json"),
             "cal_weighted": _json("docs/calibration_weighted_run.json"),
-            "cal_matched": _json("models/calibration_matched.json"),
+            "cal_matched": _json("models/omni/calibration_matched.json"),
             "matched_summary": _json("docs/friction/matched/summary.json"),
             "search": _json("docs/fidelity/search.json"),
             "bench": _json("docs/bench.json"),
@@ -225,7 +225,7 @@ def _cal_detail(rec: dict) -> dict:
 
 
 def calibration_targets(src: dict) -> str:
-    """docs/calibration.md: the LuGre calibration (models/calibration.json) against the paper."""
+    """docs/calibration.md: the LuGre calibration (models/omni/calibration.json) against the paper."""
     from omni_studies.calibration import TABLE10_ALPHA, TABLE10_C, TABLE10_FALL, c_at_alpha
 
     rec = src["cal"]
