@@ -27,7 +27,7 @@ from omni_sim._resources import models_dir as _models_dir
 
 #: Folder of the built-in model files: the data package ``omni_sim.models`` (the top-level
 #: ``models/`` folder, shipped inside the package; see pyproject.toml), a real folder on disk
-#: with one folder per device (models/omni/README.md).
+#: with one folder per device (models/README.md lists them).
 MODELS_DIR = _models_dir()
 #: The virtual Omni's folder: its robot ``omni.xml``, the scenes, ``stage.xml``, the
 #: calibration records and the provenance of its numbers (``README.md``).
@@ -68,7 +68,7 @@ def model_path(path: str | os.PathLike | None = None, friction: str | None = Non
 def model_not_found(path: str | os.PathLike) -> str:
     """The one-line error of a model file that does not exist.  A path that names a built-in
     file directly in a ``models/`` folder gets the file's place in its device's folder
-    (``models/omni/scene.xml``: ``models/omni/scene.xml``)."""
+    (``models/scene.xml``: ``models/omni/scene.xml``)."""
     p = Path(path)
     msg = f"{p}: model file not found"
     if p.parent.name == MODELS_DIR.name:
