@@ -52,7 +52,7 @@ def _friction_option(p: argparse.ArgumentParser, all_: bool = False, what: str =
 
     choices = FRICTION_FAMILIES + (("all",) if all_ else ())
     p.add_argument("--friction", default=None, choices=choices,
-                   help=f"{what}the built-in scene of this friction family (models/scene_FAMILY.xml; "
+                   help=f"{what}the built-in scene of this friction family (models/omni/scene_FAMILY.xml; "
                         f"default: scene.xml = {DEFAULT_FRICTION}); not with --model"
                         + ("; 'all': every family into OUT/FAMILY/ plus OUT/comparison.json, "
                            "comparison.md and overlay figures" if all_ else ""))
@@ -79,7 +79,7 @@ def _add_generate(sub) -> None:
                    help="paper (Table 1 sines + Table 2 squares; the file omni_sim/campaigns/paper.toml), "
                         "sine or step (its halves), or a campaign file of your own (format: "
                         "docs/usage/campaigns.md); default: paper")
-    p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
+    p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/omni/scene.xml)")
     _friction_option(p)
     p.add_argument("--out", default="dataset", help="output folder (default: ./dataset)")
     p.add_argument("--seed", type=_nonnegative_int, default=0, help="seed for encoder noise (default: 0)")
@@ -118,7 +118,7 @@ def _add_validate(sub) -> None:
 
 def _add_reproduce(sub) -> None:
     p = sub.add_parser("reproduce", help="the main job: generate, identify, validate, report")
-    p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/scene.xml)")
+    p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/omni/scene.xml)")
     _friction_option(p, all_=True)
     p.add_argument("--out", default="reproduce", help="output folder (default: ./reproduce)")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")

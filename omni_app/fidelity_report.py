@@ -99,7 +99,7 @@ def format_markdown(doc: dict) -> str:
         f"within {acc['resonance_hz']} Hz.",
         "",
         "Footing: `lugre` = the calibrated default scene (robot, friction and A_r of "
-        "models/calibration.json); `coulomb` = the all-free Coulomb refit under the calibration's "
+        "models/omni/calibration.json); `coulomb` = the all-free Coulomb refit under the calibration's "
         "targets ([`coulomb_all_free.json`](coulomb_all_free.json)). Each candidate frees its "
         "family's friction (lugre: damping, σ0, Fc, Fs/Fc, vs; coulomb: damping, frictionloss) and "
         f"the effect's parameters; at most {doc['max_evals']} simulations each (bounded least squares, "
@@ -231,7 +231,7 @@ def _fixed_before(doc: dict) -> list[str]:
 
 
 def _matched(doc: dict) -> list[str]:
-    """Which candidate became ``models/scene_matched.xml`` and why."""
+    """Which candidate became ``models/omni/scene_matched.xml`` and why."""
     ranked = _best(doc)
     ok = [r for r in ranked if r["family"] == "lugre" and all(e in SCENE_EFFECTS for e in r["effects"])]
     if not ok:

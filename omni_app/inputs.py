@@ -19,7 +19,7 @@ from omni_sim import model as om
 def omni_pose_check(model=None):
     """The rule ``omni discrepancy`` applies to a run's pose:
     :meth:`omni_sim.device.Device.check_pose` of the model file ``model`` (default: the
-    built-in Omni; every friction family shares ``models/omni.xml``): finite angles inside the
+    built-in Omni; every friction family shares ``models/omni/omni.xml``): finite angles inside the
     shoulder and elbow joint ranges."""
     from omni_sim.device import Device
 

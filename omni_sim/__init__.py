@@ -13,7 +13,7 @@ Public API::
 import gymnasium
 
 from .device import Device, Encoder, Engine
-from .model import DEFAULT_SCENE, FRICTION_FAMILIES, MODELS_DIR, load_model
+from .model import DEFAULT_SCENE, FRICTION_FAMILIES, MODELS_DIR, OMNI_DIR, load_model
 
 
 def yaw_inertia(gamma1_deg: float, gamma2_deg: float, model_path=None, model=None) -> float:
@@ -30,7 +30,7 @@ def equilibrium_pose(model, gamma1_set_deg: float, gamma2_set_deg: float) -> tup
     return Device(model).equilibrium(gamma1_set_deg, gamma2_set_deg)
 
 
-__all__ = ["DEFAULT_SCENE", "FRICTION_FAMILIES", "MODELS_DIR", "Device", "Encoder", "Engine",
+__all__ = ["DEFAULT_SCENE", "FRICTION_FAMILIES", "MODELS_DIR", "OMNI_DIR", "Device", "Encoder", "Engine",
            "equilibrium_pose", "load_model", "yaw_inertia"]
 
 # the gymnasium environments (gymnasium's documented way: registered when the package is imported)

@@ -12,8 +12,9 @@ def models_dir() -> Path:
     """The folder of the built-in model files, the data package ``omni_sim.models``.
 
     In an editable install that is the checkout's ``models/`` folder, in a regular install the
-    copy inside ``site-packages``; either way a real folder (``scene.xml`` includes
-    ``omni.xml`` by a relative path, so MuJoCo needs both files side by side on disk).
+    copy inside ``site-packages``; either way a real folder with one folder per device
+    (``omni/scene.xml`` includes ``omni.xml`` by a relative path, so MuJoCo needs a device's
+    files side by side on disk).
     """
     stack = contextlib.ExitStack()
     path = Path(stack.enter_context(resources.as_file(resources.files("omni_sim.models"))))

@@ -52,9 +52,9 @@ from identification.errors import UserError
 
 from . import model as om
 
-#: The Omni's servo period [s] (1 kHz, models/README.md).
+#: The Omni's servo period [s] (1 kHz, models/omni/README.md).
 CONTROL_PERIOD_S = 1e-3
-#: Encoder resolution [rad]: 15000 counts per revolution (models/README.md).
+#: Encoder resolution [rad]: 15000 counts per revolution (models/omni/README.md).
 ENCODER_STEP_RAD = 2 * math.pi / 15000
 #: The physics state the engine carries between control periods.
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -491,7 +491,7 @@ class Device:
         if self.file is None:
             return "built-in scene.xml"
         p = Path(self.file)
-        return f"built-in {p.name}" if p.resolve().parent == om.MODELS_DIR.resolve() else self.file
+        return f"built-in {p.name}" if p.resolve().parent == om.OMNI_DIR.resolve() else self.file
 
     # -- named parameters: read and set in the model the device reads live ---------------------
     @property

@@ -228,7 +228,7 @@ class OmniYawEnv(OmniEnv):
         MJCF file keeping the contract's names (default: the built-in scene).  Make-time only:
         the spaces derive from it.
     friction : {"coulomb", "lugre", "matched"}, optional
-        The built-in scene of this friction family (``models/scene_<friction>.xml``; default
+        The built-in scene of this friction family (``models/omni/scene_<friction>.xml``; default
         ``scene.xml``, the ``lugre`` family).  Make-time only; not together with
         ``model_path``.  The attribute ``friction`` names the family in use (for a user's
         file: what its yaw carries, :meth:`omni_sim.device.Device.friction_family`).

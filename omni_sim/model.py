@@ -26,10 +26,19 @@ from identification.errors import UserError
 from omni_sim._resources import models_dir as _models_dir
 
 #: Folder of the built-in model files: the data package ``omni_sim.models`` (the top-level
-#: ``models/`` folder, shipped inside the package; see pyproject.toml), a real folder on disk.
+#: ``models/`` folder, shipped inside the package; see pyproject.toml), a real folder on disk
+#: with one folder per device (models/README.md lists them).
 MODELS_DIR = _models_dir()
+#: The virtual Omni's folder: its robot ``omni.xml``, the scenes, ``stage.xml``, the
+#: calibration records and the provenance of its numbers (``README.md``).
+OMNI_DIR = MODELS_DIR / "omni"
+#: The geared-servo pendulum's folder (not the Omni: the nominal model of the hidden-effect
+#: bank's geared-servo case, :mod:`omni_sim.discrepancy.servo_truth`).
+SERVO_PENDULUM_DIR = MODELS_DIR / "servo_pendulum"
+#: The geared-servo pendulum's model file (joint ``pivot``, actuator ``servo``).
+SERVO_PENDULUM = SERVO_PENDULUM_DIR / "servo_pendulum.xml"
 #: The built-in scene (the default friction family; includes ``omni.xml``).
-DEFAULT_SCENE = MODELS_DIR / "scene.xml"
+DEFAULT_SCENE = OMNI_DIR / "scene.xml"
 #: The friction families of the built-in model: one scene each around the shared robot
 #: ``omni.xml`` (docs/method/friction-families.md).  ``lugre`` is the default (``scene.xml``);
 #: ``matched`` is both at once, fitted to every published table (docs/studies/fidelity/search.md).
@@ -44,7 +53,7 @@ def scene_path(friction: str | None = None) -> Path:
     if friction not in FRICTION_FAMILIES:
         raise UserError(f"unknown friction family {friction!r} (choose from "
                         f"{', '.join(FRICTION_FAMILIES)})")
-    return MODELS_DIR / f"scene_{friction}.xml"
+    return OMNI_DIR / f"scene_{friction}.xml"
 
 
 def model_path(path: str | os.PathLike | None = None, friction: str | None = None) -> Path:
@@ -54,6 +63,20 @@ def model_path(path: str | os.PathLike | None = None, friction: str | None = Non
         raise UserError("give either a model file or a friction family, not both (the family "
                         "picks one of the built-in scenes)")
     return Path(path) if path is not None else scene_path(friction)
+
+
+def model_not_found(path: str | os.PathLike) -> str:
+    """The one-line error of a model file that does not exist.  A path that names a built-in
+    file directly in a ``models/`` folder gets the file's place in its device's folder
+    (``models/scene.xml``: ``models/omni/scene.xml``)."""
+    p = Path(path)
+    msg = f"{p}: model file not found"
+    if p.parent.name == MODELS_DIR.name:
+        for folder in (OMNI_DIR, SERVO_PENDULUM_DIR):
+            if (folder / p.name).is_file():
+                return msg + (f" (the built-in model files are in one folder per device: "
+                              f"{p.parent / folder.name / p.name})")
+    return msg
 
 
 def model_digest(path: str | os.PathLike | None) -> str:
@@ -143,7 +166,7 @@ def load_model(path: str | os.PathLike | None = None, friction: str | None = Non
     """
     path = model_path(path, friction)
     if not path.is_file():
-        raise UserError(f"{path}: model file not found")
+        raise UserError(model_not_found(path))
     try:
         model = mujoco.MjModel.from_xml_path(str(path))
     except (ValueError, RuntimeError) as exc:  # MuJoCo reports XML/compile errors as ValueError

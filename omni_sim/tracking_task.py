@@ -33,7 +33,7 @@ __all__ = ["OBSERVATION_NAMES", "VELOCITY_FILTER_HZ", "MAX_NOISE_RAD", "Tracking
 #: Names of the observation entries, in order.
 OBSERVATION_NAMES = ("theta", "theta_dot", "r", "gamma1", "gamma2")
 #: Cut-off [Hz] of the first-order low-pass after the 2nd-order backward difference in the
-#: device-like velocity estimate (models/README.md: the Omni's drivers use a ~20 Hz low-pass).
+#: device-like velocity estimate (models/omni/README.md: the Omni's drivers use a ~20 Hz low-pass).
 VELOCITY_FILTER_HZ = 20.0
 #: Largest encoder-noise standard deviation accepted [rad]: 0.05 rad is 120 encoder counts, far
 #: beyond any encoder, and keeps the measured angle inside its observation bound (+-pi) with

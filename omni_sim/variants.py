@@ -115,7 +115,7 @@ def base_spec(path: str | os.PathLike | None = None, friction: str | None = None
     """The MjSpec of a model file or of a built-in friction family's scene."""
     p = om.model_path(path, friction)
     if not p.is_file():
-        raise UserError(f"{p}: model file not found")
+        raise UserError(om.model_not_found(p))
     try:
         return mujoco.MjSpec.from_file(str(p))
     except (ValueError, RuntimeError) as exc:

@@ -21,7 +21,7 @@ from .options import InvalidOptionError
 __all__ = ["GRASPS", "TIP_RADIUS_M", "WallTask", "add_hand", "grasp_impedance", "wall_torque"]
 
 #: Tip radius from the yaw axis [m]: ~0.2 m, the radius at which the drive's limit gives the
-#: 3.3 N peak tip force (models/omni.xml's ctrlrange comment).
+#: 3.3 N peak tip force (models/omni/omni.xml's ctrlrange comment).
 TIP_RADIUS_M = 0.2
 #: Grasp impedances at the tip: (mass [kg], damping [N s/m], stiffness [N/m]); see
 #: :mod:`omni_sim.wall_env`.

@@ -11,17 +11,17 @@ on the virtual Omni and matching what it reports, so the testbed stands in for t
 * section 2.3: some low frequency at some pose gives non-physical (negative) local coefficients
   (:func:`physical_margin` <= -0.01 somewhere; one-sided, scale 0.05).
 
-Free parameters (bounds from the device estimates in models/README.md or physics, see
+Free parameters (bounds from the device estimates in models/omni/README.md or physics, see
 :data:`PARAMETERS`): the three link masses, the turret's yaw inertia, the yaw viscous damping,
 the yaw drive's LuGre friction (pre-sliding stiffness sigma0, sliding level Fc, Stribeck ratio
-Fs/Fc and speed vs; the ``yaw_friction`` actuator of models/omni.xml), the arm servo gains, and
+Fs/Fc and speed vs; the ``yaw_friction`` actuator of models/omni/omni.xml), the arm servo gains, and
 the sine amplitude A_r the paper did not state.  Fixed, with reasons: the torque constant
 beta_bar (the paper's data fix only ratios I/beta_bar, c/beta_bar, Fc/beta_bar; beta_bar =
 0.5 N m/V puts the yaw inertia in the estimated 1-3e-3 kg m^2 range), the rotor armature (only
 the sum turret + armature is observable; 1e-4 kg m^2, mid-range of the estimate), the lengths
 (geometry from the public descriptions), the joint's hard-stick ``frictionloss`` = 0 (three runs
 with it free drove it to its 0 bound: the soft LuGre stick fits the paper, a hard stick does
-not; see models/README.md) and the bristle damping sigma1 = 0 (not identified).
+not; see models/omni/README.md) and the bristle damping sigma1 = 0 (not identified).
 
 Why LuGre: with Coulomb + viscous friction alone the best fit left the C(alpha) fall at 2.0x
 (paper 4.6x) and no frequency non-physical (docs/studies/calibration/calibration_coulomb_run.json and
@@ -31,10 +31,10 @@ paper's C_data and beta_data up, and then negative, at low frequency.
 
 The optimiser is :func:`scipy.optimize.least_squares` (trust-region reflective, bounded) on the
 simulation-in-the-loop residuals above.  The result is data, never code: the physical numbers
-go into ``models/omni.xml`` (numbers only; the comments say which run set them), the sine
+go into ``models/omni/omni.xml`` (numbers only; the comments say which run set them), the sine
 amplitude into the campaign file ``omni_sim/campaigns/paper.toml`` (its ``[sine]``
 ``amplitude_rad`` line), and the record with targets, achieved values and the date into
-``models/calibration.json``.
+``models/omni/calibration.json``.
 """
 
 from __future__ import annotations
@@ -59,8 +59,8 @@ from omni_sim.device import Device
 
 #: The calibration record of each friction family (the lugre record also holds the robot's
 #: joint calibration with that family, which set the shared numbers of omni.xml).
-RECORDS = {"lugre": om.MODELS_DIR / "calibration.json",
-           "coulomb": om.MODELS_DIR / "calibration_coulomb.json"}
+RECORDS = {"lugre": om.OMNI_DIR / "calibration.json",
+           "coulomb": om.OMNI_DIR / "calibration_coulomb.json"}
 RECORD = RECORDS["lugre"]
 #: Table 10 (reordered): C1..C3 [1/s] at Table 7's breakpoints alpha_1..alpha_3 = 2.2, 25,
 #: 250 V^2/s^2 at gamma1=65, gamma2=90 (identification/data/README.md; read from paper.py).
@@ -130,10 +130,10 @@ PARAMETERS = (
 )
 NAMES = tuple(p.name for p in PARAMETERS)
 BY_NAME = {p.name: p for p in PARAMETERS}
-#: The robot's numbers (models/omni.xml) and the campaign's A_r: shared by the friction families.
+#: The robot's numbers (models/omni/omni.xml) and the campaign's A_r: shared by the friction families.
 SHARED = ("m_upper_arm", "m_forearm", "m_stylus", "I_turret", "shoulder_kp", "elbow_kp",
           "sine_amplitude_rad")
-#: Each friction family's own numbers (its scene file, models/scene_<family>.xml).
+#: Each friction family's own numbers (its scene file, models/omni/scene_<family>.xml).
 FAMILY_PARAMETERS = {
     "lugre": ("yaw_damping", "lugre_stiffness", "lugre_friction", "stribeck_ratio", "stribeck_speed"),
     "coulomb": ("yaw_damping", "yaw_frictionloss"),
@@ -505,7 +505,7 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
                      if family == "lugre" else {}),
                   "L1_m": L_LINK, "L2_m": L_LINK,
                   **({"shared_robot_and_campaign": fixed_shared,
-                      "shared_from": "models/calibration.json (the robot's joint calibration with "
+                      "shared_from": "models/omni/calibration.json (the robot's joint calibration with "
                                      "the lugre family, 2026-11-22)"} if fixed_shared else {})},
         "cost_before": 0.5 * float(residuals(before) @ residuals(before)),
         "cost_after": float(sol.cost),
@@ -554,7 +554,7 @@ def _inertial(body: str) -> str:
     return f".//body[@name='{body}']/inertial"
 
 
-def write_model(values: dict, family: str, folder: Path = om.MODELS_DIR) -> list[Path]:
+def write_model(values: dict, family: str, folder: Path = om.OMNI_DIR) -> list[Path]:
     """Write calibrated numbers into the model files (attributes of named elements, through an
     XML tree; comments stay): the robot's (masses, turret, servo gains; if ``values`` has
     them) into ``omni.xml``, the family's friction into ``scene_<family>.xml``.  Returns the

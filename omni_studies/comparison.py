@@ -145,5 +145,5 @@ def compare(results: dict) -> dict:
             "paper": paper_figures(),
             "note": "Each family runs its own scene file as it is; how each was calibrated, "
                     "and which calibration and method choices were made after an alpha-model "
-                    "score had been seen, is in models/calibration*.json and "
+                    "score had been seen, is in models/omni/calibration*.json and "
                     "docs/method/friction-families.md. " + STEP_NOTE}

@@ -9,8 +9,8 @@ linear column).  The search looks for the missing effect with the table-level ta
 (:func:`omni_studies.calibration.residual_terms` with ``targets="tables"``).  Each candidate
 (:func:`candidates`) is calibrated jointly with its family's friction by :func:`fit`;
 :func:`search_record` is the record of a set of results, :func:`write_scene` writes the chosen
-one into ``models/scene_matched.xml``.  The study reads records of a checkout
-(``docs/studies/fidelity/coulomb_all_free.json``, ``models/``): it runs from one.
+one into ``models/omni/scene_matched.xml``.  The study reads records of a checkout
+(``docs/studies/fidelity/coulomb_all_free.json``, ``models/omni/``): it runs from one.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from omni_sim import model as om
 from omni_sim.device import ENCODER_STEP_RAD
 from omni_studies import calibration as cal
 
@@ -31,7 +32,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: The all-free Coulomb refit (the coulomb family's footing).
 COULOMB_ALL_FREE = ROOT / "docs" / "studies" / "fidelity" / "coulomb_all_free.json"
-SCENES = {"lugre": ROOT / "models" / "scene_lugre.xml", "coulomb": ROOT / "models" / "scene_coulomb.xml"}
+#: The Omni's model folder in the checkout (its scenes and calibration records; the folder
+#: :data:`omni_sim.model.OMNI_DIR` names inside the data package).
+OMNI_DIR = ROOT / "models" / om.OMNI_DIR.name
+SCENES = {"lugre": OMNI_DIR / "scene_lugre.xml", "coulomb": OMNI_DIR / "scene_coulomb.xml"}
 #: Simulations per candidate (each 1-1.5 s; 5-6 s with a delay or lag, which the batched fast
 #: path cannot run): ~9 Jacobians of a 6-parameter fit.
 MAX_EVALS = 60
@@ -48,7 +52,7 @@ ACCEPT = {"step_median_rel": 0.25, "poses_within_40pct": 20, "table3_rel": 0.10,
 EFFECTS = {
     "time_delay": ([0], [0.002], "0-5 ms",
                    "loop delay: the servo loop runs at 1 kHz nominal, 700-900 Hz on some USB units "
-                   "(models/README.md), 'a USB servo loop's few ms' (effects/actuator.py)"),
+                   "(models/omni/README.md), 'a USB servo loop's few ms' (effects/actuator.py)"),
     "actuator_lag": ([0], [0.002], "0.1-2 ms",
                      "first-order drive lag: a small DC motor's electrical time constant L/R is "
                      "0.1-1 ms; an amplifier's filter adds ~1 ms at most (estimate)"),
@@ -61,10 +65,10 @@ EFFECTS = {
                  "effects/two_mass.py"),
     "stribeck_friction": ([0, 1, 2], [0.005, 0.015, 0.1], "Fc 5-20 mN*m, Fs <= 35 mN*m",
                           "a second, stiff Stribeck element in the drive (effects/friction.py; "
-                          "models/README.md: waist Coulomb 5-20 mN*m, 35 mN*m back-drive bound)"),
+                          "models/omni/README.md: waist Coulomb 5-20 mN*m, 35 mN*m back-drive bound)"),
     "cogging": ([0], [0.001, 0.0], "1-3 mN*m", "motor cogging, 45 periods per turn at the turret "
                 "(effects/friction.py)"),
-    "armature": ([0], [1e-4], "5e-5-2e-4 kg*m^2", "reflected rotor inertia (models/README.md)"),
+    "armature": ([0], [1e-4], "5e-5-2e-4 kg*m^2", "reflected rotor inertia (models/omni/README.md)"),
     "joint_stiffness": ([0], [0.03], "0-0.1 N*m/rad", "cables and wiring through the turret as a "
                         "torsional spring (effects/joint.py; a tenth of the P loop's 1 N*m/rad)"),
     "position_offset": ([0], [0.0], "|bias| <= 0.05 V", "a constant offset of the drive's voltage "
@@ -73,7 +77,7 @@ EFFECTS = {
                      "the base tilted: gravity acts on the yaw (effects/body.py)"),
     # family-specific: a hard stick on the lugre family, a LuGre element on the coulomb family
     "coulomb_friction": ([0], [0.005], "5-20 mN*m", "joint frictionloss (hard stick) added to the "
-                         "LuGre drive (models/README.md: waist Coulomb 5-20 mN*m)"),
+                         "LuGre drive (models/omni/README.md: waist Coulomb 5-20 mN*m)"),
     "presliding_friction": ([0, 1, 2, 3], [3.0, 0.005, 0.010, 0.5], "sigma0 0.3-100 N*m/rad, "
                             "Fc 5-20 mN*m, Fs <= 35 mN*m", "a LuGre element added to the "
                             "hard-stick drive (effects/friction.py)"),
@@ -137,7 +141,7 @@ def footing(family: str) -> tuple[dict, str]:
         rec = json.loads(COULOMB_ALL_FREE.read_text())
         values.update({k: v["value"] for k, v in rec["parameters"].items()})
         return values, f"{COULOMB_ALL_FREE.relative_to(ROOT)} (all free, cost {rec['cost_after']:.2f})"
-    return values, "models/scene_lugre.xml + models/calibration.json"
+    return values, "models/omni/scene_lugre.xml + models/omni/calibration.json"
 
 
 def free_parameters(cand: dict) -> list[dict]:
@@ -326,8 +330,8 @@ def rank_singles(results: list[dict]) -> dict:
 
 
 # -- the matched scene ----------------------------------------------------------------------------
-MATCHED_SCENE = ROOT / "models" / "scene_matched.xml"
-MATCHED_RECORD = ROOT / "models" / "calibration_matched.json"
+MATCHED_SCENE = OMNI_DIR / "scene_matched.xml"
+MATCHED_RECORD = OMNI_DIR / "calibration_matched.json"
 #: Effects a scene file can declare around omni.xml (which it includes and cannot edit): the
 #: yaw's joint defaults.  A delay, lag or bias of yaw_motor, a two-mass drive or cogging would
 #: need omni.xml itself.
@@ -335,12 +339,10 @@ SCENE_EFFECTS = {"coulomb_friction": "frictionloss", "joint_stiffness": "stiffne
 
 
 def write_scene(doc: dict, cid: str) -> list[Path]:
-    """Write candidate ``cid``'s fitted friction into models/scene_matched.xml (attributes of
+    """Write candidate ``cid``'s fitted friction into models/omni/scene_matched.xml (attributes of
     named elements through an XML tree, comments kept) and its record, re-measured on the
     written file."""
     import datetime as dt
-
-    from omni_sim import model as om
 
     cand = next((r for r in doc["candidates"] if r["id"] == cid), None)
     if cand is None or not cand.get("ok"):

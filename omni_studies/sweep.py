@@ -267,7 +267,7 @@ def _parse_base(doc: dict, source: str, base_dir: Path) -> tuple[dict, object]:
             raise _err(source, "base.model", "must be a path (string)")
         model = (base_dir / b["model"]).resolve()
         if not model.is_file():
-            raise _err(source, "base.model", f"{model}: model file not found")
+            raise _err(source, "base.model", om.model_not_found(model))
         model = str(model)
     try:
         spec = va.base_spec(model, friction)

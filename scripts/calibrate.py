@@ -6,9 +6,9 @@ Usage: python scripts/calibrate.py [--friction {lugre,coulomb}] [--free {frictio
 
 Runs the paper's sine campaign on the model, identifies it with the project's own pipeline,
 compares with the paper's Tables 3 and 10, and adjusts the physical parameters by bounded least
-squares. Writes the result as data: models/omni.xml (numbers only), the sine amplitude into
+squares. Writes the result as data: models/omni/omni.xml (numbers only), the sine amplitude into
 the campaign file omni_sim/campaigns/paper.toml, and the record (targets, achieved values, date) into
-models/calibration.json. --dry-run only prints and writes the record to --record.
+models/omni/calibration.json. --dry-run only prints and writes the record to --record.
 """
 
 import argparse
@@ -21,14 +21,14 @@ from omni_studies import calibration as cal
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--friction", choices=("lugre", "coulomb"), default="lugre",
-                    help="friction family to calibrate (its scene models/scene_<family>.xml)")
+                    help="friction family to calibrate (its scene models/omni/scene_<family>.xml)")
     ap.add_argument("--free", choices=cal.FREE_CHOICES, default="friction",
                     help="fit the family's friction only (the shared robot and A_r fixed; default) "
                          "or everything (writes the shared robot and the campaign's A_r too)")
     ap.add_argument("--max-nfev", type=int, default=60, help="simulation budget of the optimiser")
     ap.add_argument("--dry-run", action="store_true", help="do not modify the model files")
     ap.add_argument("--record", default=None, help="where --dry-run writes the record (a real run "
-                    "writes models/calibration.json for lugre, models/calibration_coulomb.json for coulomb)")
+                    "writes models/omni/calibration.json for lugre, models/omni/calibration_coulomb.json for coulomb)")
     ap.add_argument("--jobs", type=int, default=None)
     ap.add_argument("--start", default=None, help="JSON object of starting values (default: the model's)")
     args = ap.parse_args()

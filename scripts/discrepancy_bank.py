@@ -14,7 +14,7 @@ not).
 
 A case with a truth of its own (``truth="servo"``: the geared-servo pendulum of
 :mod:`omni_sim.discrepancy.servo_truth`) is given its own nominal model and target
-(:func:`omni_sim.discrepancy.hidden.nominal`: ``models/servo_pendulum.xml``, ``pivot``/``servo``).
+(:func:`omni_sim.discrepancy.hidden.nominal`: ``models/servo_pendulum/servo_pendulum.xml``, ``pivot``/``servo``).
 ``--merge`` runs the given cases and puts them into the existing JSON in the bank's order (the
 other cases kept as they are); each merged entry records its own commit and dates.
 
@@ -118,7 +118,7 @@ def _other_truths(cases: dict) -> str:
     if servo:
         verb = "is" if len(servo) == 1 else "are"
         text += (f" Not the Omni: {', '.join(servo)} {verb} a pendulum on a geared servo (nominal model "
-                 "`models/servo_pendulum.xml`, `--joint pivot --actuator servo`) whose truth "
+                 "`models/servo_pendulum/servo_pendulum.xml`, `--joint pivot --actuator servo`) whose truth "
                  "`omni_sim/discrepancy/servo_truth.py` simulates the hidden drive friction (load-"
                  "dependent, or direction-dependent) step by step; 12 runs of 5 s logged as a host logs a servo (~200 Hz with "
                  "jitter, the goal held between writes, torque-off spans, 4096-count encoder, servo loop "
@@ -145,7 +145,7 @@ def bank_markdown(data: dict) -> str:
         + (f" {meta['note']}" if meta.get("note") else "") + " Every case's full report is in "
         f"`{meta['json']}` beside this file (the bank table of docs/method/discrepancy.md is made from it: "
         "`python scripts/discrepancy_bank.py --table`).", "",
-        "Each truth model is the virtual Omni (`models/scene.xml`) with effects written by "
+        "Each truth model is the virtual Omni (`models/omni/scene.xml`) with effects written by "
         "`omni_sim/discrepancy/truth_models.py` with MuJoCo's own features, independently of the "
         "effect library the workflow searches (a test checks that the truth models and the cases do "
         "not use it, directly or through another module), at realistic magnitudes (see each case's "
@@ -313,7 +313,7 @@ def efficiency_section(rec: dict) -> str:
         f"case's efficiencies: mu_drive {eq['mu_drive']:g}, mu_back {eq['mu_back']:g} in the "
         f"engine's form), w_s {tr['smooth_speed_rad_s']:g} rad/s (an estimate), kt "
         f"{tr['kt_nm_per_a']:g} N*m/A; provenance of each in servo_truth.py. The nominal model "
-        "`models/servo_pendulum.xml`; the load_friction case's 12 runs of 5 s, log and encoder. "
+        "`models/servo_pendulum/servo_pendulum.xml`; the load_friction case's 12 runs of 5 s, log and encoder. "
         "`tests/test_servo_truth.py` checks the truth against steady speeds in closed form "
         "(driving and back-driven) and the law step by step.", "",
         "Where the two forms differ (by construction, whatever the workflow does): the truth does not "

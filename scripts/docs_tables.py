@@ -5,7 +5,7 @@ The documentation's results pages copy figures from files the tools write:
 * ``docs/studies/reproduce/summary.json`` (``omni reproduce``), ``docs/studies/friction/comparison.json``,
   ``docs/studies/friction/lugre/params.json`` and ``docs/studies/friction/friction_study.json``
   (``omni reproduce --friction all``, ``scripts/friction_study.py``);
-* ``models/calibration.json``, ``models/calibration_coulomb.json``, and the records of two
+* ``models/omni/calibration.json``, ``models/omni/calibration_coulomb.json``, and the records of two
   calibrations not adopted, ``docs/studies/calibration/calibration_coulomb_run.json`` (a hard stick, every robot
   parameter free) and ``docs/studies/calibration/calibration_weighted_run.json`` (``scripts/calibrate.py``);
 * ``docs/reference/bench.json`` (``omni bench``), ``docs/studies/sweep/results.csv`` (``omni sweep``);
@@ -91,12 +91,12 @@ def load_sources() -> dict:
             "comparison": _json("docs/studies/friction/comparison.json"),
             "lugre_params": _json("docs/studies/friction/lugre/params.json"),
             "study": _json("docs/studies/friction/friction_study.json"),
-            "cal": _json("models/calibration.json"),
-            "cal_coulomb": _json("models/calibration_coulomb.json"),
+            "cal": _json("models/omni/calibration.json"),
+            "cal_coulomb": _json("models/omni/calibration_coulomb.json"),
             "cal_hard_stick": _json("docs/studies/calibration/calibration_coulomb_run.json"),
             "cal_coulomb_all_free": _json("docs/studies/fidelity/coulomb_all_free.json"),
             "cal_weighted": _json("docs/studies/calibration/calibration_weighted_run.json"),
-            "cal_matched": _json("models/calibration_matched.json"),
+            "cal_matched": _json("models/omni/calibration_matched.json"),
             "matched_summary": _json("docs/studies/friction/matched/summary.json"),
             "search": _json("docs/studies/fidelity/search.json"),
             "bench": _json("docs/reference/bench.json"),
@@ -226,7 +226,7 @@ def _cal_detail(rec: dict) -> dict:
 
 
 def calibration_targets(src: dict) -> str:
-    """docs/studies/calibration/calibration.md: the LuGre calibration (models/calibration.json) against the paper."""
+    """docs/studies/calibration/calibration.md: the LuGre calibration (models/omni/calibration.json) against the paper."""
     from omni_studies.calibration import TABLE10_ALPHA, TABLE10_C, TABLE10_FALL, c_at_alpha
 
     rec = src["cal"]

@@ -6,7 +6,7 @@ The virtual Omni is calibrated to the paper's Table 3, Table 9's resonance, Tabl
 section 2.3, yet the linear model (26) follows its steps 3-4x better than it follows the real
 Omni's (Table 11, linear column: median over the 25 Table 2 poses 11.2 mrad; lugre 3.1 mrad,
 coulomb 2.9 mrad).  This script is a first *screen* for the missing effect: for each base scene
-(``lugre`` = models/scene.xml, ``coulomb`` = models/scene_coulomb.xml) and each (effect,
+(``lugre`` = models/omni/scene.xml, ``coulomb`` = models/omni/scene_coulomb.xml) and each (effect,
 magnitude) of :data:`CONFIGURATIONS`, one effect at a time is written into a copy of the base's
 MjSpec (:func:`omni_sim.discrepancy.effects.apply`, target OMNI), the model is compiled and the
 paper's campaign runs on it in memory (:func:`omni_studies.reproduce.simulate_campaign`).  Nothing
@@ -28,7 +28,7 @@ screen may look at them.  As a second guard, every key containing "alpha" is dro
 is written (:func:`strip_alpha`).
 
 The magnitudes are data (:data:`CONFIGURATIONS`, each with its provenance in the library's
-docstrings or models/README.md), fixed before any result was seen.
+docstrings or models/omni/README.md), fixed before any result was seen.
 
 Writes ``--out`` (default docs/studies/fidelity/screen.json) and, next to it, ``screen.md`` and
 ``screen.png``.
@@ -62,8 +62,8 @@ COUNT_RAD = ENCODER_STEP_RAD
 #: (the table-level targets' band, omni_studies.calibration.STEP_BAND_REL).
 WITHIN = STEP_BAND_REL
 #: The bases: scene file (relative to the project) per friction family.
-BASES = {"lugre": "models/scene.xml", "coulomb": "models/scene_coulomb.xml"}
-#: The scene's calibrated LuGre element ``yaw_friction`` (models/scene_lugre.xml): sigma0
+BASES = {"lugre": "models/omni/scene.xml", "coulomb": "models/omni/scene_coulomb.xml"}
+#: The scene's calibrated LuGre element ``yaw_friction`` (models/omni/scene_lugre.xml): sigma0
 #: [N*m/rad], Fc, Fs [N*m], vs [rad/s]; the lugre base's presliding_friction values start here.
 LUGRE = (3.20549, 0.012916, 0.0316457, 0.615182)
 
@@ -73,11 +73,11 @@ LUGRE = (3.20549, 0.012916, 0.0316457, 0.615182)
 #: documented plausible range (the provenance says where).
 _SHARED = [
     ("coulomb_friction", "10mNm", [0.010],
-     "joint frictionloss 10 mN*m: middle of models/README.md's waist Coulomb estimate 5-20 mN*m; "
+     "joint frictionloss 10 mN*m: middle of models/omni/README.md's waist Coulomb estimate 5-20 mN*m; "
      "library grid value (effects/joint.py). lugre base: a hard stick added to the LuGre element "
      "(its frictionloss is 0); coulomb base: replaces the calibrated 3.85 mN*m"),
     ("coulomb_friction", "20mNm", [0.020],
-     "joint frictionloss 20 mN*m: top of models/README.md's 5-20 mN*m estimate; library grid value"),
+     "joint frictionloss 20 mN*m: top of models/omni/README.md's 5-20 mN*m estimate; library grid value"),
     ("stribeck_friction", "Fc5_Fs15_vs0.1", [0.005, 0.015, 0.1],
      "added stiff LuGre (Stribeck) element Fc 5, Fs 15 mN*m, vs 0.1 rad/s: the example of "
      "effects/friction.py's docstring (realistic Fc 5-20, Fs up to 35 mN*m); stacks on the base's friction"),
@@ -100,15 +100,15 @@ _SHARED = [
      "capstan cable 5 N*m/rad (a loose or stretched cable), rotor 1e-4 kg*m^2: effects/two_mass.py "
      "(k = 5: 600x the floor; grid 2, 5, 15, 40)"),
     ("armature", "5e-5", [5e-5],
-     "reflected rotor inertia 5e-5 kg*m^2: bottom of models/README.md's estimate 5e-5-2e-4 (nominal 1e-4)"),
+     "reflected rotor inertia 5e-5 kg*m^2: bottom of models/omni/README.md's estimate 5e-5-2e-4 (nominal 1e-4)"),
     ("armature", "2e-4", [2e-4],
-     "reflected rotor inertia 2e-4 kg*m^2: top of models/README.md's estimate 5e-5-2e-4"),
+     "reflected rotor inertia 2e-4 kg*m^2: top of models/omni/README.md's estimate 5e-5-2e-4"),
     ("actuator_lag", "2ms", [0.002],
      "first-order drive lag 2 ms (amplifier/current loop): library scale and grid value (effects/actuator.py)"),
     ("actuator_lag", "5ms", [0.005],
      "first-order drive lag 5 ms: library grid value (effects/actuator.py)"),
     ("time_delay", "2ms", [0.002],
-     "pure loop delay 2 ms: 'a USB servo loop's few ms' (effects/actuator.py; models/README.md: "
+     "pure loop delay 2 ms: 'a USB servo loop's few ms' (effects/actuator.py; models/omni/README.md: "
      "servo loop 1 kHz nominal, 700-900 Hz on some USB units); library grid value"),
     ("time_delay", "5ms", [0.005],
      "pure loop delay 5 ms: the upper end of 'a few ms' (effects/actuator.py); library grid value"),
@@ -129,7 +129,7 @@ _PRESLIDING = {
          "factor; its docstring: sigma0 3.2 -> 10 is 54x the floor"),
         ("presliding_friction", "Fc19_Fs35", [LUGRE[0], 0.0194, 0.0348, LUGRE[3]],
          "yaw_friction's levels at the top of the documented ranges, Fc 19.4 mN*m (x1.5, estimate "
-         "5-20) and Fs 34.8 mN*m (x1.1, below the 35 mN*m back-drive bound, models/README.md)"),
+         "5-20) and Fs 34.8 mN*m (x1.1, below the 35 mN*m back-drive bound, models/omni/README.md)"),
     ],
     "coulomb": [
         ("presliding_friction", "s3_Fc5_Fs10", [3.0, 0.005, 0.010, 0.5],
@@ -306,7 +306,7 @@ def format_markdown(doc: dict) -> str:
         "`docs/studies/fidelity/screen.png`). **This is a screen, not a calibration**: one effect of the "
         "discrepancy library (`omni_sim/discrepancy/effects/`) at a time, at 2-3 magnitudes fixed "
         "beforehand from the library's documented plausible ranges, written into the calibrated "
-        "`lugre` (`models/scene.xml`) or `coulomb` (`models/scene_coulomb.xml`) scene *without* "
+        "`lugre` (`models/omni/scene.xml`) or `coulomb` (`models/omni/scene_coulomb.xml`) scene *without* "
         "re-calibrating the friction, damping or inertia. A configuration that moves the step error "
         "but spoils Table 3 might still fit once calibrated jointly; one that does not move it at "
         "these magnitudes is unlikely to be the missing effect alone.",

@@ -15,7 +15,7 @@ capstan-driven Omni, and the arm servos' compliance, *calibrated jointly with th
 friction* by the same bounded least squares as the calibration (family lugre: damping, sigma0,
 Fc, Fs/Fc, vs; family coulomb: damping, frictionloss; plus the effect's free parameters), then
 pairs of the best single effects.  Every candidate of a family starts from that family's
-footing: ``lugre`` = the calibrated default scene (robot and A_r of models/calibration.json, 12
+footing: ``lugre`` = the calibrated default scene (robot and A_r of models/omni/calibration.json, 12
 parameters fitted in six chained runs), ``coulomb`` = the all-free Coulomb refit under the
 calibration's targets (robot, friction and A_r: ``docs/studies/fidelity/coulomb_all_free.json``, from
 ``scripts/calibrate.py --friction coulomb --free all --dry-run``).  The robot and A_r stay at the
@@ -61,8 +61,8 @@ def main(argv=None) -> int:
     ap.add_argument("--list", action="store_true", help="list the candidates and exit")
     ap.add_argument("--report-only", action="store_true", help="rewrite search.md/png from --out")
     ap.add_argument("--write-scene", metavar="ID", default=None,
-                    help="write candidate ID of --out into models/scene_matched.xml and its record "
-                         "models/calibration_matched.json (a lugre-footed candidate whose effects "
+                    help="write candidate ID of --out into models/omni/scene_matched.xml and its record "
+                         "models/omni/calibration_matched.json (a lugre-footed candidate whose effects "
                          "a scene can declare: %s)" % ", ".join(fs.SCENE_EFFECTS))
     ap.add_argument("--polish", action="append", default=None, metavar="ID",
                     help="continue candidate ID of --out from its fitted values (a chained run, "

@@ -10,7 +10,7 @@ Cases (each a set of parameters fitted by every method that can hold them):
 
 * ``servo_off``: the bank's geared servo with nothing hidden and the nominal that is off
   (``hidden.case("nominal_off")``): the four MJCF constants armature, damping, frictionloss,
-  gear, truth = ``models/servo_pendulum.xml``'s values;
+  gear, truth = ``models/servo_pendulum/servo_pendulum.xml``'s values;
 * ``servo_load``: the bank's ``load_friction`` case: the named model's ``mu_drive``,
   ``mu_back`` (truth ``servo_truth.MU_DRIVE``, ``MU_BACK``), the MJCF constants at the truth;
   ``servo_load_mjcf``: the same data, the four MJCF constants alone (what a plain rollout can

@@ -174,6 +174,9 @@ CASES = [
     ("generate --campaign nosuch --out o", {}, "unknown campaign 'nosuch'"),
     ("generate --model m.xml --out o", {"m.xml": "<mujoco><worldbody>"}, "m.xml: not a valid MJCF model"),
     ("generate --model m.xml --friction lugre --out o", {"m.xml": "<mujoco/>"}, "not both"),
+    # a built-in file's flat path (models/NAME): refused with its device folder's place
+    ("generate --model models/scene.xml --out o", {}, "models/scene.xml: model file not found (the built-in "
+     "model files are in one folder per device: models/omni/scene.xml)"),
     ("generate --reference ref.csv --out o", {"ref.csv": "t,r\n0,0\n"}, "ref.csv: fewer than 2 samples"),
     ("generate --reference ref.csv --out o", {"ref.csv": "t,r\n"}, "ref.csv: no data rows"),
     ("generate --reference ref.csv --out o", {"ref.csv": "t,r\n0,0\n0.2,0.1\n0.1,0\n"}, "increasing t"),
@@ -217,6 +220,8 @@ CASES = [
     ("reproduce --model m.xml --out o", {"m.xml": "plain text"}, "m.xml: not a valid MJCF model"),
     ("reproduce --friction all --model m.xml --out o", {"m.xml": "<mujoco/>"}, "not both"),
     ("reproduce --jobs 0 --out o", {}, "--jobs: must be >= 1"),
+    ("reproduce --model models/scene_coulomb.xml --out o", {}, "models/scene_coulomb.xml: model file not found "
+     "(the built-in model files are in one folder per device: models/omni/scene_coulomb.xml)"),
     # -- discrepancy
     ("discrepancy --measured data --out afile", {**GOOD, **A_FILE}, "afile: exists and is not a folder"),
     ("discrepancy --measured data --out nowhere/o", GOOD, "parent folder"),
@@ -225,6 +230,9 @@ CASES = [
     ("discrepancy --measured data --out o --joint nosuch", GOOD, "no joint 'nosuch'"),
     ("discrepancy --measured data --out o --actuator nosuch", GOOD, "no actuator 'nosuch'"),
     ("discrepancy --measured data --out o --model m.xml", {**GOOD, "m.xml": "<x>"}, "not a valid MJCF model"),
+    ("discrepancy --measured data --out o --model models/servo_pendulum.xml --joint pivot --actuator servo", GOOD,
+     "models/servo_pendulum.xml: model file not found (the built-in model files are in one folder per device: "
+     "models/servo_pendulum/servo_pendulum.xml)"),
     ("discrepancy --measured data --out o", data(gamma1_deg=1e9), "gamma1_deg, gamma2_deg: shoulder angle 1e+09"),
     ("discrepancy --measured data --out o", data(gamma1_set_deg=1e9), "shoulder angle 1e+09"),
     ("discrepancy --measured data --out o", data(kp=-2.0), "kp must be > 0"),
@@ -249,6 +257,8 @@ CASES = [
     ("sweep s.toml --out o --workers 2 --scheduler tcp://127.0.0.1:1",
      {"s.toml": STUDY + "[grid]\nkp = [1, 2]\n"}, "not with --scheduler"),
     ("sweep nosuch.toml --out o", {}, "nosuch.toml: study file not found"),
+    ("sweep s.toml --out o", {"s.toml": STUDY.replace('friction = "lugre"', 'model = "models/omni.xml"')
+                              + "[grid]\nkp = [1, 2]\n"}, "models/omni/omni.xml)"),
     # -- the parser
     ("bogus", {}, "invalid choice: 'bogus'"),
 ]
@@ -330,6 +340,23 @@ def test_the_undamaged_inputs_reach_the_work(argv, files, reached, tmp_path, mon
     _forbid_long_work(monkeypatch)
     with pytest.raises(LongWorkReached, match=reached):
         main(argv.split())
+
+
+@pytest.mark.parametrize("argv", [
+    "generate --model {omni}/scene_coulomb.xml --out o",
+    "generate --model {omni}/scene.xml --out o",
+    "generate --friction matched --out o",
+    "reproduce --model {omni}/scene_matched.xml --out o",
+])
+def test_the_built_in_files_reach_the_work(argv, tmp_path, monkeypatch):
+    """A built-in scene named by its path in the Omni's folder (``--model``) or by its family
+    (``--friction``) passes every check and reaches the long work (patched to raise)."""
+    from omni_sim import model as om
+
+    monkeypatch.chdir(tmp_path)
+    _forbid_long_work(monkeypatch)
+    with pytest.raises(LongWorkReached):
+        main(argv.format(omni=om.OMNI_DIR).split())
 
 
 class _ClosedPipe(io.StringIO):

@@ -71,7 +71,7 @@ def test_physical_margin_of_a_linear_plant(f_hz):
 
 
 def test_record_matches_model(figures):
-    """models/calibration.json records what the model now gives (same simulation, same bytes)."""
+    """models/omni/calibration.json records what the model now gives (same simulation, same bytes)."""
     fig, s = figures
     record = json.loads(cal.RECORD.read_text())
     for k in ("max_rel_error_C_linear", "max_rel_error_beta_tilde_linear", "max_angle_error_deg",
@@ -99,6 +99,24 @@ def test_calibration_writes_data_not_code(tmp_path):
     assert all(e.amplitude_rad == written for e in c.experiments() if e.kind == "sine")
 
 
+def test_the_calibration_writes_into_the_omnis_folder():
+    """scripts/calibrate.py writes the model files and records of the Omni's folder
+    (models/omni/), as the table-level search's --write-scene does."""
+    import inspect
+
+    from omni_studies import fidelity
+
+    assert cal.RECORDS == {"lugre": om.OMNI_DIR / "calibration.json",
+                           "coulomb": om.OMNI_DIR / "calibration_coulomb.json"}
+    assert all(p.is_file() for p in cal.RECORDS.values())
+    assert inspect.signature(cal.write_model).parameters["folder"].default == om.OMNI_DIR
+    checkout = fidelity.ROOT / "models" / "omni"
+    assert fidelity.OMNI_DIR == checkout
+    assert fidelity.MATCHED_SCENE == checkout / "scene_matched.xml" and fidelity.MATCHED_SCENE.is_file()
+    assert fidelity.MATCHED_RECORD == checkout / "calibration_matched.json" and fidelity.MATCHED_RECORD.is_file()
+    assert fidelity.SCENES == {f: checkout / f"scene_{f}.xml" for f in ("lugre", "coulomb")}
+
+
 @pytest.mark.parametrize("family", ["lugre", "coulomb"])
 def test_write_model_round_trip(tmp_path, family):
     """Writing a family's current friction values back changes no byte; changed values land in
@@ -106,7 +124,7 @@ def test_write_model_round_trip(tmp_path, family):
     and leave the other family's scene alone."""
     import shutil
 
-    for f in om.MODELS_DIR.glob("*.xml"):
+    for f in om.OMNI_DIR.glob("*.xml"):
         shutil.copy(f, tmp_path / f.name)
     model = om.load_model(tmp_path / f"scene_{family}.xml")
     now = cal.current_values(model)
@@ -149,7 +167,7 @@ def test_record_carries_the_code_residual_scales(family):
 
 
 def test_coulomb_record_matches_its_scene():
-    """models/calibration_coulomb.json records what scene_coulomb.xml gives (re-measured here);
+    """models/omni/calibration_coulomb.json records what scene_coulomb.xml gives (re-measured here);
     its residual scales are checked against the code's by the test above."""
     model = om.load_model(friction="coulomb")
     record = json.loads(cal.RECORDS["coulomb"].read_text())

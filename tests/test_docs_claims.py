@@ -2,7 +2,7 @@
 
 ``scripts/docs_tables.py`` renders the pages' results tables from docs/reference/bench.json,
 docs/studies/reproduce/summary.json, docs/studies/friction/*.json, docs/studies/sweep/results.csv,
-docs/studies/calibration/calibration_*_run.json and models/calibration*.json, and the figures their prose quotes
+docs/studies/calibration/calibration_*_run.json and models/omni/calibration*.json, and the figures their prose quotes
 from them and from docs/studies/haptics/zwidth_ideal.json and examples/real_servo/report/report.json;
 these tests fail when a page and those files drift apart (re-run the tool that writes the
 file, then ``python scripts/docs_tables.py --write`` and fix the prose it lists), and when a

@@ -16,7 +16,7 @@ from omni_sim.discrepancy import effects as fx
 from omni_sim.device import Device
 
 NEW = ("presliding_friction", "stribeck_friction", "drive_compliance", "backlash", "arm_mass", "cogging")
-COUNT = 2 * math.pi / 15000  # one encoder count [rad] (models/README.md)
+COUNT = 2 * math.pi / 15000  # one encoder count [rad] (models/omni/README.md)
 
 #: A single-joint robot that is not the Omni: a pendulum on the hinge ``pivot`` driven by the
 #: motor ``servo``, with a sensor and a keyframe naming the joint, and elements already called
@@ -44,7 +44,7 @@ PENDULUM_TARGET = om.Target("pivot", "servo")
 
 
 def _omni(scene="scene.xml"):
-    return mujoco.MjSpec.from_file(str(om.MODELS_DIR / scene))
+    return mujoco.MjSpec.from_file(str(om.OMNI_DIR / scene))
 
 
 def _pendulum():
@@ -121,14 +121,14 @@ def test_added_dcmotor_equals_the_mjcf_element():
     s2 = fx.apply(spec, [(fx.get("presliding_friction"), [3.0, 0.01, 0.02, 0.4]),
                          (fx.get("cogging"), [0.002, 0.7])])
     m = s2.compile()
-    xml = (om.MODELS_DIR / "scene_coulomb.xml").read_text().replace(
+    xml = (om.OMNI_DIR / "scene_coulomb.xml").read_text().replace(
         '</mujoco>',
         '<actuator><dcmotor name="p" joint="yaw" input="none" resistance="1" lugre="3 0 0.01 0.02 0.4"/>'
         f'<dcmotor name="c" joint="yaw" input="none" resistance="1" cogging="0.002 {fx.COGGING_PERIODS} 0.7"/>'
         '</actuator></mujoco>')
     assert xml.count("<dcmotor") == 2
     for inc in ("omni.xml", "stage.xml"):
-        xml = xml.replace(f'file="{inc}"', f'file="{om.MODELS_DIR / inc}"')
+        xml = xml.replace(f'file="{inc}"', f'file="{om.OMNI_DIR / inc}"')
     ref = mujoco.MjModel.from_xml_string(xml)
     for k in ("actuator_gainprm", "actuator_biasprm", "actuator_dynprm", "actuator_gaintype",
               "actuator_biastype", "actuator_dyntype", "actuator_actnum", "actuator_ctrladr"):

@@ -120,7 +120,7 @@ def test_dt_is_timestep_times_substeps(tmp_path):
     assert env2.substeps == 2 and env2.dt == pytest.approx(2e-3, abs=1e-15)
     assert env2.metadata["render_fps"] == 500
     # a model with a 0.5 ms physics step: two substeps per 1 ms control period
-    xml = (om.MODELS_DIR / "omni.xml").read_text().replace('timestep="0.001"', 'timestep="0.0005"')
+    xml = (om.OMNI_DIR / "omni.xml").read_text().replace('timestep="0.001"', 'timestep="0.0005"')
     (tmp_path / "omni_fast.xml").write_text(xml)
     env3 = gym.make(ENV_ID, model_path=tmp_path / "omni_fast.xml")
     assert env3.unwrapped.substeps == 2

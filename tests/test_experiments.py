@@ -77,7 +77,7 @@ def test_coulomb_friction_amplitude_loss(model):
 def test_step_settles_inside_the_friction_band(model):
     """A P-held step ends inside the static friction band |kp beta_bar e| <= Fs + frictionloss
     (the drive can hold that much torque at rest), and its residual pre-sliding oscillation
-    decays (the LuGre drive has no hard stick; models/README.md, "Friction")."""
+    decays (the LuGre drive has no hard stick; models/omni/README.md, "Friction")."""
     run = ex.simulate(Device(model), [ex.square_experiment(45, 90)])[0]
     dev = Device(model)
     f = dev.friction()

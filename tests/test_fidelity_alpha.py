@@ -131,7 +131,7 @@ def test_campaign_is_the_paper_campaign_at_the_candidates_amplitude(tmp_path):
 
 def test_rebuilt_matched_candidate_is_the_matched_scene():
     """The matched family's candidate, rebuilt from the search record, has the friction that
-    models/scene_matched.xml declares (written from the same record, 6 significant digits)."""
+    models/omni/scene_matched.xml declares (written from the same record, 6 significant digits)."""
     import mujoco
 
     from omni_sim import model as om
@@ -213,7 +213,7 @@ def test_pages_quote_what_the_rules_fixed_before_the_search_say():
     doc = copy.deepcopy(SEARCH)
     report._refresh(doc)
     by_id = {r["id"]: r for r in doc["candidates"]}
-    matched = json.loads((ROOT / "models/calibration_matched.json").read_text())["from_candidate"]
+    matched = json.loads((ROOT / "models/omni/calibration_matched.json").read_text())["from_candidate"]
     n_matched = report._n_figures(by_id[matched])
     n_default = sum(by_id["lugre/none"]["figures_start"]["meets"][k] for k in report.ACCEPTANCE_FIGURES)
     scene = sorted((r for r in doc["candidates"] if r.get("ok") and r["family"] == "lugre"

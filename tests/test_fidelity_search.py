@@ -69,7 +69,7 @@ def test_only_declarable_candidates_become_a_scene():
         search.write_scene(doc, "coulomb/presliding_friction")
     with pytest.raises(ValueError, match="no successful candidate"):
         search.write_scene(doc, "lugre/no_such_effect")
-    record = json.loads((ROOT / "models/calibration_matched.json").read_text())
+    record = json.loads((search.MATCHED_RECORD).read_text())
     report._refresh(doc)
     ranked = [r for r in report._best(doc)
               if r["family"] == "lugre" and all(e in search.SCENE_EFFECTS for e in r["effects"])]

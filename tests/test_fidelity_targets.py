@@ -321,7 +321,7 @@ def test_step_figures_match_the_reproduction(evaluation):
 # -- the matched scene ----------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def matched():
-    record = json.loads((om.MODELS_DIR / "calibration_matched.json").read_text())
+    record = json.loads((om.OMNI_DIR / "calibration_matched.json").read_text())
     fig = cal.evaluate(om.load_model(friction="matched"), cal.ex.SINE_AMPLITUDE_RAD, steps=True)
     return record, fig
 

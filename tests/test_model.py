@@ -25,7 +25,7 @@ SCENES = ["scene.xml", "scene_lugre.xml", "scene_coulomb.xml", "scene_matched.xm
 
 @pytest.mark.parametrize("name", SCENES)
 def test_steps_without_warnings(name):
-    m = om.load_model(om.MODELS_DIR / name)
+    m = om.load_model(om.OMNI_DIR / name)
     d = mujoco.MjData(m)
     if m.nkey:
         mujoco.mj_resetDataKeyframe(m, d, 0)
@@ -39,7 +39,7 @@ def test_steps_without_warnings(name):
 
 def test_every_element_named_and_home_key():
     for name in SCENES + ["stage.xml"]:
-        root = ET.parse(om.MODELS_DIR / name).getroot()
+        root = ET.parse(om.OMNI_DIR / name).getroot()
         for default in root.iter("default"):  # class defaults are templates, not elements
             default.clear()
         for tag in ("body", "joint", "geom", "site", "motor", "position", "dcmotor", "key", "light",
@@ -78,7 +78,7 @@ def test_friction_families():
 def test_contract_names(model):
     dev = Device(model)
     ix = dev.ix
-    # the torque constant is the yaw motor's gear, fixed at 0.5 N*m/V (models/README.md)
+    # the torque constant is the yaw motor's gear, fixed at 0.5 N*m/V (models/omni/README.md)
     assert dev.torque_constant == model.actuator_gear[ix.yaw_act, 0] == 0.5
     yaw = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "yaw")
     assert np.allclose(model.jnt_axis[yaw], [0, 0, 1]), "yaw axis must be vertical"
@@ -137,7 +137,7 @@ def test_yaw_inertia_matches_analytic_5(model):
 def test_yaw_inertia_public_signature():
     a = omni_sim.yaw_inertia(65.0, 90.0)
     b = omni_sim.yaw_inertia(65.0, 90.0, model_path=om.DEFAULT_SCENE)
-    assert a == b and 1e-3 < a < 3e-3  # estimate in models/README.md: 1-3e-3 kg*m^2
+    assert a == b and 1e-3 < a < 3e-3  # estimate in models/omni/README.md: 1-3e-3 kg*m^2
 
 
 def test_arm_sags_below_set_points(model):
@@ -165,6 +165,44 @@ def test_equilibrium_is_static(model):
 def test_pose_out_of_range(model):
     with pytest.raises(UserError, match="outside the joint range"):
         Device(model).equilibrium(120, 90)
+
+
+def test_model_files_in_their_device_folders():
+    """One folder per device: the Omni's files in ``OMNI_DIR`` (the default scene, each
+    family's scene, the robot, the stage), the servo pendulum in its own folder; the built-in
+    scenes are recognised by their paths there."""
+    from omni_sim.discrepancy import servo_truth
+
+    assert om.OMNI_DIR == om.MODELS_DIR / "omni" and omni_sim.OMNI_DIR == om.OMNI_DIR
+    assert om.DEFAULT_SCENE == om.OMNI_DIR / "scene.xml" == om.scene_path() == om.model_path()
+    for fam in om.FRICTION_FAMILIES:
+        path = om.scene_path(fam)
+        assert path == om.OMNI_DIR / f"scene_{fam}.xml" == om.model_path(friction=fam)
+        assert path.is_file() and om.builtin_family(path) == fam
+    assert om.builtin_family(om.DEFAULT_SCENE) == om.DEFAULT_FRICTION
+    assert om.builtin_family(om.SERVO_PENDULUM) is None
+    for name in ("omni.xml", "stage.xml"):
+        assert (om.OMNI_DIR / name).is_file()
+    assert om.SERVO_PENDULUM == om.SERVO_PENDULUM_DIR / "servo_pendulum.xml" == servo_truth.model_path()
+    assert om.SERVO_PENDULUM_DIR == om.MODELS_DIR / "servo_pendulum" and om.SERVO_PENDULUM.is_file()
+    assert not list(om.MODELS_DIR.glob("*.xml")) and not list(om.MODELS_DIR.glob("*.json"))
+    # a scene's digest covers its own folder's files only
+    assert om.model_digest(om.DEFAULT_SCENE) != om.model_digest(om.SERVO_PENDULUM)
+
+
+def test_a_flat_path_names_the_device_folder(tmp_path):
+    """A built-in file named where it is not (``models/NAME``): the error names its place in
+    its device's folder; any other missing file gets the plain error."""
+    for name, folder in (("scene.xml", "omni"), ("scene_coulomb.xml", "omni"), ("omni.xml", "omni"),
+                         ("servo_pendulum.xml", "servo_pendulum")):
+        with pytest.raises(UserError) as err:
+            om.load_model(f"models/{name}")
+        assert str(err.value) == (f"models/{name}: model file not found (the built-in model files "
+                                  f"are in one folder per device: models/{folder}/{name})")
+    assert om.model_not_found(tmp_path / "models" / "scene.xml").endswith(
+        str(tmp_path / "models" / "omni" / "scene.xml") + ")")
+    assert om.model_not_found("models/mine.xml") == "models/mine.xml: model file not found"
+    assert om.model_not_found("elsewhere/scene.xml") == "elsewhere/scene.xml: model file not found"
 
 
 def test_bad_models(tmp_path):
@@ -195,11 +233,11 @@ def _yaw_under_torque(model, torque, seconds):
 
 
 def test_yaw_friction_pre_sliding_is_elastic_and_sliding_starts_above_Fs():
-    """The LuGre friction of the yaw drive (models/README.md, "Friction").  Loaded slowly from
+    """The LuGre friction of the yaw drive (models/omni/README.md, "Friction").  Loaded slowly from
     rest (speed << vs, so the level is Fs) the bristle state obeys dz/dtheta = 1 - sigma0 z / Fs
     and rests where sigma0 z = tau: theta = -(Fs/sigma0) ln(1 - tau/Fs), about tau/sigma0 for
     small tau (analytic).  Above Fs the drive slides away."""
-    m = om.load_model(om.MODELS_DIR / "scene.xml")
+    m = om.load_model(om.OMNI_DIR / "scene.xml")
     f = Device(m).friction()
     assert f["frictionloss"] == 0 and 0 < f["lugre_Fc"] <= f["lugre_Fs"]
     s0, fs = f["lugre_sigma0"], f["lugre_Fs"]

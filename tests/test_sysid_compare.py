@@ -44,7 +44,7 @@ def test_the_record_holds_every_case_and_method():
 
 
 def test_truths_are_the_models():
-    """servo_off's truths are models/servo_pendulum.xml's constants; servo_load's the hidden
+    """servo_off's truths are models/servo_pendulum/servo_pendulum.xml's constants; servo_load's the hidden
     law's coefficients; the other two cases have none."""
     m = mujoco.MjModel.from_xml_path(str(servo_truth.model_path()))
     dof = int(m.jnt_dofadr[m.joint(servo_truth.JOINT).id])

@@ -186,11 +186,11 @@ def test_the_stated_bounds_are_the_code_s(no_engine):
 
 
 def _models_copy(tmp_path, old: str, new: str, file: str) -> Path:
-    """The built-in models folder copied with one edit; returns its default scene."""
+    """The Omni's model folder copied with one edit; returns its default scene."""
     import shutil
 
-    dst = tmp_path / "models"
-    shutil.copytree(ROOT / "models", dst)
+    dst = tmp_path / "omni"
+    shutil.copytree(ROOT / "models" / "omni", dst)
     text = (dst / file).read_text()
     assert old in text
     (dst / file).write_text(text.replace(old, new))

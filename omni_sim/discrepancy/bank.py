@@ -58,7 +58,7 @@ RANGES = {
     "cogging": ((0.0015, 0.006, False), (-math.pi, math.pi, False)),
 }
 #: Nominal values the signed ranges of :data:`RANGES` are offsets from, as fractions
-#: (``torque_gain``: the scene's gear; ``arm_mass``: the calibrated link masses; models/omni.xml);
+#: (``torque_gain``: the scene's gear; ``arm_mass``: the calibrated link masses; models/omni/omni.xml);
 #: other effects are drawn as absolute values.
 RANGE_CENTRE = {"torque_gain": (0.5,), "arm_mass": (0.0687884, 0.0594899)}
 

@@ -15,7 +15,7 @@ device; the case ``none_exact`` has neither.  The workflow sees only these runs 
 model.
 
 Two cases are not the Omni: ``load_friction`` and ``asymmetric_friction`` (``truth="servo"``)
-are a pendulum on a geared servo (nominal model ``models/servo_pendulum.xml``, joint ``pivot``,
+are a pendulum on a geared servo (nominal model ``models/servo_pendulum/servo_pendulum.xml``, joint ``pivot``,
 actuator ``servo``: see :func:`nominal`) whose gearbox friction grows with the torque it
 transmits, or whose Coulomb level depends on the direction of motion; their truth is a
 per-step simulation of its own and their runs are logged as a host logs a servo (irregular
@@ -97,15 +97,15 @@ def _single(name: str, values: tuple, note: str) -> HiddenCase:
     return HiddenCase(name, ((name, tuple(values)),), expect=(name,), note=note)
 
 
-#: The cases (the bank).  Magnitudes: see the ``note`` of each case (models/README.md and
+#: The cases (the bank).  Magnitudes: see the ``note`` of each case (models/omni/README.md and
 #: the effect library's docstring give the device estimates quoted there).
 CASES: tuple[HiddenCase, ...] = (
     _single("coulomb_friction", (0.015,),
             "hard-stick frictionloss 15 mN*m on top of the LuGre drive friction (Fc 12.9 mN*m): "
             "the 5-20 mN*m estimate of the waist's dry friction; total 28 mN*m stays below the "
-            "35 mN*m back-drive bound (models/README.md)"),
+            "35 mN*m back-drive bound (models/omni/README.md)"),
     _single("viscous_damping", (0.012,),
-            "1.2e-2 N*m*s/rad instead of the calibrated 6.9e-3 (models/scene_lugre.xml): a "
+            "1.2e-2 N*m*s/rad instead of the calibrated 6.9e-3 (models/omni/scene_lugre.xml): a "
             "+70 % change, e.g. cold grease or a lower-impedance amplifier (more back-EMF damping)"),
     _single("joint_stiffness", (0.06,),
             "cable spring 0.06 N*m/rad: the stylus cable pulls ~6 mN*m at 0.1 rad (estimate, a "
@@ -115,13 +115,13 @@ CASES: tuple[HiddenCase, ...] = (
             "level (estimate)"),
     _single("armature", (2.5e-4,),
             "reflected rotor + capstan inertia 2.5e-4 kg*m^2 instead of 1e-4: the upper end of "
-            "the 5e-5..2e-4 estimate (models/README.md) plus the capstan drum"),
+            "the 5e-5..2e-4 estimate (models/omni/README.md) plus the capstan drum"),
     _single("actuator_lag", (0.002,),
             "2 ms drive lag: electrical time constant L/R of a small brushed motor (0.1-1 ms) "
             "plus the amplifier's input filter (estimate, upper end)"),
     _single("time_delay", (0.004,),
             "4 ms loop delay: USB frames of 1 ms plus the driver's scheduling on 700-900 Hz "
-            "units (models/README.md: servo loop 700-900 Hz measured on some USB units)"),
+            "units (models/omni/README.md: servo loop 700-900 Hz measured on some USB units)"),
     _single("torque_saturation", (0.1,),
             "drive limited to 100 mN*m: half the vendor demo's 200 mN*m waist limit (thermal "
             "foldback of the amplifier); only the 0.2 rad steps ask for more"),
@@ -135,7 +135,7 @@ CASES: tuple[HiddenCase, ...] = (
             "another unit's LuGre drive friction: bristle stiffness 6 instead of 3.2 N*m/rad, "
             "Coulomb 10 instead of 12.9 mN*m, static 25 instead of 31.6 mN*m, Stribeck speed 0.4 "
             "instead of 0.62 rad/s (unit-to-unit spread of friction, estimate: all within the "
-            "calibration's bounds, models/calibration.json)"),
+            "calibration's bounds, models/omni/calibration.json)"),
     _single("stribeck_friction", (0.005, 0.010, 0.1),
             "a second dry-friction source with stiction (e.g. the capstan cable's wrap): Coulomb "
             "5, static 10 mN*m, Stribeck speed 0.1 rad/s; total static friction 42 mN*m, 1.2x the "
@@ -148,7 +148,7 @@ CASES: tuple[HiddenCase, ...] = (
             "a loose capstan cable: +-1 mrad of slack (2.4 encoder counts) between motor and "
             "turret (estimate; a tensioned capstan has none)"),
     _single("arm_mass", (0.080, 0.050),
-            "link masses 80 and 50 g instead of the calibrated 68.8 and 59.5 g (models/omni.xml "
+            "link masses 80 and 50 g instead of the calibrated 68.8 and 59.5 g (models/omni/omni.xml "
             "[calib]): +16 % and -16 %, the spread of a mass fitted through the yaw inertia"),
     _single("cogging", (0.003, 0.5),
             "motor cogging 3 mN*m at the turret, 45 periods per turn (a small iron-core motor's "
@@ -185,7 +185,7 @@ CASES: tuple[HiddenCase, ...] = (
                          "the positive end; the sines reach 0.15 rad and never touch it)"),
     HiddenCase("load_friction", (("load_friction", (servo_truth.MU_DRIVE, servo_truth.MU_BACK)),),
                expect=("load_friction",), truth="servo",
-               note="a pendulum (0.82 kg, m*g*l 1.18 N*m) on a 12 V geared servo (models/servo_pendulum.xml: "
+               note="a pendulum (0.82 kg, m*g*l 1.18 N*m) on a 12 V geared servo (models/servo_pendulum/servo_pendulum.xml: "
                     "0.30 N*m/V, back-EMF 0.36 N*m*s/rad, Fc 30 mN*m) whose gearbox friction grows with "
                     "the torque it transmits: mu_drive 0.15 (forward efficiency 0.85 of a ~350:1 spur "
                     "gearbox, 0.96-0.97 per mesh) and mu_back 0.45 (back-driving efficiency 0.69, an "
@@ -193,7 +193,7 @@ CASES: tuple[HiddenCase, ...] = (
                     "of 5 s logged at ~200 Hz with jitter, 4096-count encoder (servo_truth.py)"),
     HiddenCase("asymmetric_friction", (("asymmetric_friction", (servo_truth.ASYMMETRY_NM,)),),
                expect=("asymmetric_friction",), truth="servo",
-               note="the same geared servo and pendulum (models/servo_pendulum.xml, Fc 30 mN*m) whose "
+               note="the same geared servo and pendulum (models/servo_pendulum/servo_pendulum.xml, Fc 30 mN*m) whose "
                     "Coulomb friction depends on the direction of motion: +7.5 mN*m moving positive, "
                     "-7.5 mN*m moving negative (25 % of Fc; an estimate set before the case was run: "
                     "about half of a small servo's no-load friction is the brushed motor's, whose brush "
@@ -215,7 +215,7 @@ NOMINAL_OFF_CASES = (
                     "inertia about the pivot, 2.07e-2 kg*m^2, taken 15 % too large) and its Coulomb "
                     "level 18 instead of 30 mN*m (40 % low); the corrections must bring both back"),
     HiddenCase("nominal_off", (), expect=("none",), truth="servo", nominal_joint=SERVO_NOMINAL_OFF,
-               note="the geared servo with nothing hidden (the truth is models/servo_pendulum.xml "
+               note="the geared servo with nothing hidden (the truth is models/servo_pendulum/servo_pendulum.xml "
                     "itself) and the load_friction_nominal_off case's wrong nominal: corrections "
                     "only, no effect named"),
 )

@@ -4,8 +4,9 @@ and their "measured" runs as a host logs a real servo.
 
 Written independently of the effect library (:mod:`omni_sim.discrepancy.effects`) and of the
 device's closed-loop engine (:mod:`omni_sim.device`): a plain loop over physics steps with
-``mujoco.mj_step`` on a private copy of the nominal model ``models/servo_pendulum.xml`` (joint
-``pivot``, actuator ``servo``, control in volts).
+``mujoco.mj_step`` on a private copy of the nominal model
+``models/servo_pendulum/servo_pendulum.xml`` (joint ``pivot``, actuator ``servo``, control in
+volts).
 
 The hidden law (load-dependent and direction-dependent gearbox friction)
 ------------------------------------------------------------------------
@@ -64,8 +65,8 @@ from identification.dataset import Run
 
 from .. import model as om
 
-#: The nominal model (the bank case's ``--model``) and its controlled joint and actuator.
-MODEL_FILE = "servo_pendulum.xml"
+#: The nominal model's controlled joint and actuator (the bank case's ``--joint``/``--actuator``;
+#: its ``--model`` is :func:`model_path`).
 JOINT, ACTUATOR = "pivot", "servo"
 #: The hidden load-dependent friction's coefficients [-] (absolute; the nominal model has 0):
 #: forward efficiency eta_f = 0.85 of a 4-5 stage spur gearbox (0.96-0.97 per mesh, textbook
@@ -122,8 +123,9 @@ DURATION_S = 5.0
 
 
 def model_path() -> Path:
-    """The nominal model's file (shipped in the data package ``omni_sim.models``)."""
-    return om.MODELS_DIR / MODEL_FILE
+    """The nominal model's file (shipped in the data package ``omni_sim.models``, its folder
+    ``servo_pendulum/``)."""
+    return om.SERVO_PENDULUM
 
 
 def target() -> om.Target:
@@ -354,7 +356,7 @@ def measure(e: Experiment, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BA
     def run(t_log, r, en, noise, step):
         return simulate(t_log, r, en, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry_nm,
                         noise=noise, step_rad=step, path=path)
-    return _logged_run(e, run, seed, exact, "models/servo_pendulum.xml + load-dependent or "
+    return _logged_run(e, run, seed, exact, "models/servo_pendulum/servo_pendulum.xml + load-dependent or "
                        "direction-dependent gearbox friction")
 
 
@@ -438,13 +440,13 @@ def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK)),), seed: int = 1, e
 ETA_DRIVE = 1.0 - MU_DRIVE
 ETA_BACK = 1.0 / (1.0 + MU_BACK)
 #: The smooth sign's speed w_s [rad/s] at the output: 0.05 rad/s, 0.5 % of the servo's no-load
-#: speed (12 V / kt 1.2 V*s/rad = 10 rad/s, models/servo_pendulum.xml), ~17 rad/s at the rotor
+#: speed (12 V / kt 1.2 V*s/rad = 10 rad/s, models/servo_pendulum/servo_pendulum.xml), ~17 rad/s at the rotor
 #: through ~350:1.  An ESTIMATE (a regularised Coulomb law's transition speed is a modelling
 #: choice, not a datasheet figure): the loss reaches 76 % of its level at w_s and 99.9 % at
 #: 4 w_s = 0.2 rad/s, below the bank runs' peak speeds (~1-3 rad/s), so the law is a Coulomb
 #: law in motion and differs from a stick only near rest and at reversals.
 SMOOTH_SPEED_RAD_S = 0.05
-#: The servo's torque constant at the output [N*m/A] (models/servo_pendulum.xml's comment:
+#: The servo's torque constant at the output [N*m/A] (models/servo_pendulum/servo_pendulum.xml's comment:
 #: kt = 1.2 N*m/A, R = 4 ohm): the back-EMF c_e = kt^2/R = kt * gear = 0.36 N*m*s/rad, the part
 #: of the joint's damping (0.37) that is the motor's, not the bearing's (0.01).
 KT_NM_PER_A = 1.2
@@ -538,7 +540,7 @@ def measure_efficiency(e: Experiment, *, eta_drive: float = ETA_DRIVE, eta_back:
     def run(t_log, r, en, noise, step):
         return simulate_efficiency(t_log, r, en, eta_drive=eta_drive, eta_back=eta_back,
                                    smooth_speed=smooth_speed, noise=noise, step_rad=step, path=path)
-    return _logged_run(e, run, seed, exact, "models/servo_pendulum.xml + a gear efficiency law with a "
+    return _logged_run(e, run, seed, exact, "models/servo_pendulum/servo_pendulum.xml + a gear efficiency law with a "
                        "smooth sign")
 
 

@@ -26,7 +26,7 @@ import math
 import mujoco
 import numpy as np
 
-# The contract's names in the virtual Omni (models/omni.xml, models/scene_lugre.xml).
+# The contract's names in the virtual Omni (models/omni/omni.xml, models/omni/scene_lugre.xml).
 JOINT = "yaw"
 MOTOR = "yaw_motor"
 FRICTION = "yaw_friction"
@@ -136,7 +136,7 @@ STRIBECK_SIGMA = (1000.0, 1.0)
 #: 0.1 N*m), shared so the half-width is comparable.
 BACKLASH_SOLREF_STEPS = 2.0
 BACKLASH_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
-#: The Omni's arm links whose masses ``arm_mass`` states (models/omni.xml).
+#: The Omni's arm links whose masses ``arm_mass`` states (models/omni/omni.xml).
 ARM_LINKS = ("upper_arm", "forearm")
 
 

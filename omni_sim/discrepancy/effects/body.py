@@ -5,7 +5,7 @@
   Gravity acting on the arm's mass moment ``m*R`` about the yaw axis gives a torque
   ``m R g (sin(ty) cos(theta) - sin(tx) sin(theta))``: ``tx`` acts like a pose-dependent spring,
   ``ty`` like a pose-dependent constant torque.
-* ``arm_mass``: the calibrated link masses (68.8 g, 59.5 g, models/omni.xml) are inferred
+* ``arm_mass``: the calibrated link masses (68.8 g, 59.5 g, models/omni/omni.xml) are inferred
   from the paper's data; +-30 % is a realistic doubt.  +20 % on both links is ~390x the noise
   floor (the package docstring; the arm's gravity sag changes too).  Applies only where both
   bodies have an explicit inertial.

@@ -74,7 +74,7 @@ def _ensure_torque_sensor(spec: mujoco.MjSpec, target: Target) -> None:
 def _geared(spec, target: Target) -> bool:
     """Whether the drive can have a gearbox: every device but the virtual Omni, whose yaw is
     driven by a capstan (a cable on a drum: no gear mesh whose efficiency sets a load-dependent
-    friction; models/README.md), unless its model already declares the law."""
+    friction; models/omni/README.md), unless its model already declares the law."""
     return target != OMNI or spec.numeric(LOAD_FRICTION) is not None
 
 

@@ -19,7 +19,7 @@ elements) and ``cogging``.
   ratio, ~1/10-1/4 of the drive's Coulomb level; estimate): 1 mN*m is 4.8x the floor, 3 mN*m 14x.
   The phase is bounded to +-2 pi so a fit started in [-pi, pi) does not sit on a bound.
 
-(The Omni's numbers are estimates: models/README.md, models/omni.xml; "the floor": see the
+(The Omni's numbers are estimates: models/omni/README.md, models/omni/omni.xml; "the floor": see the
 package docstring.)
 """
 
@@ -145,7 +145,7 @@ def _write_presliding(spec, x, target=OMNI):
     a = _presliding_element(spec, target)
     if a is None:
         a = _add_dcmotor(spec, _presliding_name(target), target.joint, lugre=True)
-        sigma1 = 0.0  # as the default scene's yaw_friction (models/scene_lugre.xml)
+        sigma1 = 0.0  # as the default scene's yaw_friction (models/omni/scene_lugre.xml)
     else:
         sigma1 = float(a.dynprm[6])  # kept as in the model
     _set_lugre(a, x[0], sigma1, x[1], x[2], x[3])
@@ -157,7 +157,7 @@ def _presliding_grid(x0):
              (1, 1.5, 1.5, 1), (1, 1, 1, 0.3)]
         return np.array([[x0[0] * a, x0[1] * b, x0[2] * c, x0[3] * d] for a, b, c, d in f])
     # none yet: the default scene's calibrated LuGre (sigma0 ~ 3 N*m/rad, Fc ~ 13, Fs ~ 32 mN*m,
-    # vs ~ 0.6 rad/s; models/README.md) and stiffer/weaker variants
+    # vs ~ 0.6 rad/s; models/omni/README.md) and stiffer/weaker variants
     return np.array([[s0, fc, fs, 0.5] for s0, fc, fs in
                      ((3.0, 0.01, 0.02), (10.0, 0.01, 0.02), (30.0, 0.01, 0.02), (3.0, 0.005, 0.01),
                       (10.0, 0.02, 0.04))])
@@ -179,7 +179,7 @@ def _write_stribeck(spec, x, target=OMNI):
 
 def _stribeck_grid(x0):
     # levels around the Omni's estimate (Fc 5-20 mN*m, Fs up to the 35 mN*m back-drive bound;
-    # models/README.md) and Stribeck speeds a decade apart
+    # models/omni/README.md) and Stribeck speeds a decade apart
     return np.array([[fc, fs, vs] for fc, fs, vs in
                      ((0.005, 0.015, 0.1), (0.005, 0.015, 0.5), (0.01, 0.03, 0.1), (0.01, 0.03, 0.5),
                       (0.02, 0.035, 0.3))])

@@ -9,7 +9,7 @@
   1 ms step is unstable above k ~ 4 J/dt^2 (~400 N*m/rad for 1e-4 kg*m^2; a probe script
   diverged at 400).  The candidate therefore covers soft drives, 0.5-100 N*m/rad (a loose or
   stretched cable, an elastic coupling; the default scene's sigma0 ~ 3 N*m/rad lumps such a
-  low-energy stiffness, models/README.md), with the rotor inertia bounded below by the
+  low-energy stiffness, models/omni/README.md), with the rotor inertia bounded below by the
   5e-5 kg*m^2 end of the rotor estimate (sqrt(100/5e-5) * 1 ms = 1.4 < 2: stable).  Nominal of
   a rigid drive: read gives inf, :func:`~omni_sim.discrepancy.effects.nominal_values` the
   upper bound 100 N*m/rad, no cable damping, the joint's armature as the rotor -- NOT the rigid
@@ -22,7 +22,7 @@
   gives a few counts: b = 1 count is 8x the floor, 3 counts 19x.  A rigid model reads 0 (the
   lower bound is 1e-6 rad: MuJoCo needs range[0] < range[1]).
 
-(The Omni's numbers are estimates: models/README.md, models/omni.xml; "the floor": see the
+(The Omni's numbers are estimates: models/omni/README.md, models/omni/omni.xml; "the floor": see the
 package docstring.)
 """
 
@@ -94,7 +94,7 @@ def _ensure_two_mass(spec: mujoco.MjSpec, target: Target):
     carries a hinge about the same axis named ``target.joint``, so every element that named
     the joint -- the motor, the encoder sensors, a LuGre friction element -- now acts on the
     rotor, where the encoder and the motor sit on a capstan drive.  The drive's joint
-    properties go with it: damping (mostly back-EMF on the Omni, models/README.md),
+    properties go with it: damping (mostly back-EMF on the Omni, models/omni/README.md),
     frictionloss, stiffness/springref and the armature (the rotor's reflected inertia).  A
     fixed tendon ``<joint>_cable`` = q_rotor - q_output (rotor angle at the output side) joins
     them, rest length 0.  Keyframes get the rotor at the output's angle (cable unstretched).
