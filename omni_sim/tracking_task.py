@@ -258,7 +258,7 @@ class TrackingTask:
         """Scale the model's yaw dry friction and viscous damping to the episode's option
         (one model for all rows)."""
         self.device.scale_friction(o.friction_scale, base=self._device0)
-        self.device.model.dof_damping[self.device.ix.yaw_dof] = self._yaw_damping0 * o.friction_scale
+        self.device.yaw_damping = self._yaw_damping0 * o.friction_scale
 
     # --- observation, reward, termination (numpy over the rows) ----------------------------
     def measure(self, engine: Engine) -> np.ndarray:
