@@ -34,20 +34,17 @@ Methods:
   step; ``sysid_closed_scaled``: the same with each parameter in units of the library's scale
   and ``eps`` = 0.05 (our finite-difference step).
 
-Writes ``sysid_compare.json`` and ``sysid.md`` (rendered from the JSON) to ``--out``.
-
-Usage: python scripts/sysid_compare.py [--out docs/studies/discrepancy] [--cases ...] [--jobs 1]
-       [--feetech-data DIR] | --report-only
+The study computes the record (:func:`record_header`, :func:`run_case` per case);
+``scripts/sysid_compare.py`` is its command line, writing ``sysid_compare.json``;
+:mod:`omni_app.sysid_report` renders ``sysid.md`` from it.  ``mujoco.sysid`` is imported by
+:func:`load_sysid` only, so importing this module needs no extra.  The Feetech case reads
+``examples/real_servo`` of the checkout (:data:`ROOT`): the study runs from one.
 """
 
 from __future__ import annotations
 
-import argparse
 import datetime
-import json
-import math
 import os
-import re
 import subprocess
 import sys
 import tempfile
@@ -67,12 +64,10 @@ from omni_sim.discrepancy import uncertainty as un
 from omni_sim.discrepancy.fit import Problem, gap, jacobian_se
 from omni_sim.discrepancy.replay import Replayer, control_period_of, prepare_runs
 from omni_sim.model import Target
-from omni_app.provenance import git_commit
 
-ROOT = Path(__file__).resolve().parent.parent
+#: The checkout the study runs in (examples/real_servo, the truth models' paths in the record).
+ROOT = Path(__file__).resolve().parents[1]
 
-OUT = ROOT / "docs" / "studies" / "discrepancy"
-JSON_NAME, MD_NAME = "sysid_compare.json", "sysid.md"
 CASES = ("servo_off", "servo_load", "servo_load_mjcf", "feetech")
 #: The MJCF constants of a nominal (library effects, one parameter each).
 MJCF_SET = ("armature", "viscous_damping", "coulomb_friction", "torque_gain")
@@ -430,7 +425,10 @@ def open_loop_gap(sysid, case: Case, model: mujoco.MjModel) -> float:
 
 
 # -- the study ---------------------------------------------------------------------------------
-def run_case(sysid, cid: str, jobs: int, feetech_data: Path | None, log) -> dict:
+def run_case(sysid, cid: str, jobs: int, feetech_data: Path | None, log, commit: str | None) -> dict:
+    """One case's record: its data, parameters, gaps, every method's estimate, interval and
+    costs, the hook check, the wall time, the load average before and after and ``commit``."""
+    load0 = os.getloadavg()[0]
     t_case = time.perf_counter()
     case = make_case(cid, feetech_data)
     rec = {"id": cid, "title": case.title, "note": case.note, "data": case.data_summary(),
@@ -471,346 +469,30 @@ def run_case(sysid, cid: str, jobs: int, feetech_data: Path | None, log) -> dict
             if "x" in m:
                 m["gap_closed_loop_rad"] = closed_gap(case, rep, np.asarray(m["x"]))
     rec["wall_s"] = time.perf_counter() - t_case
+    rec["load_average"] = [load0, os.getloadavg()[0]]
+    rec["code_commit"] = commit
     return rec
 
 
 #: What the study imports or reads (checked for uncommitted changes at its start).
-CODE_PATHS = ("omni_sim", "identification", "models", "examples/real_servo", "scripts/sysid_compare.py",
-              "scripts/_provenance.py")
+CODE_PATHS = ("omni_sim", "identification", "models", "examples/real_servo", "omni_studies/sysid_compare.py",
+              "omni_app/sysid_report.py", "omni_app/provenance.py", "scripts/sysid_compare.py")
 
 
-def uncommitted() -> list[str] | None:
-    """Files under :data:`CODE_PATHS` that differ from the commit (None outside a git checkout)."""
-    try:
-        out = subprocess.run(["git", "status", "--porcelain", "--", *CODE_PATHS], cwd=ROOT, capture_output=True,
-                             text=True, check=True).stdout
-    except (OSError, subprocess.CalledProcessError):
-        return None
-    return [ln[3:] for ln in out.splitlines() if ln.strip()]
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=OUT)
-    ap.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES))
-    ap.add_argument("--jobs", type=int, default=1)
-    ap.add_argument("--feetech-data", type=Path, default=None,
-                    help="converted examples/real_servo runs (default: convert into a temporary folder)")
-    ap.add_argument("--report-only", action="store_true", help="re-render the md from the JSON")
-    args = ap.parse_args(argv)
-    jpath, mpath = args.out / JSON_NAME, args.out / MD_NAME
-    if args.report_only:
-        mpath.write_text(render(json.loads(jpath.read_text())))
-        return 0
+def load_sysid():
+    """``mujoco.sysid`` with its extra's requirements (absl's log at errors only), or None when
+    the extra is not installed (``pip install "mujoco[sysid]"``)."""
     from mujoco import sysid  # the optional extra: pip install "mujoco[sysid]"
     if not hasattr(sysid, "optimize"):
-        print('error: mujoco.sysid needs its extra: pip install "mujoco[sysid]"', file=sys.stderr)
-        return 2
+        return None
     from absl import logging as absl_logging
     absl_logging.set_verbosity(absl_logging.ERROR)
-    record = json.loads(jpath.read_text()) if jpath.exists() else {}
-    # the code this process imports, as it stands at its start (later commits do not change it)
-    commit = git_commit()
-    record.update({"code_commit": commit, "uncommitted_code": uncommitted(), "mujoco": mujoco.__version__,
-                   "date": datetime.date.today().isoformat(), "jobs": args.jobs, "cpus": os.cpu_count(),
-                   "install": 'pip install "mujoco[sysid]==' + mujoco.__version__ + '"'})
-    cases = {c["id"]: c for c in record.get("cases", [])}
-    for cid in args.cases:
-        load0 = os.getloadavg()[0]
-        cases[cid] = run_case(sysid, cid, args.jobs, args.feetech_data, lambda s: print(s, flush=True))
-        cases[cid]["load_average"] = [load0, os.getloadavg()[0]]
-        cases[cid]["code_commit"] = commit
-        record["cases"] = [cases[c] for c in CASES if c in cases]
-        jpath.write_text(json.dumps(record, indent=1) + "\n")
-    mpath.write_text(render(record))
-    return 0
+    return sysid
 
 
-# -- the page ----------------------------------------------------------------------------------
-#: A method does the same job as ours on a case when its estimate's closed-loop gap is within
-#: this share of ours (the gap is what every estimate is for: the replay of the measured runs).
-GAP_TOL = 0.02
-SYSID_METHODS = ("sysid_open", "sysid_closed", "sysid_closed_scaled")
-COLUMNS = ("ours", "ours_workflow") + SYSID_METHODS
-SHORT = {"ours": "ours", "ours_workflow": "ours, workflow interval", "sysid_open": "sysid open loop",
-         "sysid_closed": "sysid closed loop", "sysid_closed_scaled": "sysid closed loop, scaled"}
-
-
-def g(x, d: int = 4) -> str:
-    """``x`` to ``d`` significant digits (``-`` for None, ``inf``/``nan`` as such)."""
-    if x is None:
-        return "-"
-    x = float(x)
-    if not math.isfinite(x):
-        return str(x)
-    return f"{x:.{d}g}"
-
-
-def inside(m: dict, truth: list) -> list[bool]:
-    """Per parameter: the truth within the method's 95 % interval."""
-    return [abs(x - t) <= h for x, h, t in zip(m["x"], m["half_width_95"], truth)]
-
-
-def judge(case: dict) -> dict:
-    """Per method of a case: whether it holds the parameters, its gap against ours, the truths
-    inside its intervals, the worst relative error, and whether it does the same job."""
-    ours = case["methods"]["ours"]
-    truth = [p["truth"] for p in case["parameters"]]
-    known = all(t is not None for t in truth)
-    out = {}
-    for key, m in case["methods"].items():
-        if "x" not in m:
-            out[key] = {"holds": False}
-            continue
-        j = {"holds": True, "gap_ratio": m["gap_closed_loop_rad"] / ours["gap_closed_loop_rad"]}
-        j["estimate_ok"] = j["gap_ratio"] <= 1 + GAP_TOL
-        if known:
-            j["inside"] = sum(inside(m, truth))
-            j["worst_error"] = max(abs(x - t) / abs(t) for x, t in zip(m["x"], truth))
-        start = [p["start"] for p in case["parameters"]]
-        j["moved"] = max(abs(x - s0) / p["scale"] for x, s0, p in zip(m["x"], start, case["parameters"]))
-        out[key] = j
-    for key, j in out.items():
-        if j["holds"]:
-            j["interval_ok"] = (not known) or j["inside"] >= out["ours"]["inside"]
-            j["same_job"] = j["estimate_ok"] and j["interval_ok"]
-    return out
-
-
-def span(values) -> str:
-    """``a-b`` (two significant digits), or ``a`` when both ends print alike."""
-    lo, hi = g(min(values), 2), g(max(values), 2)
-    return lo if lo == hi else f"{lo}-{hi}"
-
-
-def points(m: dict) -> str:
-    """Parameter vectors the method simulated over all runs (ours: ``Problem.nsim``; sysid: the
-    optimizer's "Residual evals"; the workflow's interval: not counted, see its steps)."""
-    if "simulations" in m:
-        return str(m["simulations"])
-    hit = re.search(r"Residual evals: (\d+)", m.get("status", ""))
-    return hit.group(1) if hit else "-"
-
-
-def _cell(m: dict, i: int) -> str:
-    if "x" not in m:
-        return "cannot" if m.get("represents") is False else "failed"
-    return f"{g(m['x'][i])} ± {g(m['half_width_95'][i], 2)}"
-
-
-def render(record: dict) -> str:
-    cases = record["cases"]
-    L = ["# MuJoCo's own identification beside ours: `mujoco.sysid`", "",
-         "<!-- generated by `python scripts/sysid_compare.py` from docs/studies/discrepancy/sysid_compare.json; "
-         "`--report-only` re-renders it -->", ""]
-    loads = [x for c in cases for x in c.get("load_average", [])]
-    L += [f"MuJoCo {record['mujoco']} ships `mujoco.sysid`, a system-identification toolbox. This page fits "
-          "the same parameters of the same data with it and with `omni discrepancy`'s fit, and compares the "
-          "estimates, the 95 % intervals, the wall time and the physics steps. It is a study: `mujoco.sysid` "
-          "is not a dependency of the project. Its extra installs its requirements (absl-py, plotly, "
-          f"imageio[ffmpeg], ...): `{record['install']}`. Then `python scripts/sysid_compare.py` reruns the "
-          "study and `python scripts/sysid_compare.py --report-only` renders this page from the record.", "",
-          f"Record: `docs/studies/discrepancy/sysid_compare.json`, code commit {str(record['code_commit'])[:7]}, "
-          f"{record['date']}; {record['jobs']} rollout thread, nice 10, on {record['cpus']} cores shared with "
-          f"other jobs (load average {g(min(loads), 2)}-{g(max(loads), 2)}): wall times vary between runs, "
-          "physics steps do not.", ""]
-    L += ["## What `mujoco.sysid` does (its source, MuJoCo " + record["mujoco"] + ")", "",
-          "* **Parameters**: `sysid.Parameter(name, nominal, min, max, modifier)`, box bounds; the modifier "
-          "writes the value into an `MjSpec`, which is compiled for every evaluation.",
-          "* **Data**: `sysid.ModelSequences`: per recorded trajectory a control `TimeSeries` (one column per "
-          "actuator), the measured signals (sensors, or `qpos`/`qvel` of named joints) and a full physics "
-          "initial state.",
-          "* **Rollout**: `sysid_rollout` runs `mujoco.rollout` on the recorded controls, interpolated "
-          "linearly to the timestep: **open loop**. A `custom_rollout` hook replaces it; `model_residual` calls "
-          "it once per recorded trajectory, with one model per finite-difference column.",
-          "* **Residual**: measured minus predicted at the measured times (the prediction interpolated "
-          "linearly), each trajectory divided by its measured signal's norm / sqrt(2).",
-          "* **Optimizer** (`optimizer=\"mujoco\"`, the default): `mujoco.minimize.least_squares`, "
-          "Gauss-Newton with a Levenberg-Marquardt regulariser, box bounds through `mju_boxQP`, a "
-          "forward-difference Jacobian with step `eps * max(1, |x|)`, `eps` = 1.5e-8 (sqrt of the machine "
-          "epsilon) unless given; the columns of one Jacobian go to the rollout as one batch.",
-          "* **Intervals**: `calculate_intervals`: `s^2 = RSS / (n - p)`, covariance `s^2 (J'J)^-1`, half-width "
-          "Student-t(n - p, 0.975) times its root, with the Jacobian the optimizer held at its last iterate. "
-          "The residuals are taken as independent samples.",
-          "* It does not name a missing effect, score held out, close a control loop, or apply a law that "
-          "changes the model during a rollout: those are the workflow's.", ""]
-    hc = [c for c in cases if "hook_check" in c]
-    L += ["## How the two are set side by side", "",
-          "* **The same parameters**: each `sysid.Parameter`'s modifier writes its value with the effect "
-          "library's own writer (`omni_sim/discrepancy/effects/`), so both sides make the same MJCF change; "
-          "the same bounds (the library's, fitted to the nominal); the same start (the nominal's values, moved "
-          "5 % into the box where one sits on a bound: sysid's `move_off_bound` rule).",
-          "* **ours**: `omni_sim.discrepancy.fit.Problem.fit` (closed-loop replay of every run, scipy's "
-          "trust region, forward differences of 0.05 x the library's scale), interval 1.96 x "
-          "`fit.jacobian_se` (its sandwich for the run weights, inflated by the residuals' correlation time). "
-          "**ours, workflow interval**: the interval `omni discrepancy` reports for the same parameters "
-          "(`select.score_set` refits them and scores 5 folds of time blocks; `uncertainty.uncertainty`: "
-          "jackknife, Jacobian, measurement bootstrap through the closed loop, optimiser and numerical "
-          "terms; Student-t(4) x se + |bias|).",
-          "* **sysid open loop**: sysid as shipped: `ModelSequences` of the runs (control: the logged `v`; "
-          "measured: the joint's `qpos`), `build_residual_fn`, its default rollout (wrapped only to count "
-          "the steps), `optimize(optimizer=\"mujoco\")` with its defaults, `calculate_intervals`.",
-          "* **sysid closed loop**: `sysid.optimize` and `calculate_intervals` on sysid's residual whose "
-          "rollout is the device's closed loop (`omni_sim.discrepancy.replay.Replayer`: the P law on the "
-          "model's own angle, the torque switch, the engine's friction laws), default finite-difference "
-          "step. **scaled**: each parameter in units of the library's scale and `eps` = 0.05 (our step).",
-          "* **Weights differ**: ours weights each run by 1/sqrt(its samples), sysid by 1/(norm of its "
-          "measured angle), so a run with small motion counts more in sysid's fit.",
-          "* **Costs**: *physics steps* are the steps simulated; the closed-loop replay keeps the "
-          "trajectories it has simulated, so a parameter vector evaluated again costs none (on both sides). "
-          "*Parameter points* are the parameter vectors evaluated on all runs, repeats included (ours: "
-          "`Problem.nsim`; sysid: its optimizer's residual evaluations, one per Jacobian column).", ""]
-    if hc:
-        L += ["The closed-loop variants evaluate sysid's residual in one batch of every run and column. "
-              "It equals sysid's own `model_residual` with the same loop as its `custom_rollout` hook "
-              + "; ".join(f"to {g(c['hook_check']['max_abs_difference'], 2)} on {c['id']} "
-                          f"({c['hook_check']['columns']} columns: {g(c['hook_check']['batched_s'], 2)} s batched, "
-                          f"{g(c['hook_check']['per_trajectory_hook_s'], 2)} s through the hook)" for c in hc)
-              + ": sysid calls the hook once per recorded trajectory, so a loop stepped one control period "
-              "at a time cannot batch the runs there.", ""]
-    verdicts = {c["id"]: judge(c) for c in cases}
-    for c in cases:
-        L += _case_section(c, verdicts[c["id"]])
-    L += _verdict(cases, verdicts)
-    return "\n".join(L) + "\n"
-
-
-def _case_section(c: dict, v: dict) -> list[str]:
-    d = c["data"]
-    L = [f"## {c['id']}: {c['title']}", "",
-         f"{c['note'][0].upper() + c['note'][1:]}. Model `{c['model']}` (joint `{c['joint']}`, actuator "
-         f"`{c['actuator']}`); {d['runs']} runs, {d['samples']} logged samples over {g(d['duration_s'], 3)} s "
-         f"(median log period {g(d['median_log_period_s'] * 1e3, 3)} ms, control period "
-         f"{g(d['control_period_s'] * 1e3, 3)} ms, torque off {g(100 * d['torque_off_share'], 2)} % of the "
-         f"samples). Closed-loop gap of the nominal {g(c['gap_nominal_rad'], 3)} rad, of the start "
-         f"{g(c['gap_start_rad'], 3)} rad.", ""]
-    if "drift" in c:
-        dr = c["drift"]
-        L += [f"**Open loop drifts.** The truth's own model replayed open loop on the logged `v` (sysid's "
-              f"rollout) is {g(dr['open_loop_truth_gap_rad'], 3)} rad from the measured angle; in the closed "
-              f"loop {g(dr['closed_loop_truth_gap_rad'], 3)} rad (the measurement noise), "
-              f"{g(dr['open_loop_truth_gap_rad'] / dr['closed_loop_truth_gap_rad'], 2)}x less. The logged "
-              "`v` is the command at the log times only; between them the servo's P law changes it every "
-              "control period, and an open-loop rollout has no feedback that would pull its error back.", ""]
-    M = c["methods"]
-    cols = [k for k in COLUMNS if k in M]
-    L += ["| parameter | truth | start | " + " | ".join(f"{SHORT[k]} ± 95 %" for k in cols) + " |",
-          "|---|---|---|" + "---|" * len(cols)]
-    for i, p in enumerate(c["parameters"]):
-        L.append(f"| {p['name']} [{p['unit']}] | {g(p['truth'])} | {g(p['start'])} | "
-                 + " | ".join(_cell(M[k], i) for k in cols) + " |")
-    L += ["", "| method | rollout | wall time | physics steps | parameter points | closed-loop gap [rad] | "
-              "gap / ours | truths inside the 95 % interval |", "|---|---|---|---|---|---|---|---|"]
-    for k in cols:
-        m, j = M[k], v[k]
-        if not j["holds"]:
-            L.append(f"| {SHORT[k]} | - | - | - | - | - | - | {m.get('reason') or m.get('failed')} |")
-            continue
-        ins = f"{j['inside']} of {len(m['x'])}" if "inside" in j else "-"
-        L.append(f"| {SHORT[k]} | {m['loop']} | {g(m['wall_s'], 3)} s | {m['physics_steps']:,} | {points(m)} | "
-                 f"{g(m['gap_closed_loop_rad'], 3)} | {g(j['gap_ratio'], 3)} | {ins} |")
-    st = [f"{SHORT[k]}: {M[k]['status']}" for k in SYSID_METHODS if M.get(k, {}).get("status")]
-    if st:
-        L += ["", "sysid's optimizer ended: " + "; ".join(st) + "."]
-    return L + [""]
-
-
-def _verdict(cases: list, verdicts: dict) -> list[str]:
-    L = ["## Verdict", "",
-         f"A method does the job of ours on a case when its estimate's closed-loop gap is within "
-         f"{g(100 * GAP_TOL)} % of ours and, where the truth is known, its 95 % intervals hold at least as "
-         "many truths as ours (1.96 x Jacobian se).", ""]
-    for k in SYSID_METHODS:
-        parts, same = [], []
-        for c in cases:
-            j = verdicts[c["id"]][k]
-            if not j["holds"]:
-                parts.append(f"{c['id']}: cannot hold the parameters")
-                continue
-            s = f"{c['id']}: gap {g(j['gap_ratio'], 3)}x ours"
-            if "inside" in j:
-                s += (f", truths inside {j['inside']} of {len(c['parameters'])} (ours "
-                      f"{verdicts[c['id']]['ours']['inside']}), worst error {g(100 * j['worst_error'], 2)} %")
-            if not j["estimate_ok"]:
-                s += f", moved at most {g(j['moved'], 2)} library scales from the start"
-            s += (f", physics steps {g(c['methods'][k]['physics_steps'] / c['methods']['ours']['physics_steps'], 2)}x"
-                  f" and wall time {g(c['methods'][k]['wall_s'] / c['methods']['ours']['wall_s'], 2)}x ours")
-            parts.append(s)
-            if j["same_job"]:
-                same.append(c["id"])
-        L.append(f"* **{SHORT[k]}** does the job on {len(same)} of {len(cases)} cases"
-                 + (f" ({', '.join(same)})" if same else "") + ": " + "; ".join(parts) + ".")
-    L.append("")
-    wf = [(c["id"], verdicts[c["id"]]["ours_workflow"].get("inside")) for c in cases
-          if "inside" in verdicts[c["id"]].get("ours_workflow", {})]
-    if wf:
-        L += ["Intervals where the truth is known: the workflow's interval holds "
-              + ", ".join(f"{n} of {len(next(c for c in cases if c['id'] == cid)['parameters'])} truths on {cid}"
-                          for cid, n in wf) + ". Widths, median over the parameters, against ours (Jacobian): "
-              + "; ".join(f"{c['id']}: " + ", ".join(
-                  f"{SHORT[k]} {g(np.median(np.divide(c['methods'][k]['half_width_95'], c['methods']['ours']['half_width_95'])), 2)}x"
-                  for k in ("ours_workflow",) + SYSID_METHODS if "x" in c["methods"].get(k, {})) for c in cases) + ".", ""]
-    apart = []
-    for c in cases:
-        a, b = c["methods"].get("sysid_closed", {}), c["methods"].get("sysid_closed_scaled", {})
-        if "x" in a and "x" in b and verdicts[c["id"]]["sysid_closed"]["estimate_ok"]:
-            ratio = max(abs(xa - xb) / max(ha, hb) for xa, xb, ha, hb in
-                        zip(a["x"], b["x"], a["half_width_95"], b["half_width_95"]))
-            apart.append((c["id"], ratio))
-    if apart:
-        wide = [cid for cid, r in apart if r > 1]
-        L += ["sysid's two closed-loop fits minimise the same residual from the same start; where both end "
-              "at ours' gap, their estimates differ by up to this multiple of the larger of their two 95 % "
-              "half-widths: " + ", ".join(f"{cid} {g(r, 2)}x" for cid, r in apart) + " (above 1: each "
-              "estimate lies outside the other's interval)."
-              + (f" On {', '.join(wide)} its intervals, `s^2 (J'J)^-1` over independent samples, are narrower "
-                 "than the spread of its own optimum." if wide else ""), ""]
-    everywhere = [k for k in SYSID_METHODS if all(verdicts[c["id"]][k].get("same_job") for c in cases)]
-    for k in everywhere:
-        steps = [c["methods"][k]["physics_steps"] / c["methods"]["ours"]["physics_steps"] for c in cases]
-        wall = [c["methods"][k]["wall_s"] / c["methods"]["ours"]["wall_s"] for c in cases]
-        L.append(f"**Where it does the same job as well: {SHORT[k]}**, on every case, at "
-                 f"{span(steps)}x our physics steps ({span(wall)}x the wall time). What it can stand in for is `Problem.fit`'s trust region and "
-                 "`fit.jacobian_se`; the closed-loop replay it runs on, the effect library's MJCF writers, the "
-                 "naming and the held-out scoring are ours, since sysid has none of them. It is not used "
-                 "instead of ours: " + ("the same estimate costs it more physics steps, and " if min(steps) > 1 else "")
-                 + "it would be a dependency "
-                 "(its extra brings absl-py, plotly and imageio[ffmpeg] for one optimizer call and one interval "
-                 "formula); this page is the comparison to rerun.")
-        better = [c for c in cases if verdicts[c["id"]][k]["gap_ratio"] < 1 - GAP_TOL]
-        for c in better:
-            j, o = verdicts[c["id"]][k], verdicts[c["id"]]["ours"]
-            s = (f"On {c['id']} it ends lower: gap {g(j['gap_ratio'], 3)}x ours"
-                 + (f", {j['inside']} truths inside its intervals against ours' {o['inside']}" if "inside" in j else ""))
-            L.append(s + ". From the same start our fit stops earlier (its stopping rule: xtol 1e-3, ftol "
-                     "1e-4, at most 20 evaluations; the workflow starts it from the best point of a grid).")
-        L.append("")
-    if not everywhere:
-        L.append("**No variant of `mujoco.sysid` does the same job as well on every case**, so it replaces "
-                 "none of our code: the open-loop rollout cannot hold the engine's laws nor the torque switch "
-                 "and drifts on a P-controlled joint, and the closed-loop variants run on our replay, leaving "
-                 "only the optimizer and the interval to compare (figures above).")
-    not_open = [c["id"] for c in cases if not verdicts[c["id"]]["sysid_open"]["holds"]]
-    default_off = [c["id"] for c in cases if verdicts[c["id"]]["sysid_closed"]["holds"]
-                   and not verdicts[c["id"]]["sysid_closed"]["same_job"]]
-    L.append("")
-    L.append("What sysid as shipped cannot do here: "
-             + (f"hold the engine's load-dependent friction ({', '.join(not_open)}: no MjSpec attribute "
-                "changes a friction level during a rollout; its hook can, by running our loop); " if not_open else "")
-             + "close the P loop (its rollout replays the logged command open loop: see the drift figures); "
-             "switch the torque off (a back-EMF bias keeps braking at 0 V; the replay zeroes gain and bias)"
-             + (f"; differentiate the closed loop at its default step of 1.5e-8 on "
-                + ", ".join(f"{cid} (the fit moved at most {g(verdicts[cid]['sysid_closed']['moved'], 2)} library "
-                            f"scales from its start, its gap {g(verdicts[cid]['sysid_closed']['gap_ratio'], 2)}x ours)"
-                            for cid in default_off)
-                + ", where the device engine's friction law sets the joint's friction every control period, "
-                "switching on the sign of the velocity near rest (`omni_sim/device.py` `DriveFriction`)"
-                + ("; with steps of 0.05 library scales the same optimizer does the job there"
-                   if all(verdicts[cid]["sysid_closed_scaled"].get("same_job") for cid in default_off) else "")
-                if default_off else "")
-             + "; and its intervals take the logged samples of a closed loop as independent.")
-    return L + [""]
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+def record_header(commit: str | None, uncommitted_code: list[str] | None, jobs: int) -> dict:
+    """The record's fields beside its cases: the code's commit and its uncommitted files, MuJoCo's
+    version, the date, the rollout threads, the cores and the extra's install line."""
+    return {"code_commit": commit, "uncommitted_code": uncommitted_code, "mujoco": mujoco.__version__,
+            "date": datetime.date.today().isoformat(), "jobs": jobs, "cpus": os.cpu_count(),
+            "install": 'pip install "mujoco[sysid]==' + mujoco.__version__ + '"'}
