@@ -2,11 +2,12 @@
 model's own values: the objective of the joint fit (the nominal's corrections +
 ``load_friction``) on the ``load_friction_nominal_off`` case's runs, with the law as the
 library holds it (``blend``: the coefficient passes from mu_back to mu_drive over
-``omni_sim.device.LOAD_FRICTION_BLEND_RAD_S``) and as it was before (``switch``: on the sign
-of tau*w, mu_back at rest: the blend speed set to 0, in the engine and in the case's truth
-alike, so the truth's runs change with it).
+``omni_sim.device.LOAD_FRICTION_BLEND_RAD_S``) and as a switch (``switch``: on the sign of
+tau*w, mu_back at rest: the blend speed set to 0, in the engine and in the case's truth alike,
+so the truth's runs change with it).
 
-Writes ``valley_scan.json`` (``--out``, default docs/studies/discrepancy) with, per law:
+:func:`record` is the record ``valley_scan.json`` (``scripts/valley_scan.py`` writes it) with,
+per law:
 
 * ``truth_gap``: the training gap [rad] at the truth (every parameter at its true value);
 * ``mu_back_scan``: the training gap along mu_back (every other parameter at its truth);
@@ -21,16 +22,12 @@ parameters at those corrections and at the nominal's own values, and where the p
 (:func:`omni_sim.discrepancy.select.prescreen`) ends.
 
 The training gap is :func:`omni_sim.discrepancy.fit.gap` on all runs.  Deterministic (the
-case's seed); a few minutes on 2 cores.
-
-Usage: python scripts/valley_scan.py [--out docs/studies/discrepancy]
+case's seed); a few minutes on 2 cores.  The scan sets the blend speed of
+:mod:`omni_sim.device` and :mod:`omni_sim.discrepancy.servo_truth` for the switch and restores
+it before it returns.
 """
 
 from __future__ import annotations
-
-import argparse
-import json
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -49,7 +46,7 @@ CASE = "load_friction_nominal_off"
 CI_POINT = {"armature_kgm2": 0.002703, "mu_drive": 0.1919, "mu_back": 0.3644}
 #: The far start's coefficients (the corrections at the nominal's values).
 FAR_START = {"mu_drive": 0.04, "mu_back": 0.07}
-#: The blend speed that makes the law the switch on sign(tau w) it was (mu_back at rest).
+#: The blend speed that makes the law a switch on sign(tau w) (mu_back at rest).
 SWITCH_SPEED = 0.0
 
 
@@ -112,10 +109,9 @@ def _prescreen(builder, fixed: list, x_own: np.ndarray, rr: list, rep) -> dict:
             "prescreen_x": p.x.tolist(), "prescreen_gap": p.gap}
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default="docs/studies/discrepancy")
-    args = ap.parse_args(argv)
+def record() -> dict:
+    """The record: the case, the blend and switch speeds, the starts, and :func:`_scan` per law
+    (the switch first, then the blend)."""
     case = hidden.case(CASE)
     blend = device.LOAD_FRICTION_BLEND_RAD_S
     out = {"case": CASE, "blend_rad_s": blend, "switch_rad_s": SWITCH_SPEED, "ci_point": CI_POINT,
@@ -125,12 +121,4 @@ def main(argv=None) -> int:
     finally:
         device.LOAD_FRICTION_BLEND_RAD_S = servo_truth.BLEND_SPEED_RAD_S = blend
     out["blend"] = _scan(case, blend)
-    dest = Path(args.out)
-    dest.mkdir(parents=True, exist_ok=True)
-    (dest / "valley_scan.json").write_text(json.dumps(out, indent=1) + "\n")
-    print(f"wrote {dest / 'valley_scan.json'}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    return out
