@@ -1,36 +1,34 @@
-"""scripts/sysid_compare.py: mujoco.sysid beside the discrepancy fit.  The page is the record
-rendered; the record holds every case and method with figures that agree with each other, with
-the models (truths, bounds, start) and with a replay of two of its estimates; mujoco.sysid stays
-out of the project's dependencies.  The study itself (minutes of fits, and mujoco.sysid's extra)
-is not rerun here."""
+"""mujoco.sysid beside the discrepancy fit (omni_studies/sysid_compare.py, its page
+omni_app/sysid_report.py, scripts/sysid_compare.py).  The page is the record rendered; the record
+holds every case and method with figures that agree with each other, with the models (truths,
+bounds, start) and with a replay of two of its estimates; mujoco.sysid stays out of the project's
+dependencies.  The study itself (minutes of fits, and mujoco.sysid's extra) is not rerun here."""
 
 from __future__ import annotations
 
 import copy
 import json
 import re
-import sys
 from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 
+from omni_app import sysid_report as sr
+from omni_sim.discrepancy import servo_truth
+from omni_sim.discrepancy.replay import Replayer
+from omni_studies import sysid_compare as sc
+
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-
-from omni_sim.discrepancy import servo_truth  # noqa: E402
-from scripts import sysid_compare as sc  # noqa: E402
-
-RECORD = json.loads((ROOT / "docs/studies/discrepancy" / sc.JSON_NAME).read_text())
-PAGE = (ROOT / "docs/studies/discrepancy" / sc.MD_NAME).read_text()
+RECORD = json.loads((ROOT / "docs/studies/discrepancy" / sr.JSON_NAME).read_text())
+PAGE = (ROOT / "docs/studies/discrepancy" / sr.MD_NAME).read_text()
 CASES = {c["id"]: c for c in RECORD["cases"]}
 METHODS = ("ours", "ours_workflow", "sysid_open", "sysid_closed", "sysid_closed_scaled")
 
 
 def test_the_page_is_the_record_rendered():
-    assert PAGE == sc.render(RECORD)
+    assert PAGE == sr.render(RECORD)
 
 
 def test_the_record_holds_every_case_and_method():
@@ -94,25 +92,25 @@ def test_figures_agree(cid):
 def test_the_verdict_follows_its_rule():
     """judge: gap within GAP_TOL of ours and at least as many truths inside; the page's
     statements follow from the record (a changed figure changes them)."""
-    v = sc.judge(CASES["servo_off"])
+    v = sr.judge(CASES["servo_off"])
     for key, j in v.items():
         m = CASES["servo_off"]["methods"][key]
         ratio = m["gap_closed_loop_rad"] / CASES["servo_off"]["methods"]["ours"]["gap_closed_loop_rad"]
         truth = [p["truth"] for p in CASES["servo_off"]["parameters"]]
         n_in = sum(abs(x - t) <= h for x, h, t in zip(m["x"], m["half_width_95"], truth))
-        assert j["same_job"] == (ratio <= 1 + sc.GAP_TOL and n_in >= v["ours"]["inside"]), key
+        assert j["same_job"] == (ratio <= 1 + sr.GAP_TOL and n_in >= v["ours"]["inside"]), key
     worse = copy.deepcopy(RECORD)
     case = next(c for c in worse["cases"] if c["id"] == "servo_off")
     case["methods"]["sysid_closed"]["gap_closed_loop_rad"] *= 2
-    assert sc.judge(case)["sysid_closed"]["same_job"] is False
-    assert sc.render(worse) != PAGE
+    assert sr.judge(case)["sysid_closed"]["same_job"] is False
+    assert sr.render(worse) != PAGE
 
 
 def test_two_estimates_replay_to_their_recorded_gaps():
     """The closed-loop gaps of ours and sysid's open-loop estimate on servo_off, replayed here
     from the record's values (the same data, seed and model)."""
     case = sc.make_case("servo_off", None)
-    with sc.Replayer(1, case.target, case.period) as rep:
+    with Replayer(1, case.target, case.period) as rep:
         for key in ("ours", "sysid_open"):
             m = CASES["servo_off"]["methods"][key]
             assert sc.closed_gap(case, rep, np.array(m["x"])) == pytest.approx(m["gap_closed_loop_rad"], rel=1e-6)
@@ -130,7 +128,7 @@ def test_the_discrepancy_page_quotes_the_record():
 
     def ends(k):
         r = [c["methods"][k]["physics_steps"] / c["methods"]["ours"]["physics_steps"] for c in RECORD["cases"]]
-        return sc.g(min(r), 2), sc.g(max(r), 2)
+        return sr.g(min(r), 2), sr.g(max(r), 2)
 
     a, b = ends("sysid_closed")
     c, d = ends("sysid_closed_scaled")
