@@ -2,7 +2,7 @@
 model's own values: the objective of the joint fit (the nominal's corrections +
 ``load_friction``) on the ``load_friction_nominal_off`` case's runs, with the law as the
 library holds it (``blend``: the coefficient passes from mu_back to mu_drive over
-``omni_sim.device.LOAD_FRICTION_BLEND_RAD_S``) and as it was before (``switch``: on the sign
+``omni_sim.device.LOAD_FRICTION_BLEND_RAD_S``) and as a switch (``switch``: on the sign
 of tau*w, mu_back at rest: the blend speed set to 0, in the engine and in the case's truth
 alike, so the truth's runs change with it).
 
