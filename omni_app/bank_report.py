@@ -1,74 +1,42 @@
-"""Run the hidden-effect bank through ``omni discrepancy`` and write docs/studies/discrepancy/bank.md.
+"""The hidden-effect bank's report: docs/studies/discrepancy/bank.md (the table of every case,
+then the gear_efficiency case's section), the bank table of docs/method/discrepancy.md and the
+writing of the records.
 
-For every case of :data:`omni_sim.discrepancy.hidden.CASES` a truth model (the virtual Omni
-with the effect written by :mod:`omni_sim.discrepancy.truth_models` with MuJoCo's own features,
-independently of the effect library)
-generates quantised, noisy "measured" runs (exact ones for ``none_exact``); the workflow sees
-only those runs and the nominal model.  The table lists the hidden and the named effects, the
-parameters (truth vs fitted ± 95 % uncertainty), the held-out gap before/after, the runner-up,
-the margin and the verdict of :func:`omni_sim.discrepancy.hidden.assess`.  Beside the table, a
-JSON (same name, ``.json``) holds the run's settings (commit, dates, machine load) and every
-case's full workflow report; it is rewritten after each case, so a stopped run keeps what it
-did.  A worked example with figures is written to docs/studies/discrepancy/example/ (``--no-example``:
-not).
-
-A case with a truth of its own (``truth="servo"``: the geared-servo pendulum of
-:mod:`omni_sim.discrepancy.servo_truth`) is given its own nominal model and target
-(:func:`omni_sim.discrepancy.hidden.nominal`: ``models/servo_pendulum/servo_pendulum.xml``, ``pivot``/``servo``).
-``--merge`` runs the given cases and puts them into the existing JSON in the bank's order (the
-other cases kept as they are); each merged entry records its own commit and dates.
-
-``--table`` prints the bank table of docs/method/discrepancy.md made from the JSON
-(``tests/test_discrepancy_bank.py`` checks that docs/method/discrepancy.md holds exactly that).
-
-``--gear-efficiency`` runs the case whose truth is written in another form than the library's
-law (:func:`omni_sim.discrepancy.servo_truth.generate_efficiency`: a gear efficiency law with a
-smooth sign; judged by :func:`~omni_sim.discrepancy.servo_truth.assess_efficiency`), writes its
-record to ``bank_gear_efficiency.json`` beside the table and the table's page with its section
-(rendered from that record whenever the page is written).
-
-Usage: python scripts/discrepancy_bank.py [--cases NAME ...] [--no-example] [--jobs N] [--out MD]
-                                         [--commit TEXT] [--note TEXT] [--merge]
-       python scripts/discrepancy_bank.py --table [--json JSON]      (docs/method/discrepancy.md's table)
-       python scripts/discrepancy_bank.py --markdown [--json JSON] [--out MD]   (MD from JSON)
-       python scripts/discrepancy_bank.py --gear-efficiency [--only-load-friction] [--jobs N] [--commit TEXT]
-                                         [--note TEXT]
+The bank's records (:mod:`omni_studies.discrepancy_bank` makes them, ``scripts/discrepancy_bank.py``
+is the command): ``bank.json`` beside the table holds the run's settings (commit, dates, machine
+load) and every case's full workflow report; ``bank_gear_efficiency.json`` the gear_efficiency
+case's (a truth written in another form than the library's law).  The page and the tables are
+rendered from them alone (``--markdown``, ``--table``; ``tests/test_discrepancy_bank.py`` checks
+that the committed pages are exactly that).
 """
 
 from __future__ import annotations
 
-import argparse
-import datetime as dt
 import json
-import os
 import shutil
 import subprocess
-import sys
-import time
 from pathlib import Path
 
-from omni_sim.discrepancy import experiment_set, hidden, servo_truth
-
-ROOT = Path(__file__).resolve().parent.parent
+#: The checkout this module runs from.
+ROOT = Path(__file__).resolve().parents[1]
 
 #: Where the bank's table and its JSON live (docs/method/discrepancy.md links them).
 DEFAULT_OUT = ROOT / "docs" / "studies" / "discrepancy" / "bank.md"
 #: The record of the gear_efficiency case (a truth of another form), beside the table.
 EFFICIENCY_JSON = DEFAULT_OUT.with_name("bank_gear_efficiency.json")
+#: The worked example with figures the bank's run writes (``--no-example``: not).
+EXAMPLE_DIR = ROOT / "docs" / "studies" / "discrepancy" / "example"
 
 
-def _now() -> str:
-    return dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-
-
-def _commit() -> str:
+def checkout_commit() -> str:
     """The checkout's commit, with the code paths that differ from it (others' work in progress
     is part of what ran)."""
     try:
         head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], check=True,
                               capture_output=True, text=True).stdout.strip()
         dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "omni_sim",
-                                "identification", "omni_app", "models", "scripts/discrepancy_bank.py"],
+                                "identification", "omni_studies", "omni_app", "models",
+                                "scripts/discrepancy_bank.py"],
                                check=True, capture_output=True, text=True).stdout.split("\n")
     except (OSError, subprocess.CalledProcessError):
         return "unknown (not a git checkout)"
@@ -354,130 +322,27 @@ def bank_page(data: dict, out: Path) -> str:
     return page
 
 
-def _write(out: Path, data: dict) -> None:
+
+def write_bank(out: Path, data: dict) -> None:
+    """The bank's JSON beside ``out`` (replaced whole: a stopped run keeps what it did), then
+    the page ``out``."""
     tmp = out.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(data, indent=1, default=str) + "\n")
     tmp.replace(out.with_suffix(".json"))
     out.write_text(bank_page(data, out))
 
 
-def run_efficiency(args, meta: dict) -> int:
-    """Run the gear_efficiency case, write its record beside ``args.out`` and the page.  With
-    ``--only-load-friction``: the workflow restricted to the library's ``load_friction`` (a
-    diagnostic: what the engine's law makes of this truth when nothing else is scored), stored
-    in the existing record under ``load_friction_only`` with its own meta."""
-    from omni_sim.discrepancy.workflow import run_discrepancy
-
-    out = Path(args.out)
-    path = out.with_name(EFFICIENCY_JSON.name)
-    cands = ("load_friction",) if args.only_load_friction else None
-    t0 = time.perf_counter()
-    runs = servo_truth.generate_efficiency()
-    rep = run_discrepancy(runs, servo_truth.model_path(), jobs=args.jobs, target=servo_truth.target(),
-                          candidates=cands).report
-    meta.update(seconds=time.perf_counter() - t0, finished=_now(), load_after=os.getloadavg()[0])
-    if cands:
-        rec = json.loads(path.read_text())
-        rec["load_friction_only"] = {"meta": meta, "candidates": list(cands), "report": rep}
-        ok = rec["pass"]
-    else:
-        ok, why = servo_truth.assess_efficiency(rep)
-        rec = {"meta": meta, "case": servo_truth.GEAR_EFFICIENCY_CASE, "pass": ok, "why": why, "report": rep}
-    path.write_text(json.dumps(rec, indent=1, default=str) + "\n")
-    out.write_text(bank_page(json.loads(Path(args.json).read_text()), out))
-    print(f"gear_efficiency{' (load_friction only)' if cands else ''}: named "
-          f"{[e['name'] for e in rep['effects']]}; gap {rep['gap_before']:.3g} -> {rep['gap_after']:.3g} rad")
-    return 0 if ok else 1
+def write_efficiency(out: Path, bank_json: Path, rec: dict) -> None:
+    """The gear_efficiency case's record beside ``out``, then the page ``out`` from the bank's
+    JSON ``bank_json`` and that record."""
+    out.with_name(EFFICIENCY_JSON.name).write_text(json.dumps(rec, indent=1, default=str) + "\n")
+    out.write_text(bank_page(json.loads(Path(bank_json).read_text()), out))
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", nargs="*", default=None)
-    ap.add_argument("--no-example", action="store_true")
-    ap.add_argument("--jobs", type=int, default=None)
-    ap.add_argument("--out", default=str(DEFAULT_OUT), help=f"table (default {DEFAULT_OUT.relative_to(ROOT)}; "
-                    "the JSON beside it)")
-    ap.add_argument("--commit", default=None, help="what the header names as the code's commit "
-                    "(default: the checkout's, with its uncommitted code paths)")
-    ap.add_argument("--note", default="", help="a sentence for the header (e.g. how the code was checked out)")
-    ap.add_argument("--table", action="store_true", help="print docs/method/discrepancy.md's bank table made from --json")
-    ap.add_argument("--markdown", action="store_true", help="rewrite --out's table from --json (no run)")
-    ap.add_argument("--json", default=str(DEFAULT_OUT.with_suffix(".json")))
-    ap.add_argument("--gear-efficiency", action="store_true", help="run the gear_efficiency case (a truth "
-                    "of another form) into its own record beside --out and rewrite --out's page")
-    ap.add_argument("--only-load-friction", action="store_true", help="with --gear-efficiency: the workflow "
-                    "restricted to load_friction, added to the existing record (a diagnostic)")
-    ap.add_argument("--merge", action="store_true", help="run --cases and put them into --out's "
-                    "existing JSON (the other cases kept; each merged entry records its commit)")
-    args = ap.parse_args(argv)
-    if args.table:
-        sys.stdout.write(readme_table(json.loads(Path(args.json).read_text())))
-        return 0
-    if args.markdown:
-        Path(args.out).write_text(bank_page(json.loads(Path(args.json).read_text()), Path(args.out)))
-        return 0
-    from omni_sim.discrepancy.workflow import run_discrepancy
+def write_example(ex_dir: Path = EXAMPLE_DIR) -> None:
+    """The worked example of ``omni discrepancy`` with figures, without its measured runs (the
+    docs stay small)."""
+    from omni_app.discrepancy import demo
 
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    cases = [c for c in hidden.CASES if args.cases is None or c.name in args.cases]
-    meta = {"commit": args.commit or _commit(), "started": _now(), "cpus": os.cpu_count(),
-            "load_start": os.getloadavg()[0], "nice": os.nice(0), "jobs": args.jobs,
-            "command": "python scripts/discrepancy_bank.py " + " ".join(sys.argv[1:] if argv is None else argv),
-            "json": out.with_suffix(".json").name,
-            "runs": len(experiment_set.experiments()), "run_s": experiment_set.DURATION_S,
-            "frequencies_hz": ", ".join(map(str, experiment_set.FREQUENCIES_HZ)),
-            "amplitudes_rad": ", ".join(map(str, experiment_set.AMPLITUDES_RAD)),
-            "step_amplitudes_rad": ", ".join(map(str, experiment_set.STEP_AMPLITUDES_RAD)),
-            "poses_deg": ", ".join(str(p) for p in experiment_set.POSES), "noise_rad": experiment_set.NOISE_RAD,
-            "note": args.note}
-    if args.gear_efficiency:
-        return run_efficiency(args, {k: meta[k] for k in ("commit", "started", "cpus", "load_start", "nice",
-                                                         "jobs", "command", "note")})
-    data = {"meta": meta, "cases": {}}
-    if args.merge:
-        data = json.loads(out.with_suffix(".json").read_text())
-    t_all = time.perf_counter()
-    for c in cases:
-        t0 = time.perf_counter()
-        model, target = hidden.nominal(c)
-        entry = {"hidden": [list(e) for e in c.effects], "outside": [list(e) for e in c.outside],
-                 "expect": list(c.expect), "exact": c.exact, "note": c.note, "gap_lives": c.gap_lives,
-                 "truth": c.truth}
-        if model is not None:
-            entry.update(model=str(Path(model).relative_to(ROOT)) if Path(model).is_relative_to(ROOT)
-                         else str(model), target=[target.joint, target.actuator])
-        if args.merge:
-            entry.update(commit=meta["commit"], started=_now(), command=meta["command"])
-        runs = hidden.generate(c, jobs=args.jobs)
-        try:
-            rep = run_discrepancy(runs, model, jobs=args.jobs, target=target).report
-        except Exception as exc:  # a crash of the workflow is a result of the bank, not its end
-            entry.update({"pass": False, "why": f"workflow crashed: {type(exc).__name__}: {exc}"})
-        else:
-            ok, why = hidden.assess(c, rep)
-            entry.update({"pass": ok, "why": why, "report": rep})
-        entry.update({"seconds": time.perf_counter() - t0, "finished": _now(),
-                      "load_after": os.getloadavg()[0]})
-        data["cases"][c.name] = entry
-        order = [k.name for k in hidden.CASES]  # the bank's order (a merged case in its place)
-        data["cases"] = dict(sorted(data["cases"].items(),
-                                    key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order)))
-        _write(out, data)
-        print(bank_row(c.name, entry), flush=True)
-    if not args.merge:  # a merge leaves the bank run's record as it was
-        meta["finished"] = _now()
-        meta["total_s"] = time.perf_counter() - t_all
-    _write(out, data)
-    if not args.no_example:
-        from omni_app.discrepancy import demo
-
-        ex_dir = ROOT / "docs" / "studies" / "discrepancy" / "example"
-        demo(ex_dir, force=True)
-        shutil.rmtree(ex_dir / "measured", ignore_errors=True)  # keep the docs small
-    print(f"wrote {out} and {out.with_suffix('.json')} ({time.perf_counter() - t_all:.0f} s)")
-    return 0 if all(v["pass"] for v in data["cases"].values()) else 1
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    demo(ex_dir, force=True)
+    shutil.rmtree(ex_dir / "measured", ignore_errors=True)

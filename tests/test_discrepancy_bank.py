@@ -645,14 +645,14 @@ def test_docs_gear_efficiency_section_is_the_record():
     the record's verdict is what assess_efficiency says of its report, its case is the truth's
     as the code states it now, and the slow test's expected outcome is the record's."""
     from omni_sim.discrepancy import servo_truth
-    script = _script("discrepancy_bank")
-    rec = json.loads(script.EFFICIENCY_JSON.read_text())
+    from omni_app import bank_report
+    rec = json.loads(bank_report.EFFICIENCY_JSON.read_text())
     assert servo_truth.assess_efficiency(rec["report"]) == (rec["pass"], rec["why"])
     assert rec["case"] == json.loads(json.dumps(servo_truth.GEAR_EFFICIENCY_CASE))
-    page = script.DEFAULT_OUT.read_text()
-    assert page.endswith("\n" + script.efficiency_section(rec))
-    bank_data = json.loads(script.DEFAULT_OUT.with_suffix(".json").read_text())
-    assert page == script.bank_page(bank_data, script.DEFAULT_OUT)
+    page = bank_report.DEFAULT_OUT.read_text()
+    assert page.endswith("\n" + bank_report.efficiency_section(rec))
+    bank_data = json.loads(bank_report.DEFAULT_OUT.with_suffix(".json").read_text())
+    assert page == bank_report.bank_page(bank_data, bank_report.DEFAULT_OUT)
     assert (GEAR_EFFICIENCY_FAILURE is None) == rec["pass"]
     if GEAR_EFFICIENCY_FAILURE is not None:  # the reason's figures are the record's
         rep = rec["report"]
@@ -783,7 +783,7 @@ def test_docs_bank_table_is_the_json():
     """docs/method/discrepancy.md's bank table is exactly what ``discrepancy_bank.py --table`` makes from
     docs/studies/discrepancy/bank.json; the JSON's verdicts are what bank.assess says of its reports;
     the bank section links the table's current location and no stale one."""
-    script = _script("discrepancy_bank")
+    from omni_app import bank_report
     data = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "bank.json").read_text())
     assert list(data["cases"]) == [c.name for c in hidden.CASES]  # every case, in the bank's order
     for name, c in data["cases"].items():
@@ -791,11 +791,11 @@ def test_docs_bank_table_is_the_json():
             assert hidden.assess(hidden.case(name), c["report"]) == (c["pass"], c["why"]), name
     sec = _section("## The hidden-effect bank: what it proves", "## Uncertainty that holds")
     block = sec[sec.index(BANK_TABLE_START) + len(BANK_TABLE_START):sec.index(BANK_TABLE_END)]
-    assert block.strip("\n") == script.readme_table(data).strip("\n")
+    assert block.strip("\n") == bank_report.readme_table(data).strip("\n")
     assert "docs/studies/discrepancy/bank.md" in sec
     for stale in ("docs/discrepancy_bank.md", "bank_rerun.md"):
         assert stale not in PAGE.read_text() and stale not in (ROOT / "README.md").read_text()
-    assert script.DEFAULT_OUT == ROOT / "docs" / "studies" / "discrepancy" / "bank.md"
+    assert bank_report.DEFAULT_OUT == ROOT / "docs" / "studies" / "discrepancy" / "bank.md"
 
 
 def test_docs_search_examples_are_the_bank_json():
