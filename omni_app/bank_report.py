@@ -8,14 +8,24 @@ load) and every case's full workflow report; ``bank_gear_efficiency.json`` the g
 case's (a truth written in another form than the library's law).  The page and the tables are
 rendered from them alone (``--markdown``, ``--table``; ``tests/test_discrepancy_bank.py`` checks
 that the committed pages are exactly that).
+
+The coverage study's record ``coverage.json`` (:mod:`omni_studies.discrepancy_coverage` makes it,
+``scripts/discrepancy_coverage.py`` is the command) is written by :func:`write_coverage`, its
+figure drawn by :func:`coverage_figure`.  No module here imports the bank's studies: their ranges
+(:mod:`omni_sim.discrepancy.bank`) are a validation fixture no command of ``omni`` reaches.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import shutil
 import subprocess
 from pathlib import Path
+
+import numpy as np
+
+from omni_sim.discrepancy import hidden
 
 #: The checkout this module runs from.
 ROOT = Path(__file__).resolve().parents[1]
@@ -346,3 +356,69 @@ def write_example(ex_dir: Path = EXAMPLE_DIR) -> None:
 
     demo(ex_dir, force=True)
     shutil.rmtree(ex_dir / "measured", ignore_errors=True)
+
+
+def write_coverage(jpath: Path, res: dict) -> None:
+    """The coverage study's record ``jpath`` (replaced whole: a stopped study keeps what it did)."""
+    tmp = jpath.with_suffix(".tmp")
+    tmp.write_text(json.dumps(res, indent=1) + "\n")
+    tmp.replace(jpath)
+
+
+def coverage_figure(summary: dict, draws: list[dict], path: Path, conditions: tuple[str, ...],
+                    target: float) -> None:
+    """The coverage study's figure: coverage per effect and condition with its Wilson interval
+    (``conditions`` in their order, ``target`` the line to reach), and every parameter's
+    |fitted - truth| / half-width."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    effects = sorted({r["effect"] for r in summary["per_effect"]})
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(max(7.0, 0.75 * len(effects) + 2), 7.5), sharex=True)
+    w = 0.38
+    for i, cond in enumerate(conditions):
+        rows = {r["effect"]: r for r in summary["per_effect"] if r["condition"] == cond}
+        xs = [j + (i - 0.5) * w for j, e in enumerate(effects) if e in rows]
+        if not xs:
+            continue
+        cov = [rows[e]["coverage"] for e in effects if e in rows]
+        lo = [max(rows[e]["coverage"] - rows[e]["coverage_wilson95"][0], 0.0) for e in effects if e in rows]
+        hi = [max(rows[e]["coverage_wilson95"][1] - rows[e]["coverage"], 0.0) for e in effects if e in rows]
+        a1.bar(xs, cov, w, yerr=[lo, hi], capsize=2, label=f"{cond} (overall "
+               f"{summary['overall'].get(cond, {}).get('coverage', math.nan):.1%})",
+               color=("C0", "C1")[i])
+        for d in draws:
+            if d["condition"] != cond or d["covered"] is None or d["effect"] not in effects:
+                continue
+            j = effects.index(d["effect"]) + (i - 0.5) * w
+            for p, f, t, h in zip(d["parameters"], d["fitted"], d["truth"], d["half_width"]):
+                r = abs(hidden.error(p, f, t)) / h if h > 0 else np.inf
+                a2.plot(j + np.random.default_rng(hash((f, t)) % 2**32).uniform(-0.12, 0.12),
+                        max(r, 1e-3), ".", color=("C0", "C1")[i], ms=4, alpha=0.7)
+    a1.axhline(0.95, color="k", lw=0.8, ls=":", label="nominal 95 %")
+    a1.axhline(target, color="r", lw=0.8, ls="--", label=f"target {target:.0%}")
+    a1.set_ylim(0, 1.05)
+    a1.set_ylabel("empirical coverage")
+    a1.legend(fontsize=8, loc="lower left")
+    a1.set_title("95 % intervals of omni discrepancy on random hidden magnitudes (bank truth)")
+    a2.axhline(1.0, color="r", lw=0.8, ls="--")
+    a2.set_yscale("log")
+    a2.set_ylabel("|fitted - truth| / half-width")
+    a2.set_xticks(range(len(effects)))
+    a2.set_xticklabels(effects, rotation=35, ha="right", fontsize=8)
+    a2.text(0.01, 0.97, "below the line: covered", transform=a2.transAxes, va="top", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def print_coverage_summary(summary: dict) -> None:
+    """The coverage study's summary on stdout: a line per effect and condition, then per condition."""
+    for r in summary["per_effect"]:
+        print(f"{r['effect']:18s} {r['condition']:6s} coverage {r['coverage']:.0%} "
+              f"({r['covered']}/{r['parameters_checked']}, not named {r['not_named']}) "
+              f"median half-width/truth {r['median_rel_half_width']:.2e}")
+    for cond, o in summary["overall"].items():
+        print(f"overall {cond}: {o['coverage']:.1%} ({o['covered']}/{o['parameters_checked']}), "
+              f"Wilson 95 % [{o['coverage_wilson95'][0]:.2f}, {o['coverage_wilson95'][1]:.2f}], "
+              f"median half-width/truth {o['median_rel_half_width']:.2e}")

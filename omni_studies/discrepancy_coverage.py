@@ -1,29 +1,26 @@
-"""Coverage study of ``omni discrepancy``'s 95 % intervals on data with a known hidden truth.
+"""Coverage study of ``omni discrepancy``'s 95 % intervals on data with a known hidden truth
+(``scripts/discrepancy_coverage.py`` is the command; :mod:`omni_app.bank_report` draws its
+figure and prints its summary).
 
-For every effect asked for, ``--n`` random magnitudes are drawn uniformly in the effect's
-realistic range (:data:`omni_sim.discrepancy.bank.RANGES`, stated in the output); for each, the
+For every effect asked for, ``n`` random magnitudes are drawn uniformly in the effect's
+realistic range (:data:`omni_sim.discrepancy.bank.RANGES`, stated in the record); for each, the
 independent truth model (:mod:`omni_sim.discrepancy.truth_models`, written without the effect
 library) generates "measured" runs, with the encoder's quantisation and noise ("noisy") and/or
 exactly ("exact": no noise, no quantisation), and the workflow fits them.  To keep the cost down
 the workflow's candidates are restricted to the true effect: this measures the interval, not the
 naming.  A parameter is covered when ``|fitted - truth| <= reported 95 % half-width``.
 
-Writes ``coverage.json`` (every draw, per-effect and overall coverage with Wilson 95 % intervals,
-the median width of the intervals relative to the truth) and ``coverage.png`` to ``--out``;
-resumes from an existing ``coverage.json`` with the same settings (draws already done are kept).
-
-Usage: python scripts/discrepancy_coverage.py [--effects NAME ...] [--n 20] [--seed 0]
-       [--conditions noisy exact] [--out docs/studies/discrepancy] [--jobs 1] [--experiments bank|small]
-       [--merge OTHER/coverage.json ...]
+The record (``coverage.json``): the settings, every draw, per-effect and overall coverage with
+Wilson 95 % intervals, the median width of the intervals relative to the truth.  A study resumes
+from an earlier record with the same settings (draws already done are kept).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -31,14 +28,13 @@ import numpy as np
 from identification.errors import UserError
 from omni_sim.discrepancy import bank, experiment_set, hidden
 
-ROOT = Path(__file__).resolve().parent.parent
-
 CONDITIONS = ("noisy", "exact")
 #: Target coverage of the nominal 95 % intervals.
 TARGET = 0.90
 
 
-def _experiments(kind: str):
+def experiments(kind: str):
+    """The experiment set ``kind``: ``bank`` (the bank's runs) or ``small``."""
     if kind == "bank":
         return experiment_set.experiments()
     # a smaller set for quick checks: both poses, 2 frequencies, 1 step size, 1.2 s runs
@@ -120,121 +116,41 @@ def summarise(draws: list[dict]) -> dict:
     return {"per_effect": per, "overall": overall}
 
 
-def figure(summary: dict, draws: list[dict], path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    effects = sorted({r["effect"] for r in summary["per_effect"]})
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(max(7.0, 0.75 * len(effects) + 2), 7.5), sharex=True)
-    w = 0.38
-    for i, cond in enumerate(CONDITIONS):
-        rows = {r["effect"]: r for r in summary["per_effect"] if r["condition"] == cond}
-        xs = [j + (i - 0.5) * w for j, e in enumerate(effects) if e in rows]
-        if not xs:
-            continue
-        cov = [rows[e]["coverage"] for e in effects if e in rows]
-        lo = [max(rows[e]["coverage"] - rows[e]["coverage_wilson95"][0], 0.0) for e in effects if e in rows]
-        hi = [max(rows[e]["coverage_wilson95"][1] - rows[e]["coverage"], 0.0) for e in effects if e in rows]
-        a1.bar(xs, cov, w, yerr=[lo, hi], capsize=2, label=f"{cond} (overall "
-               f"{summary['overall'].get(cond, {}).get('coverage', math.nan):.1%})",
-               color=("C0", "C1")[i])
-        for d in draws:
-            if d["condition"] != cond or d["covered"] is None or d["effect"] not in effects:
-                continue
-            j = effects.index(d["effect"]) + (i - 0.5) * w
-            for p, f, t, h in zip(d["parameters"], d["fitted"], d["truth"], d["half_width"]):
-                r = abs(hidden.error(p, f, t)) / h if h > 0 else np.inf
-                a2.plot(j + np.random.default_rng(hash((f, t)) % 2**32).uniform(-0.12, 0.12),
-                        max(r, 1e-3), ".", color=("C0", "C1")[i], ms=4, alpha=0.7)
-    a1.axhline(0.95, color="k", lw=0.8, ls=":", label="nominal 95 %")
-    a1.axhline(TARGET, color="r", lw=0.8, ls="--", label=f"target {TARGET:.0%}")
-    a1.set_ylim(0, 1.05)
-    a1.set_ylabel("empirical coverage")
-    a1.legend(fontsize=8, loc="lower left")
-    a1.set_title("95 % intervals of omni discrepancy on random hidden magnitudes (bank truth)")
-    a2.axhline(1.0, color="r", lw=0.8, ls="--")
-    a2.set_yscale("log")
-    a2.set_ylabel("|fitted - truth| / half-width")
-    a2.set_xticks(range(len(effects)))
-    a2.set_xticklabels(effects, rotation=35, ha="right", fontsize=8)
-    a2.text(0.01, 0.97, "below the line: covered", transform=a2.transAxes, va="top", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+def effects_of(names: list[str] | None) -> list[str]:
+    """The effects to study: ``names``, or every effect with a range (None or empty); a name
+    without a range is a :class:`UserError`."""
+    effects = names or list(bank.RANGES)
+    bad = [e for e in effects if e not in bank.RANGES]
+    if bad:
+        raise UserError(f"--effects: no range for {', '.join(bad)} (known: {', '.join(bank.RANGES)})")
+    return effects
 
 
-def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
-                                 epilog="Ranges of the random magnitudes: omni_sim/discrepancy/bank.py RANGES.")
-    ap.add_argument("--effects", nargs="*", default=None,
-                    help="library effects to study (default: every effect with a range)")
-    ap.add_argument("--n", type=int, default=20, help="random magnitudes per effect (default 20)")
-    ap.add_argument("--seed", type=int, default=0, help="seed of the magnitudes and of the noise")
-    ap.add_argument("--conditions", nargs="*", default=list(CONDITIONS), choices=CONDITIONS,
-                    help="noisy: quantised encoder + 1e-4 rad noise; exact: neither")
-    ap.add_argument("--out", default=str(ROOT / "docs" / "studies" / "discrepancy"), help="output folder")
-    ap.add_argument("--experiments", default="bank", choices=("bank", "small"),
-                    help="bank: the bank's 16 runs of 2 s; small: 10 runs of 1.2 s")
-    ap.add_argument("--jobs", type=int, default=1, help="rollout threads (default 1)")
-    ap.add_argument("--summarise-only", action="store_true",
-                    help="no new draws: summarise the draws in --out's coverage.json (and --merge)")
-    ap.add_argument("--merge", nargs="*", default=[],
-                    help="coverage.json files of other runs (e.g. one per condition run in "
-                         "parallel) whose draws are added before the summary")
-    return ap
+def study_settings(effects: list[str], n: int, seed: int, experiments: str) -> dict:
+    """The record's settings: draws, seed, experiment set, the ranges of ``effects``."""
+    return {"n": n, "seed": seed, "experiments": experiments,
+            "ranges": {e: bank.RANGES[e] for e in effects}, "range_centre": bank.RANGE_CENTRE,
+            "noise_rad": experiment_set.NOISE_RAD, "candidates": "the true effect only"}
 
 
-def main(argv=None) -> int:
-    args = _parser().parse_args(argv)
-    try:
-        effects = args.effects or list(bank.RANGES)
-        bad = [e for e in effects if e not in bank.RANGES]
-        if bad:
-            raise UserError(f"--effects: no range for {', '.join(bad)} (known: {', '.join(bank.RANGES)})")
-        if args.n < 1:
-            raise UserError("--n must be at least 1")
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        jpath = out / "coverage.json"
-        settings = {"n": args.n, "seed": args.seed, "experiments": args.experiments,
-                    "ranges": {e: bank.RANGES[e] for e in effects}, "range_centre": bank.RANGE_CENTRE,
-                    "noise_rad": experiment_set.NOISE_RAD, "candidates": "the true effect only"}
-        draws = _earlier_draws(jpath, args, settings, effects)
-        for f in args.merge:
-            draws += _other_draws(f, settings, draws)
-    except UserError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    t_all = time.perf_counter()
-    done = {(d["effect"], d["condition"], d["seed"]) for d in draws}
-    _run(_plan(args, effects, done), draws, settings, jpath, _experiments(args.experiments), args.jobs)
-    summary = summarise(draws)
-    res = dict(settings=settings, draws=draws, **summary)
-    jpath.write_text(json.dumps(res, indent=1) + "\n")
-    figure(summary, draws, out / "coverage.png")
-    _print_summary(summary)
-    print(f"wrote {jpath} and {out / 'coverage.png'} ({time.perf_counter() - t_all:.0f} s)")
-    ok = all(o["coverage"] >= TARGET for o in summary["overall"].values())
-    return 0 if ok else 1
-
-
-def _earlier_draws(jpath: Path, args, settings: dict, effects: list[str]) -> list[dict]:
+def earlier_draws(jpath: Path, settings: dict, effects: list[str], *, seed: int, experiments: str,
+                  summarise_only: bool) -> list[dict]:
     """The draws an existing ``coverage.json`` holds for ``effects`` (resumed or summarised);
-    with ``--summarise-only`` its seed and experiment set become ``settings``'."""
+    with ``summarise_only`` its seed and experiment set become ``settings``'."""
     if not jpath.exists():
         return []
     old = json.loads(jpath.read_text())
     had = old.get("settings", {})
-    if args.summarise_only:  # summarise what is there, as it was made
+    if summarise_only:  # summarise what is there, as it was made
         settings.update({k: had[k] for k in ("seed", "experiments") if k in had})
-    elif (had.get("seed"), had.get("experiments")) != (args.seed, args.experiments):
+    elif (had.get("seed"), had.get("experiments")) != (seed, experiments):
         # its draws cannot be resumed with other settings, and are not silently dropped
         raise UserError(f"{jpath} holds draws made with --seed {had.get('seed')} --experiments "
                         f"{had.get('experiments')}; run with those, or with another --out")
     return [d for d in old.get("draws", []) if d["effect"] in effects]
 
 
-def _other_draws(path: str, settings: dict, draws: list[dict]) -> list[dict]:
+def other_draws(path: str, settings: dict, draws: list[dict]) -> list[dict]:
     """The draws of another run's ``coverage.json`` (``--merge``) not already in ``draws``."""
     try:
         other = json.loads(Path(path).read_text())
@@ -251,7 +167,7 @@ def _other_draws(path: str, settings: dict, draws: list[dict]) -> list[dict]:
     return [d for d in other.get("draws", []) if (d["effect"], d["condition"], d["seed"]) not in have]
 
 
-def _plan(args, effects: list[str], done: set) -> list[tuple]:
+def plan(effects: list[str], done: set, *, n: int, seed: int, conditions, summarise_only: bool) -> list[tuple]:
     """The draws still to make, ``(effect, values, condition, seed)``.
 
     Magnitudes: one generator per effect (the same draws whatever else is studied); the plan
@@ -259,21 +175,22 @@ def _plan(args, effects: list[str], done: set) -> list[tuple]:
     still covers every effect."""
     values = {}
     for eff in effects:
-        rng = np.random.default_rng([args.seed, sum(map(ord, eff))])
-        values[eff] = [bank.draw(eff, rng) for _ in range(args.n)]
-    plan = []
-    for i in range(0 if args.summarise_only else args.n):
+        rng = np.random.default_rng([seed, sum(map(ord, eff))])
+        values[eff] = [bank.draw(eff, rng) for _ in range(n)]
+    out = []
+    for i in range(0 if summarise_only else n):
         for eff in effects:
-            for cond in args.conditions:
-                seed = args.seed * 100_000 + i
-                if (eff, cond, seed) not in done:
-                    plan.append((eff, values[eff][i], cond, seed))
-    return plan
+            for cond in conditions:
+                draw_seed = seed * 100_000 + i
+                if (eff, cond, draw_seed) not in done:
+                    out.append((eff, values[eff][i], cond, draw_seed))
+    return out
 
 
-def _run(plan: list[tuple], draws: list[dict], settings: dict, jpath: Path, exps, jobs: int) -> None:
-    """Make the planned draws, appending to ``draws``; ``jpath`` is rewritten after each (a
-    stopped study keeps what it did)."""
+def run_draws(plan: list[tuple], draws: list[dict], settings: dict, exps, jobs: int,
+              save: Callable[[dict], None]) -> None:
+    """Make the planned draws, appending to ``draws``; ``save`` gets the record after each (the
+    caller writes it: a stopped study keeps what it did)."""
     try:
         from tqdm import tqdm
         bar = tqdm(total=len(plan), desc="coverage", unit="fit") if plan else None
@@ -282,10 +199,7 @@ def _run(plan: list[tuple], draws: list[dict], settings: dict, jpath: Path, exps
     for k, (eff, values, cond, seed) in enumerate(plan):
         d = one_draw(eff, values, cond, seed, exps, jobs)
         draws.append(d)
-        res = dict(settings=settings, draws=draws, **summarise(draws))
-        tmp = jpath.with_suffix(".tmp")
-        tmp.write_text(json.dumps(res, indent=1) + "\n")
-        tmp.replace(jpath)
+        save(dict(settings=settings, draws=draws, **summarise(draws)))
         if bar is not None:
             bar.set_postfix_str(f"{eff} {cond} {'/'.join('y' if c else 'n' for c in d['covered'] or [])}")
             bar.update()
@@ -293,18 +207,3 @@ def _run(plan: list[tuple], draws: list[dict], settings: dict, jpath: Path, exps
             print(f"[{k + 1}/{len(plan)}] {eff} {cond} covered={d['covered']} {d['seconds']:.0f} s", flush=True)
     if bar is not None:
         bar.close()
-
-
-def _print_summary(summary: dict) -> None:
-    for r in summary["per_effect"]:
-        print(f"{r['effect']:18s} {r['condition']:6s} coverage {r['coverage']:.0%} "
-              f"({r['covered']}/{r['parameters_checked']}, not named {r['not_named']}) "
-              f"median half-width/truth {r['median_rel_half_width']:.2e}")
-    for cond, o in summary["overall"].items():
-        print(f"overall {cond}: {o['coverage']:.1%} ({o['covered']}/{o['parameters_checked']}), "
-              f"Wilson 95 % [{o['coverage_wilson95'][0]:.2f}, {o['coverage_wilson95'][1]:.2f}], "
-              f"median half-width/truth {o['median_rel_half_width']:.2e}")
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -6,6 +6,8 @@ whole bank through the workflow (slow) and the coverage study's script (slow, sm
 import ast
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import mujoco
@@ -675,12 +677,9 @@ def test_docs_gear_efficiency_section_is_the_record():
 def test_coverage_script_small(tmp_path):
     """The coverage study runs end to end on 3 draws of 2 effects (noisy data, the small
     experiment set) and writes its JSON and figure."""
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("cov", ROOT / "scripts" / "discrepancy_coverage.py")
-    cov = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cov)
-    rc = cov.main(["--effects", "time_delay", "coulomb_friction", "--n", "3", "--conditions", "noisy",
-                   "--experiments", "small", "--out", str(tmp_path)])
+    from omni_studies import discrepancy_coverage as cov
+    rc = _coverage_script("--effects", "time_delay", "coulomb_friction", "--n", "3", "--conditions", "noisy",
+                          "--experiments", "small", "--out", str(tmp_path)).returncode
     res = json.loads((tmp_path / "coverage.json").read_text())
     assert (tmp_path / "coverage.png").stat().st_size > 10_000
     assert len(res["draws"]) == 6
@@ -693,31 +692,26 @@ def test_coverage_script_small(tmp_path):
     assert rc == (0 if cov_noisy["coverage"] >= cov.TARGET else 1)
 
 
-def test_coverage_script_bad_effect(capsys):
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("cov", ROOT / "scripts" / "discrepancy_coverage.py")
-    cov = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cov)
-    assert cov.main(["--effects", "no_such_effect"]) == 2
-    err = capsys.readouterr().err
+def _coverage_script(*args: str) -> subprocess.CompletedProcess:
+    """``scripts/discrepancy_coverage.py`` run with ``args``, its output captured."""
+    return subprocess.run([sys.executable, str(ROOT / "scripts" / "discrepancy_coverage.py"), *args],
+                          capture_output=True, text=True, timeout=3600)
+
+
+def test_coverage_script_bad_effect(tmp_path):
+    proc = _coverage_script("--effects", "no_such_effect", "--out", str(tmp_path))
+    assert proc.returncode == 2
+    err = proc.stderr
     assert err.startswith("error:") and "no_such_effect" in err and err.count("\n") == 1
 
 
-def _script(name: str):
-    import importlib.util
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def test_coverage_merge_refuses_other_settings(tmp_path, capsys):
+def test_coverage_merge_refuses_other_settings(tmp_path):
     """--merge of draws made with another experiment set is an error, not a mislabelled study."""
-    cov = _script("discrepancy_coverage")
     other = tmp_path / "other.json"
     other.write_text(json.dumps({"settings": {"seed": 0, "experiments": "small"}, "draws": []}))
-    assert cov.main(["--summarise-only", "--merge", str(other), "--out", str(tmp_path / "o")]) == 2
-    err = capsys.readouterr().err
+    proc = _coverage_script("--summarise-only", "--merge", str(other), "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2
+    err = proc.stderr
     assert err.startswith("error: --merge") and "--experiments small" in err and err.count("\n") == 1
 
 
@@ -746,12 +740,12 @@ def _sci(x: float) -> str:
 def test_docs_coverage_figures_are_the_json():
     """The coverage study's section of docs/method/discrepancy.md says what docs/studies/discrepancy/coverage.json holds:
     the experiment set (and its size), the table's figures, the fit times, the lowest effect."""
-    cov = _script("discrepancy_coverage")
+    from omni_studies import discrepancy_coverage as cov
     res = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "coverage.json").read_text())
     sec = _flat(_section("## Uncertainty that holds", "## Your own robot"))
     kind = res["settings"]["experiments"]
     assert [m for m in ("bank", "small") if f"--experiments {m}" in sec] == [kind]
-    exps = cov._experiments(kind)
+    exps = cov.experiments(kind)
     assert f"{len(exps)} runs of {len(exps[0].r) * 1e-3:g} s" in sec
     for cond, label in (("exact", "exact (no noise, no quantisation)"), ("noisy", "noisy (quantised + 1e-4 rad)")):
         o = res["overall"][cond]
