@@ -6,6 +6,8 @@ whole bank through the workflow (slow) and the coverage study's script (slow, sm
 import ast
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import mujoco
@@ -645,14 +647,14 @@ def test_docs_gear_efficiency_section_is_the_record():
     the record's verdict is what assess_efficiency says of its report, its case is the truth's
     as the code states it now, and the slow test's expected outcome is the record's."""
     from omni_sim.discrepancy import servo_truth
-    script = _script("discrepancy_bank")
-    rec = json.loads(script.EFFICIENCY_JSON.read_text())
+    from omni_app import bank_report
+    rec = json.loads(bank_report.EFFICIENCY_JSON.read_text())
     assert servo_truth.assess_efficiency(rec["report"]) == (rec["pass"], rec["why"])
     assert rec["case"] == json.loads(json.dumps(servo_truth.GEAR_EFFICIENCY_CASE))
-    page = script.DEFAULT_OUT.read_text()
-    assert page.endswith("\n" + script.efficiency_section(rec))
-    bank_data = json.loads(script.DEFAULT_OUT.with_suffix(".json").read_text())
-    assert page == script.bank_page(bank_data, script.DEFAULT_OUT)
+    page = bank_report.DEFAULT_OUT.read_text()
+    assert page.endswith("\n" + bank_report.efficiency_section(rec))
+    bank_data = json.loads(bank_report.DEFAULT_OUT.with_suffix(".json").read_text())
+    assert page == bank_report.bank_page(bank_data, bank_report.DEFAULT_OUT)
     assert (GEAR_EFFICIENCY_FAILURE is None) == rec["pass"]
     if GEAR_EFFICIENCY_FAILURE is not None:  # the reason's figures are the record's
         rep = rec["report"]
@@ -675,12 +677,9 @@ def test_docs_gear_efficiency_section_is_the_record():
 def test_coverage_script_small(tmp_path):
     """The coverage study runs end to end on 3 draws of 2 effects (noisy data, the small
     experiment set) and writes its JSON and figure."""
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("cov", ROOT / "scripts" / "discrepancy_coverage.py")
-    cov = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cov)
-    rc = cov.main(["--effects", "time_delay", "coulomb_friction", "--n", "3", "--conditions", "noisy",
-                   "--experiments", "small", "--out", str(tmp_path)])
+    from omni_studies import discrepancy_coverage as cov
+    rc = _coverage_script("--effects", "time_delay", "coulomb_friction", "--n", "3", "--conditions", "noisy",
+                          "--experiments", "small", "--out", str(tmp_path)).returncode
     res = json.loads((tmp_path / "coverage.json").read_text())
     assert (tmp_path / "coverage.png").stat().st_size > 10_000
     assert len(res["draws"]) == 6
@@ -693,31 +692,26 @@ def test_coverage_script_small(tmp_path):
     assert rc == (0 if cov_noisy["coverage"] >= cov.TARGET else 1)
 
 
-def test_coverage_script_bad_effect(capsys):
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("cov", ROOT / "scripts" / "discrepancy_coverage.py")
-    cov = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cov)
-    assert cov.main(["--effects", "no_such_effect"]) == 2
-    err = capsys.readouterr().err
+def _coverage_script(*args: str) -> subprocess.CompletedProcess:
+    """``scripts/discrepancy_coverage.py`` run with ``args``, its output captured."""
+    return subprocess.run([sys.executable, str(ROOT / "scripts" / "discrepancy_coverage.py"), *args],
+                          capture_output=True, text=True, timeout=3600)
+
+
+def test_coverage_script_bad_effect(tmp_path):
+    proc = _coverage_script("--effects", "no_such_effect", "--out", str(tmp_path))
+    assert proc.returncode == 2
+    err = proc.stderr
     assert err.startswith("error:") and "no_such_effect" in err and err.count("\n") == 1
 
 
-def _script(name: str):
-    import importlib.util
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def test_coverage_merge_refuses_other_settings(tmp_path, capsys):
+def test_coverage_merge_refuses_other_settings(tmp_path):
     """--merge of draws made with another experiment set is an error, not a mislabelled study."""
-    cov = _script("discrepancy_coverage")
     other = tmp_path / "other.json"
     other.write_text(json.dumps({"settings": {"seed": 0, "experiments": "small"}, "draws": []}))
-    assert cov.main(["--summarise-only", "--merge", str(other), "--out", str(tmp_path / "o")]) == 2
-    err = capsys.readouterr().err
+    proc = _coverage_script("--summarise-only", "--merge", str(other), "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2
+    err = proc.stderr
     assert err.startswith("error: --merge") and "--experiments small" in err and err.count("\n") == 1
 
 
@@ -746,12 +740,12 @@ def _sci(x: float) -> str:
 def test_docs_coverage_figures_are_the_json():
     """The coverage study's section of docs/method/discrepancy.md says what docs/studies/discrepancy/coverage.json holds:
     the experiment set (and its size), the table's figures, the fit times, the lowest effect."""
-    cov = _script("discrepancy_coverage")
+    from omni_studies import discrepancy_coverage as cov
     res = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "coverage.json").read_text())
     sec = _flat(_section("## Uncertainty that holds", "## Your own robot"))
     kind = res["settings"]["experiments"]
     assert [m for m in ("bank", "small") if f"--experiments {m}" in sec] == [kind]
-    exps = cov._experiments(kind)
+    exps = cov.experiments(kind)
     assert f"{len(exps)} runs of {len(exps[0].r) * 1e-3:g} s" in sec
     for cond, label in (("exact", "exact (no noise, no quantisation)"), ("noisy", "noisy (quantised + 1e-4 rad)")):
         o = res["overall"][cond]
@@ -783,7 +777,7 @@ def test_docs_bank_table_is_the_json():
     """docs/method/discrepancy.md's bank table is exactly what ``discrepancy_bank.py --table`` makes from
     docs/studies/discrepancy/bank.json; the JSON's verdicts are what bank.assess says of its reports;
     the bank section links the table's current location and no stale one."""
-    script = _script("discrepancy_bank")
+    from omni_app import bank_report
     data = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "bank.json").read_text())
     assert list(data["cases"]) == [c.name for c in hidden.CASES]  # every case, in the bank's order
     for name, c in data["cases"].items():
@@ -791,11 +785,11 @@ def test_docs_bank_table_is_the_json():
             assert hidden.assess(hidden.case(name), c["report"]) == (c["pass"], c["why"]), name
     sec = _section("## The hidden-effect bank: what it proves", "## Uncertainty that holds")
     block = sec[sec.index(BANK_TABLE_START) + len(BANK_TABLE_START):sec.index(BANK_TABLE_END)]
-    assert block.strip("\n") == script.readme_table(data).strip("\n")
+    assert block.strip("\n") == bank_report.readme_table(data).strip("\n")
     assert "docs/studies/discrepancy/bank.md" in sec
     for stale in ("docs/discrepancy_bank.md", "bank_rerun.md"):
         assert stale not in PAGE.read_text() and stale not in (ROOT / "README.md").read_text()
-    assert script.DEFAULT_OUT == ROOT / "docs" / "studies" / "discrepancy" / "bank.md"
+    assert bank_report.DEFAULT_OUT == ROOT / "docs" / "studies" / "discrepancy" / "bank.md"
 
 
 def test_docs_search_examples_are_the_bank_json():
