@@ -1,6 +1,8 @@
 """``omni zwidth``: the command, its record (``zwidth.json``) and its figure.  The study -- which
 walls (K, B) the virtual Omni's yaw renders passively, and how that is decided -- is
-:mod:`omni_studies.zwidth`."""
+:mod:`omni_studies.zwidth`.  Also the records of ``scripts/zwidth_study.py`` (what moves the
+boundary, :mod:`omni_studies.zwidth_study`) and ``scripts/zwidth_damping.py`` (the identified
+damping's boundary, :mod:`omni_studies.zwidth_damping`)."""
 
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ from omni_studies.zwidth import (DURATION_S, MEMORY_BUDGET_BYTES, PROBE_PERIODS,
                                   START_PENETRATION, TOL, beyond_boundary, boundary, colgate_limit,
                                   map_device, map_memory_bytes, map_notes, passivity_map,
                                   physical_damping, probe_amplitude_counts, require_damping)
+from omni_studies import zwidth_study
 
 
 # --- the command --------------------------------------------------------------------------------
@@ -181,3 +184,31 @@ def _figure_note(doc: dict) -> str:
     if s["delay_periods"]:
         parts.append("loop delay: the map is optimistic")
     return "; ".join(parts)
+
+
+# --- the study of what moves the boundary (scripts/zwidth_study.py) ---------------------------
+def table_cell(v: dict) -> str:
+    """A table entry: the boundary, "> 40" (passive to the grid's end), "none" (no cell of the
+    row passive) or "none at K = 0" (K = 0 active, yet a cell further along the row passive)."""
+    if v["none_passive"]:
+        return "none"
+    if v["whole_row_passive"]:
+        return f"> {zwidth_study.STIFFNESS[-1]:g}"
+    if v["boundary"] is None:
+        return "none at K = 0"
+    return f"{v['boundary']:.2f}"
+
+
+def case_line(name: str, r: dict) -> str:
+    """A case's line: its wall time, K_max at the table's damping rows, the non-monotone rows
+    and cells."""
+    tb = " / ".join(table_cell(v) for v in r["table"].values())
+    return (f"{name:24s} {r['elapsed_s']:6.1f} s  K_max(B=0/0.004/0.008) = {tb}  "
+            f"non-monotone rows {r['non_monotone_rows']}, cells {r['non_monotone_cells']}")
+
+
+def write_study(doc: dict, out: Path) -> None:
+    """The study's record at ``out`` (through a temporary file beside it)."""
+    tmp = out.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    tmp.replace(out)
