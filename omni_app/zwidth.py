@@ -1,6 +1,8 @@
 """``omni zwidth``: the command, its record (``zwidth.json``) and its figure.  The study -- which
 walls (K, B) the virtual Omni's yaw renders passively, and how that is decided -- is
-:mod:`omni_studies.zwidth`."""
+:mod:`omni_studies.zwidth`.  Also the records of ``scripts/zwidth_study.py`` (what moves the
+boundary, :mod:`omni_studies.zwidth_study`) and ``scripts/zwidth_damping.py`` (the identified
+damping's boundary, :mod:`omni_studies.zwidth_damping`)."""
 
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ from omni_studies.zwidth import (DURATION_S, MEMORY_BUDGET_BYTES, PROBE_PERIODS,
                                   START_PENETRATION, TOL, beyond_boundary, boundary, colgate_limit,
                                   map_device, map_memory_bytes, map_notes, passivity_map,
                                   physical_damping, probe_amplitude_counts, require_damping)
+from omni_studies import zwidth_damping, zwidth_study
 
 
 # --- the command --------------------------------------------------------------------------------
@@ -181,3 +184,106 @@ def _figure_note(doc: dict) -> str:
     if s["delay_periods"]:
         parts.append("loop delay: the map is optimistic")
     return "; ".join(parts)
+
+
+# --- the study of what moves the boundary (scripts/zwidth_study.py) ---------------------------
+def table_cell(v: dict) -> str:
+    """A table entry: the boundary, "> 40" (passive to the grid's end), "none" (no cell of the
+    row passive) or "none at K = 0" (K = 0 active, yet a cell further along the row passive)."""
+    if v["none_passive"]:
+        return "none"
+    if v["whole_row_passive"]:
+        return f"> {zwidth_study.STIFFNESS[-1]:g}"
+    if v["boundary"] is None:
+        return "none at K = 0"
+    return f"{v['boundary']:.2f}"
+
+
+def case_line(name: str, r: dict) -> str:
+    """A case's line: its wall time, K_max at the table's damping rows, the non-monotone rows
+    and cells."""
+    tb = " / ".join(table_cell(v) for v in r["table"].values())
+    return (f"{name:24s} {r['elapsed_s']:6.1f} s  K_max(B=0/0.004/0.008) = {tb}  "
+            f"non-monotone rows {r['non_monotone_rows']}, cells {r['non_monotone_cells']}")
+
+
+def write_study(doc: dict, out: Path) -> None:
+    """The study's record at ``out`` (through a temporary file beside it)."""
+    tmp = out.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    tmp.replace(out)
+
+
+# --- the identified damping's boundary (scripts/zwidth_damping.py) -----------------------------
+def family_line(fam: str, info: dict) -> str:
+    """A family's line: the actual pose, the yaw inertia, C_linear and the dampings."""
+    return (f"{fam}: actual pose {info['gamma_actual_deg'][0]:.2f}/"
+            f"{info['gamma_actual_deg'][1]:.2f} deg, I_yaw {info['I_yaw']:.5g}, C_linear "
+            f"{info['C_linear']:.4g} 1/s -> b_id {info['b_linear']:.4g} "
+            f"(nominal {info['b_nominal']:.4g})")
+
+
+def damping_case_line(case: str, c: dict) -> str:
+    """A case's line: the alpha at B = 0, its probe, the median |error| of every prediction."""
+    rows, me = c["rows"], c["median_abs_error"]
+    return (f"{case:24s} alpha(B=0) {rows[0]['alpha']:.4g} (probe m={rows[0]['binding_probe']})"
+            f"  median |err| " + ", ".join(f"{k} {'-' if v is None else f'{v:.0%}'}"
+                                           for k, v in me.items()))
+
+
+def write_damping(doc: dict, damping: np.ndarray, out: Path) -> Path:
+    """The record at ``out`` and its figure beside it (same stem, .png); the figure's path."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    plot_damping(doc, damping, out.with_suffix(".png"))
+    return out.with_suffix(".png")
+
+
+def plot_damping(doc: dict, damping: np.ndarray, path: Path) -> None:
+    """The measured boundary of every case beside the predicted 2(b_x - |B|)/T, one panel per
+    case."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(zwidth_damping.CASES)
+    fig, axes = plt.subplots(2, 4, figsize=(13, 6.4), sharey=True)
+    style = {"nominal": ("k-", "nominal b"), "linear": ("b--", "b_id = C_linear I"),
+             "alpha": ("r:", "C(alpha) I"), "coulomb_fc_over_v": ("g-.", "b + Fc/V")}
+    kmax = 45.0
+    for ax, case in zip(axes.ravel(), names):
+        c = doc["cases"][case]
+        rows = c["rows"]
+        meas = np.array([np.nan if r["measured"] is None else r["measured"] for r in rows])
+        capped = np.array([r["measured_capped_at_grid_end"] for r in rows])
+        for k, (ls, lab) in style.items():
+            if k not in rows[0]["predicted"]:
+                continue
+            pk = np.array([r["predicted"][k] for r in rows])
+            ax.plot(np.minimum(pk, kmax), damping, ls, lw=1.4, label=lab)
+            off = pk > kmax
+            if off.any():
+                ax.plot(np.full(off.sum(), kmax), damping[off], ls[0] + ">", ms=5)
+        ax.plot(meas[~capped], damping[~capped], "ko", ms=5, mfc="none", label="measured")
+        if capped.any():
+            ax.plot(meas[capped], damping[capped], "k>", ms=6, mfc="none",
+                    label="measured: passive to K = 40")
+        fam, q, v = zwidth_damping.CASES[case]
+        ax.set_title(f"{fam}, {'quantised' if q else 'exact'}, V = {v:g} rad/s", fontsize=9)
+        ax.set_xlim(0, kmax + 1)
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("K_max [N m/rad]")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("wall damping B [N m s/rad]")
+    h, lab = axes[1, 0].get_legend_handles_labels()
+    seen = dict(zip(lab, h))
+    for ax in axes.ravel():
+        for hh, ll in zip(*ax.get_legend_handles_labels()):
+            seen.setdefault(ll, hh)
+    fig.legend(seen.values(), seen.keys(), loc="lower center", ncol=6, fontsize=8)
+    fig.suptitle("Z-width boundary: measured vs 2(b_x - |B|)/T (arrows: off the scale, > 45)",
+                 fontsize=10)
+    fig.tight_layout(rect=(0, 0.05, 1, 0.96))
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

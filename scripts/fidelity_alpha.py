@@ -2,7 +2,7 @@
 """The alpha model's verdict on every candidate of the table-level search within Table 11's band.
 
 Reads ``docs/studies/fidelity/search.json``, selects the candidates whose linear model errs on the steps
-as much as the real Omni's (:func:`scripts.fidelity_alpha_verdict.in_band`, from the record's
+as much as the real Omni's (:func:`omni_studies.fidelity_alpha.in_band`, from the record's
 linear figures only), rebuilds each one's device and runs ``omni reproduce``'s stages on it, and
 writes ``docs/studies/fidelity/alpha_verdict.json`` (with the code commit), ``alpha_verdict.md`` and
 ``alpha_verdict.png`` (rendered from the JSON).  The verdict is reported, never used to choose.
@@ -21,13 +21,16 @@ from pathlib import Path
 
 from omni_app import fidelity_alpha as fav
 from omni_app.provenance import git_commit
+from omni_app.report import TARGET_STEP_RATIO
+from omni_app.reproduce import one_blas_thread
+from omni_studies import fidelity_alpha as study
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--search", type=Path, default=fav.SEARCH, help="the search record")
+    ap.add_argument("--search", type=Path, default=study.SEARCH, help="the search record")
     ap.add_argument("--out", type=Path, default=fav.OUT, help="the verdict record (JSON)")
     ap.add_argument("--jobs", type=int, default=None, help="threads of each campaign (default: all cores)")
     ap.add_argument("--list", action="store_true", help="list the in-band candidates and exit")
@@ -38,10 +41,12 @@ def main(argv=None) -> int:
     else:
         doc = json.loads(args.search.read_text())
         if args.list:
-            for r in fav.in_band(doc):
+            for r in study.in_band(doc):
                 print(r["id"])
             return 0
-        rec = fav.run(doc, args.jobs)
+        with one_blas_thread():
+            rec = study.run(doc, TARGET_STEP_RATIO, args.jobs,
+                            progress=lambda row: print(fav.row_line(row), flush=True))
         rec.update(code_commit=git_commit(), versions=_versions())
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(rec, indent=1) + "\n")

@@ -1,5 +1,5 @@
-"""scripts/fidelity_alpha.py: the alpha model's verdict on every candidate of the table-level
-search within Table 11's band.  The selection is the stated rule computed from the search
+"""The alpha model's verdict (omni_studies/fidelity_alpha.py; its report omni_app/fidelity_alpha.py)
+on every candidate of the table-level search within Table 11's band.  The selection is the stated rule computed from the search
 record's linear figures (and nothing else: no alpha column); the committed report is the record
 rendered; the record's rows are the search record's candidates, rebuilt as searched; the
 verdict follows its stated rules; the pages quote the record."""
@@ -18,6 +18,8 @@ import pytest
 from identification import paper
 from omni_app import fidelity_alpha as fav
 from omni_app import fidelity_report as report
+from omni_app.report import TARGET_STEP_RATIO
+from omni_studies import fidelity_alpha as study
 from omni_studies.fidelity import SCENE_EFFECTS, meets
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,7 +42,7 @@ def test_in_band_is_the_stated_rule_on_the_search_record():
     want = [r["id"] for r in SEARCH["candidates"] if r.get("ok")
             and abs(r["figures"]["step_median_rad"] / real - 1) <= 0.25
             and r["figures"]["poses_within_40pct"] >= 20]
-    assert _ids(fav.in_band(SEARCH)) == want
+    assert _ids(study.in_band(SEARCH)) == want
     assert _ids(RECORD["candidates"]) == want
     assert {r["family"] for r in RECORD["candidates"]} == {"lugre", "coulomb"}
     assert sorted(want + RECORD["out_of_band"]) == sorted(r["id"] for r in SEARCH["candidates"])
@@ -53,12 +55,12 @@ def test_selection_reads_only_the_linear_step_figures():
                 "candidates": [{"id": r["id"], "family": r["family"], "ok": r.get("ok"),
                                 "figures": {k: r["figures"][k] for k in ("step_median_rad", "poses_within_40pct")}}
                                for r in SEARCH["candidates"] if r.get("ok")]}
-    assert _ids(fav.in_band(stripped)) == _ids(fav.in_band(SEARCH))
+    assert _ids(study.in_band(stripped)) == _ids(study.in_band(SEARCH))
     planted = copy.deepcopy(SEARCH)
     for i, r in enumerate(planted["candidates"]):
         r["alpha"] = {"ratio_of_medians": 100.0 * (i % 2), "phase_p90_alpha_deg": -1.0}
         r.get("figures", {})["step_ratio_of_medians"] = float(i)
-    assert _ids(fav.in_band(planted)) == _ids(fav.in_band(SEARCH))
+    assert _ids(study.in_band(planted)) == _ids(study.in_band(SEARCH))
 
 
 @pytest.mark.parametrize("median_rel, poses, selected", [
@@ -70,7 +72,7 @@ def test_band_edges(median_rel, poses, selected):
          "figures": {"step_median_rad": SEARCH["paper"]["step_linear_median_over_poses_rad"] * (1 + median_rel),
                      "poses_within_40pct": poses}},
         {"id": "x/failed", "family": "lugre", "ok": False, "error": "no evaluation ran"}]}
-    assert _ids(fav.in_band(doc)) == (["x/y"] if selected else [])
+    assert _ids(study.in_band(doc)) == (["x/y"] if selected else [])
 
 
 # -- the record and its report -----------------------------------------------------------------------
@@ -80,7 +82,7 @@ def test_committed_report_is_the_record_rendered():
 
 def test_rows_are_the_search_candidates_rebuilt_as_searched():
     """Each row carries its search figures unchanged, and its reproduction gave them back within
-    the stated tolerance (fav.REBUILD_RTOL, reason there)."""
+    the stated tolerance (study.REBUILD_RTOL, reason there)."""
     by_id = {r["id"]: r for r in SEARCH["candidates"]}
     assert RECORD["search"]["code_commit"] == SEARCH["code_commit"]
     for row in RECORD["candidates"]:
@@ -89,7 +91,7 @@ def test_rows_are_the_search_candidates_rebuilt_as_searched():
         for k, v in row["search"].items():
             assert v == cand["figures"][k]
         assert "error" not in row, row.get("error")
-        assert row["rebuild_check"]["max_rel_diff"] <= fav.REBUILD_RTOL
+        assert row["rebuild_check"]["max_rel_diff"] <= study.REBUILD_RTOL
         assert row["rebuild_check"]["step_median_rad"][0] == cand["figures"]["step_median_rad"]
 
 
@@ -97,21 +99,19 @@ def test_verdict_follows_its_rules():
     """The stored verdict is the rules on the stored figures; the rules' edges: a step ratio of
     medians of 3 (omni_app/report.py's target) is the paper's gain, 2.99 is not; an alpha phase
     p90 of half the linear one is the paper's sine gain."""
-    from omni_app.report import TARGET_STEP_RATIO
-
     assert TARGET_STEP_RATIO == 3.0
     for row in RECORD["candidates"]:
-        assert row["verdict"] == fav.verdict(row["alpha"])
+        assert row["verdict"] == study.verdict(row["alpha"], TARGET_STEP_RATIO)
 
     def alpha(ratio, lin, alp):
         return {"step": {"ratio_of_medians_whole_record": ratio},
                 "sine": {"phase_p90_linear_deg": lin, "phase_p90_alpha_deg": alp}}
-    assert fav.verdict(alpha(3.0, 10.0, 5.0)) == dict.fromkeys(
+    assert study.verdict(alpha(3.0, 10.0, 5.0), TARGET_STEP_RATIO) == dict.fromkeys(
         ("steps_alpha_better", "steps_paper_gain", "sines_alpha_better", "sines_paper_gain"), True)
-    v = fav.verdict(alpha(2.99, 10.0, 5.01))
+    v = study.verdict(alpha(2.99, 10.0, 5.01), TARGET_STEP_RATIO)
     assert not v["steps_paper_gain"] and v["steps_alpha_better"]
     assert not v["sines_paper_gain"] and v["sines_alpha_better"]
-    v = fav.verdict(alpha(1.0, 10.0, 10.0))
+    v = study.verdict(alpha(1.0, 10.0, 10.0), TARGET_STEP_RATIO)
     assert not v["steps_alpha_better"] and not v["sines_alpha_better"]
 
 
@@ -120,7 +120,7 @@ def test_campaign_is_the_paper_campaign_at_the_candidates_amplitude(tmp_path):
     from omni_sim import experiments as ex
 
     amp = 0.08737654321234567
-    path = fav.campaign_file(amp, tmp_path)
+    path = study.campaign_file(amp, tmp_path)
     got, want = ex.campaign(path), ex.campaign("paper", sine_amplitude_rad=amp)
     assert len(got) == len(want) > 0
     for a, b in zip(got, want):
@@ -137,7 +137,7 @@ def test_rebuilt_matched_candidate_is_the_matched_scene():
     from omni_sim import model as om
 
     cand = next(r for r in SEARCH["candidates"] if r["id"] == "lugre/coulomb_friction@polish")
-    model, amp = fav.rebuild(cand)
+    model, amp = study.rebuild(cand)
     scene = om.load_model(friction="matched")
     yaw = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "yaw")
     dof = model.jnt_dofadr[yaw]
@@ -160,7 +160,7 @@ def test_one_candidate_measured_again_gives_its_row():
     (within 1e-6 relative: on another CPU the validation's numbers may differ in their last
     digits, README 'The same bytes, and where not')."""
     cid = "lugre/coulomb_friction@polish"
-    row = fav.measure(next(r for r in SEARCH["candidates"] if r["id"] == cid))
+    row = study.measure(next(r for r in SEARCH["candidates"] if r["id"] == cid), TARGET_STEP_RATIO)
     want = next(r for r in RECORD["candidates"] if r["id"] == cid)
     for part in ("step", "sine"):
         for k, v in want["alpha"][part].items():

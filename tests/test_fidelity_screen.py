@@ -1,26 +1,21 @@
-"""scripts/fidelity_screen.py: its configurations are valid library effects inside their bounds,
-and what it writes never holds an alpha-model key (the pipeline is replaced by a stub)."""
+"""The fidelity screen (omni_studies/fidelity_screen.py, omni_app/fidelity_screen_report.py): its
+configurations are valid library effects inside their bounds, and what it writes never holds an
+alpha-model key (the pipeline is replaced by a stub)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from omni_app import fidelity_screen_report as writer
+from omni_studies import fidelity_screen
 
 
 @pytest.fixture(scope="module")
 def screen():
-    spec = importlib.util.spec_from_file_location("fidelity_screen", ROOT / "scripts" / "fidelity_screen.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["fidelity_screen"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return fidelity_screen
 
 
 def _keys(x):
@@ -74,7 +69,7 @@ def test_written_files_hold_no_alpha_key(screen, tmp_path, monkeypatch):
 
     monkeypatch.setattr(screen, "measure_model", fake_measure)
     out = tmp_path / "screen.json"
-    assert screen.main(["--out", str(out), "--only", "lugre/none/base,lugre/armature/2e-4"]) == 0
+    writer.run_screen(out, ["lugre/none/base", "lugre/armature/2e-4"], rerun=True)
     doc = json.loads(out.read_text())
     assert [r["id"] for r in doc["configurations"]] == ["lugre/none/base", "lugre/armature/2e-4"]
     assert not [k for k in _keys(doc) if "alpha" in k.lower()]
@@ -85,7 +80,11 @@ def test_written_files_hold_no_alpha_key(screen, tmp_path, monkeypatch):
     # --merge keeps what is there and runs only the missing ones
     calls = []
     monkeypatch.setattr(screen, "measure_model", lambda m, jobs=None: calls.append(1) or fake_measure(m))
-    screen.main(["--out", str(out), "--merge", "--only", "lugre/none/base,lugre/armature/5e-5"])
+    writer.run_screen(out, ["lugre/none/base", "lugre/armature/5e-5"], merge=True, rerun=True)
     assert len(calls) == 2  # --only re-runs what it names
     doc = json.loads(out.read_text())
     assert len(doc["configurations"]) == 3
+    calls.clear()
+    writer.run_screen(out, ["lugre/none/base", "lugre/armature/5e-5", "lugre/backlash/1count"],
+                      merge=True)
+    assert len(calls) == 1  # without --only: only the missing one

@@ -1,7 +1,6 @@
 """Friction families on the command line, in the environment, the comparison and the study."""
 
 import csv
-import importlib.util
 import json
 import math
 import subprocess
@@ -12,10 +11,12 @@ import numpy as np
 import pytest
 
 from identification.dataset import read_dataset
+from omni_app import friction_study_report as friction_report
 from omni_app import reproduce as rp
 from omni_app.cli import main
 from omni_sim import model as om
 from omni_sim.device import Device
+from omni_studies import friction_study
 from omni_studies import reproduce as study_rp
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -351,18 +352,10 @@ def test_reproduce_all_cli(tmp_path):
 
 
 # -- the friction study ---------------------------------------------------------------------------
-def _study_module():
-    spec = importlib.util.spec_from_file_location("friction_study", ROOT / "scripts" / "friction_study.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_friction_study_two_levels(campaigns, compared, tmp_path):
-    study = _study_module()
     out = tmp_path / "study"
-    assert study.main(["--out", str(out), "--levels", "0,1", "--families", "lugre", "--jobs", "1",
-                       "--campaign", str(campaigns / "tiny.toml")]) == 0
+    friction_report.write_outputs(out, friction_study.study(["lugre"], [0.0, 1.0],
+                                                            str(campaigns / "tiny.toml"), 1))
     res = json.loads((out / "friction_study.json").read_text())
     assert (out / "friction_study.png").stat().st_size > 10_000
     rows = res["families"]["lugre"]["levels"]
@@ -390,7 +383,7 @@ def test_friction_study_two_levels(campaigns, compared, tmp_path):
 
 
 def test_friction_study_records_failures(tmp_path, monkeypatch):
-    study = _study_module()
+    study = friction_study
     from identification.errors import UserError
 
     def fail(*a, **kw):
