@@ -163,7 +163,7 @@ L_LINK = 0.135   # m (geometry, not calibrated)
 R_TUBE = 0.006   # m
 
 
-def _alphas_text(alphas, sep=", ") -> str:
+def alphas_text(alphas, sep=", ") -> str:
     """Breakpoints as the paper prints them: "2.2, 25, 250"."""
     return sep.join(f"{a:g}" for a in alphas)
 
@@ -487,7 +487,7 @@ def calibrate(model_path=None, max_nfev: int = 60, jobs: int | None = None, verb
         "method": "scipy.optimize.least_squares (trf, bounded), simulation-in-the-loop with the "
                   "project's own identification (omni_studies/calibration.py)",
         "targets": f"paper Table 3 (C_linear, beta_tilde_linear, actual angles, {len(read_table3())} "
-                   f"poses); Table 10 C at alpha = {_alphas_text(TABLE10_ALPHA)} (65/90 pose); "
+                   f"poses); Table 10 C at alpha = {alphas_text(TABLE10_ALPHA)} (65/90 pose); "
                    "section 2.3: some frequency with "
                    f"non-physical local coefficients (smallest physical margin <= {MARGIN_TARGET}); "
                    f"Table 10: the alpha model's C fall from alpha = {_T7_ALPHA[0]:g} to "
@@ -643,10 +643,11 @@ def write_record(record: dict, path: Path = RECORD) -> None:
     path.write_text(json.dumps(record, indent=2) + "\n")
 
 
-def finalize(record: dict, docs: Path) -> list[Path]:
+def finalize(record: dict) -> dict:
     """Write the calibrated values into the model files (and the campaign's A_r if it was
     fitted), then re-measure the model as written (numbers are rounded to 6 significant digits)
-    and record and plot *those* figures."""
+    and record *those* figures (the record is written and returned; its figures are
+    :func:`omni_app.calibration_report.plot_record`'s)."""
     family = record.get("family", "lugre")
     values = {k: v["value"] for k, v in record["parameters"].items()}
     write_model(values, family)
@@ -660,54 +661,9 @@ def finalize(record: dict, docs: Path) -> list[Path]:
     for name in record["parameters"]:
         record["parameters"][name]["value"] = now[name]
     write_record(record, RECORDS[family])
-    return plot_record(record, docs, prefix="calibration" if family == "lugre" else f"calibration_{family}")
+    return record
 
 
-def plot_record(record: dict, folder: Path, prefix: str = "calibration") -> list[Path]:
-    """Figures overlaying the paper's numbers on the calibrated virtual Omni's."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    folder.mkdir(parents=True, exist_ok=True)
-    poses = record["poses"]
-    labels = [f"{int(p['set'][0])}/{int(p['set'][1])}" for p in poses]
-    x = np.arange(len(poses))
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4))
-    for ax, key, paper, name in ((axes[0], "C_linear", "C_paper", "C_linear [1/s]"),
-                                 (axes[1], "beta_tilde_linear", "beta_tilde_paper", "beta~_linear [rad/(V s^2)]")):
-        ax.bar(x - 0.2, [p[paper] for p in poses], 0.4, label="paper Table 3 (real Omni)")
-        ax.bar(x + 0.2, [p[key] for p in poses], 0.4, label="virtual Omni, same method")
-        ax.set_xticks(x, labels, rotation=45)
-        ax.set(ylabel=name, xlabel="set pose gamma1/gamma2 [deg]")
-        ax.legend(fontsize=8)
-    for k, (key, paper) in enumerate((("gamma1_deg", "gamma1_paper"), ("gamma2_deg", "gamma2_paper"))):
-        axes[2].plot(x, [p[key] - p[paper] for p in poses], "o-", label=f"gamma{k + 1}: virtual - paper")
-    axes[2].axhspan(-1.5, 1.5, color="g", alpha=0.15, label="+-1.5 deg target")
-    axes[2].set_xticks(x, labels, rotation=45)
-    axes[2].set(ylabel="actual angle difference [deg]", xlabel="set pose")
-    axes[2].legend(fontsize=8)
-    fig.tight_layout()
-    p1 = folder / f"{prefix}_table3.png"
-    fig.savefig(p1, dpi=100)
-    plt.close(fig)
-
-    d = next(p for p in poses if tuple(p["set"]) == _paper.TABLE9_10_SET_POSE)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    axes[0].semilogx(d["alpha"], d["C_data"], "o-", label="virtual Omni C_data (19)")
-    for f, a, c in zip(d["frequency_hz"], d["alpha"], d["C_data"]):
-        axes[0].annotate(f"{f:g} Hz", (a, c), fontsize=7)
-    axes[0].semilogx(TABLE10_ALPHA, TABLE10_C, "ks", label=f"paper Table 10 (alpha {_alphas_text(TABLE10_ALPHA)})")
-    axes[0].set(xlabel="alpha [V^2/s^2]", ylabel="C [1/s]", title="damping vs alpha at 65/90")
-    axes[1].plot(d["frequency_hz"], d["alpha"], "o-")
-    axes[1].set(xlabel="frequency [Hz]", ylabel="alpha [V^2/s^2]", yscale="log",
-                title="alpha vs frequency at 65/90\n(paper Fig. 8: rises to resonance, then falls)")
-    for ax in axes:
-        ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    p2 = folder / f"{prefix}_alpha.png"
-    fig.savefig(p2, dpi=100)
-    plt.close(fig)
-    return [p1, p2]
+def figure_prefix(family: str) -> str:
+    """The file-name prefix of a family's calibration figures."""
+    return "calibration" if family == "lugre" else f"calibration_{family}"

@@ -15,6 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
+from omni_app.calibration_report import plot_record
 from omni_studies import calibration as cal
 
 
@@ -36,7 +37,9 @@ def main() -> int:
                            start=json.loads(args.start) if args.start else None)
     print(json.dumps(record["achieved"], indent=2))
     if not args.dry_run:
-        figs = cal.finalize(record, Path(__file__).resolve().parent.parent / "docs" / "studies" / "calibration")
+        record = cal.finalize(record)
+        figs = plot_record(record, Path(__file__).resolve().parent.parent / "docs" / "studies" / "calibration",
+                           prefix=cal.figure_prefix(args.friction))
         print(f"wrote the model files, {cal.RECORDS[args.friction].name} and",
               ", ".join(str(f) for f in figs))
     else:

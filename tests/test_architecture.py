@@ -10,6 +10,7 @@ calls with a literal name; relative imports are resolved against the importing m
 from __future__ import annotations
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -242,10 +243,37 @@ def test_script_checker_finds_what_it_forbids(tmp_path):
     assert script_problems(good) == []
 
 
+#: A thin main's length: options, a study, its writer (the longest, discrepancy_bank.py, is 118
+#: lines, most of it the options' help; a script past this holds a study or a writer).
+SCRIPT_MAX_LINES = 150
+
+
 @pytest.mark.parametrize("path", SCRIPTS, ids=lambda p: p.name)
 def test_scripts_are_thin_mains(path):
     found = script_problems(path)
+    lines = len(path.read_text().splitlines())
+    if lines > SCRIPT_MAX_LINES:
+        found.append(f"{lines} lines (a thin main has at most {SCRIPT_MAX_LINES}: move the study "
+                     "to omni_studies, its writing to omni_app)")
     assert not found, f"{path.name}: {found}"
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if m.split(".")[0] == "omni_studies"))
+def test_studies_draw_no_figures(module):
+    """A study computes and returns; its figures are the application's (omni_app)."""
+    bad = [f"line {line}: {name}" for name, line in imports_of(module)
+           if name.split(".")[0] == "matplotlib"]
+    assert not bad, f"{module} imports matplotlib: {bad}"
+
+
+def test_the_architecture_page_names_every_room():
+    """docs/reference/architecture.md draws the house: every module of the four packages and
+    every script is named on it (by its file name, without .py)."""
+    page = (ROOT / "docs" / "reference" / "architecture.md").read_text()
+    rooms = [m.rsplit(".", 1)[-1] for m in MODULES]  # a package: its folder's name
+    rooms += [p.stem for p in SCRIPTS]
+    missing = sorted({r for r in rooms if not re.search(rf"\b{re.escape(r)}\b", page)})
+    assert not missing, f"docs/reference/architecture.md does not name: {missing}"
 
 
 def test_method_layer_loads_without_simulator_or_plotting():
