@@ -277,10 +277,7 @@ def test_default_record_marks_what_is_not_a_result():
     s = d["settings"]
     assert (s["friction"], s["quantize"], s["probe_speed"], s["delay_periods"]) == ("lugre", True, 0.02, 0)
     X = zw.beyond_boundary(d["passive"])
-    # the committed record's notes name the haptics page docs/haptics.md until `omni zwidth`
-    # writes the record again; the tool's notes name the page where it is
-    notes = [n.replace("docs/haptics.md", "docs/studies/haptics/haptics.md") for n in d["notes"]]
-    assert X.tolist() == d["beyond_boundary"] and notes == zw.map_notes(d)
+    assert X.tolist() == d["beyond_boundary"] and d["notes"] == zw.map_notes(d)
     K, B = np.array(d["stiffness"]), np.array(d["damping"])
     kb = np.array(d["boundary_stiffness"], dtype=float)
     P = np.array(d["passive"])
