@@ -1,12 +1,8 @@
 """Coverage study of ``omni discrepancy``'s 95 % intervals on data with a known hidden truth.
 
-For every effect asked for, ``--n`` random magnitudes are drawn uniformly in the effect's
-realistic range (:data:`omni_sim.discrepancy.bank.RANGES`, stated in the output); for each, the
-independent truth model (:mod:`omni_sim.discrepancy.truth_models`, written without the effect
-library) generates "measured" runs, with the encoder's quantisation and noise ("noisy") and/or
-exactly ("exact": no noise, no quantisation), and the workflow fits them.  To keep the cost down
-the workflow's candidates are restricted to the true effect: this measures the interval, not the
-naming.  A parameter is covered when ``|fitted - truth| <= reported 95 % half-width``.
+``--n`` random magnitudes per effect in its realistic range, each fitted by the workflow on
+runs of the independent truth model; a parameter is covered when the truth lies inside the
+reported 95 % interval (the method: :mod:`omni_studies.discrepancy_coverage`).
 
 Writes ``coverage.json`` (every draw, per-effect and overall coverage with Wilson 95 % intervals,
 the median width of the intervals relative to the truth) and ``coverage.png`` to ``--out``;
