@@ -223,7 +223,9 @@ class Problem:
     def _key(self, x):
         return tuple(np.round(np.asarray(x, float), 15))
 
-    def _steps(self, x: np.ndarray) -> list[float]:
+    def steps(self, x: np.ndarray) -> list[float]:
+        """The forward-difference steps at ``x``: 0.05 of each parameter's scale, backwards at
+        its upper bound."""
         steps = []
         for i in range(len(x)):
             h = 0.05 * self.scale[i]
@@ -239,7 +241,7 @@ class Problem:
         x = np.asarray(x, float)
         k = self._key(x)
         if k not in self._cache:
-            steps = self._steps(x)
+            steps = self.steps(x)
             xs = [x] + [x + h * e for h, e in zip(steps, np.eye(len(x)))]
             raws = self.simulate(xs)
             f0 = self.weighted(raws[0])

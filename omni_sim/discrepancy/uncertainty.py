@@ -269,7 +269,7 @@ def numerical_floor(prob: Problem, fit) -> np.ndarray:
     if p == 0 or fit.jac is None or fit.resid is None:
         return np.zeros(p)
     x = fit.x
-    etas = [FLOOR_STEP * abs(h) for h in prob._steps(x)]
+    etas = [FLOOR_STEP * abs(h) for h in prob.steps(x)]
     pts = []
     for i, eta in enumerate(etas):
         e = np.zeros(p)
