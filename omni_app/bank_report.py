@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -350,12 +349,11 @@ def write_efficiency(out: Path, bank_json: Path, rec: dict) -> None:
 
 
 def write_example(ex_dir: Path = EXAMPLE_DIR) -> None:
-    """The worked example of ``omni discrepancy`` with figures, without its measured runs (the
-    docs stay small)."""
+    """The worked example of ``omni discrepancy`` with figures and the measured runs its report
+    names (``measured/``: what ``omni discrepancy --demo --out`` writes)."""
     from omni_app.discrepancy import demo
 
     demo(ex_dir, force=True)
-    shutil.rmtree(ex_dir / "measured", ignore_errors=True)
 
 
 def write_coverage(jpath: Path, res: dict) -> None:
