@@ -619,10 +619,10 @@ def test_bank(case_name):
 #: (servo_truth.assess_efficiency), else the measured figures of its failure (the docs test checks
 #: them against the record).
 GEAR_EFFICIENCY_FAILURE = (
-    "the workflow (commit b5db126) names none and flags the gap unexplained: the nominal's "
-    "corrections alone take the held-out gap 0.0194 -> 0.00994 rad (x1.96; damping 0.37 -> 0.4737, "
+    "the workflow (commit 55dde7e) names none and flags the gap unexplained: the nominal's "
+    "corrections alone take the held-out gap 0.0194 -> 0.00995 rad (x1.95; damping 0.37 -> 0.4737, "
     "frictionloss 0.03 -> 0.05913 N*m), after which no candidate removes a clear share (time_delay "
-    "0.019, load_friction -0.52 at mu_drive 0.271 > mu_back 0.154); noise floor 0.000597 rad "
+    "0.02, load_friction -0.51 at mu_drive 0.271 > mu_back 0.154); noise floor 0.000597 rad "
     "(docs/studies/discrepancy/bank.md)")
 
 
