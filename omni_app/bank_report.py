@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 from pathlib import Path
 
 import numpy as np
 
+from omni_app.provenance import git_commit, uncommitted
 from omni_sim.discrepancy import hidden
 
 #: The checkout this module runs from.
@@ -40,16 +40,11 @@ EXAMPLE_DIR = ROOT / "docs" / "studies" / "discrepancy" / "example"
 def checkout_commit() -> str:
     """The checkout's commit, with the code paths that differ from it (others' work in progress
     is part of what ran)."""
-    try:
-        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], check=True,
-                              capture_output=True, text=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "omni_sim",
-                                "identification", "omni_studies", "omni_app", "models",
-                                "scripts/discrepancy_bank.py"],
-                               check=True, capture_output=True, text=True).stdout.split("\n")
-    except (OSError, subprocess.CalledProcessError):
+    head = git_commit(short=True)
+    dirty = uncommitted(("omni_sim", "identification", "omni_studies", "omni_app", "models",
+                         "scripts/discrepancy_bank.py"))
+    if head is None or dirty is None:
         return "unknown (not a git checkout)"
-    dirty = [ln[3:] for ln in dirty if ln.strip()]
     return head + (f" with uncommitted changes in {', '.join(dirty)}" if dirty else "")
 
 

@@ -1,29 +1,16 @@
 """The page of the ``mujoco.sysid`` comparison (:mod:`omni_studies.sysid_compare`): the verdict
 per method and case (:func:`judge`) and ``sysid.md`` rendered from the record ``sysid_compare.json``
-(:func:`render`); :func:`uncommitted` names the study's files that differ from the commit."""
+(:func:`render`)."""
 
 from __future__ import annotations
 
 import math
 import re
-import subprocess
 
 import numpy as np
 
-from omni_app.provenance import ROOT
 
 JSON_NAME, MD_NAME = "sysid_compare.json", "sysid.md"
-
-
-def uncommitted(paths) -> list[str] | None:
-    """Files under ``paths`` (the study's :data:`omni_studies.sysid_compare.CODE_PATHS`) that
-    differ from the commit (None outside a git checkout)."""
-    try:
-        out = subprocess.run(["git", "status", "--porcelain", "--", *paths], cwd=ROOT, capture_output=True,
-                             text=True, check=True).stdout
-    except (OSError, subprocess.CalledProcessError):
-        return None
-    return [ln[3:] for ln in out.splitlines() if ln.strip()]
 
 
 #: A method does the same job as ours on a case when its estimate's closed-loop gap is within
@@ -298,7 +285,7 @@ def _verdict(cases: list, verdicts: dict) -> list[str]:
                 "changes a friction level during a rollout; its hook can, by running our loop); " if not_open else "")
              + "close the P loop (its rollout replays the logged command open loop: see the drift figures); "
              "switch the torque off (a back-EMF bias keeps braking at 0 V; the replay zeroes gain and bias)"
-             + (f"; differentiate the closed loop at its default step of 1.5e-8 on "
+             + ("; differentiate the closed loop at its default step of 1.5e-8 on "
                 + ", ".join(f"{cid} (the fit moved at most {g(verdicts[cid]['sysid_closed']['moved'], 2)} library "
                             f"scales from its start, its gap {g(verdicts[cid]['sysid_closed']['gap_ratio'], 2)}x ours)"
                             for cid in default_off)

@@ -21,8 +21,8 @@ import json
 import sys
 from pathlib import Path
 
-from omni_app.provenance import git_commit
-from omni_app.sysid_report import JSON_NAME, MD_NAME, render, uncommitted
+from omni_app.provenance import git_commit, uncommitted
+from omni_app.sysid_report import JSON_NAME, MD_NAME, render
 from omni_studies import sysid_compare as sc
 
 OUT = sc.ROOT / "docs" / "studies" / "discrepancy"
