@@ -232,6 +232,20 @@ class Problem:
             steps.append(-h if x[i] + h > self.upper[i] else h)
         return steps
 
+    def perturbed(self, x: np.ndarray) -> tuple[list[np.ndarray], list[float]]:
+        """``x`` and its ``p`` forward-difference perturbations (one parameter moved by its
+        :meth:`steps` each), and the steps."""
+        h = self.steps(x)
+        return [x] + [x + hi * e for hi, e in zip(h, np.eye(len(x)))], h
+
+    def jacobian(self, raws: list, steps: list[float]) -> tuple[np.ndarray, np.ndarray]:
+        """The weighted residual and the forward-difference Jacobian from the raw residuals of
+        :meth:`perturbed`'s points (``raws[0]`` at ``x``, then one per step)."""
+        f0 = self.weighted(raws[0])
+        J = (np.column_stack([(self.weighted(r) - f0) / h for r, h in zip(raws[1:], steps)])
+             if len(steps) else np.zeros((len(f0), 0)))
+        return f0, J
+
     def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
         """Weighted residual, forward-difference Jacobian and raw residuals at ``x``.
 
@@ -241,12 +255,9 @@ class Problem:
         x = np.asarray(x, float)
         k = self._key(x)
         if k not in self._cache:
-            steps = self.steps(x)
-            xs = [x] + [x + h * e for h, e in zip(steps, np.eye(len(x)))]
+            xs, steps = self.perturbed(x)
             raws = self.simulate(xs)
-            f0 = self.weighted(raws[0])
-            J = np.column_stack([(self.weighted(r) - f0) / h for r, h in zip(raws[1:], steps)]) \
-                if len(x) else np.zeros((len(f0), 0))
+            f0, J = self.jacobian(raws, steps)
             self._cache = {k: (f0, J, raws[0])}
         return self._cache[k]
 

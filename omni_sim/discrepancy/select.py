@@ -247,28 +247,24 @@ def _fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray]) -> list[n
     runs, p = problem.runs, len(problem.scale)
     points, steps, pairs = [], [], []
     for (_, idx), x in zip(fps, xs):
-        h = problem.steps(x)
-        first = len(points)
-        points += [x] + [x + hi * e for hi, e in zip(h, np.eye(p))]
+        pts, h = problem.perturbed(x)
+        pairs += [(len(points) + m, j) for m in range(p + 1) for j in idx]
+        points += pts
         steps.append(h)
-        pairs += [(first + m, j) for m in range(p + 1) for j in idx]
     th = problem.rep.simulate([problem.model(x) for x in points], runs, pairs)
     problem.nsim += len(points)
     out, b = [], 0
     for (pf, idx), h in zip(fps, steps):
         raws = []
         for _ in range(p + 1):
-            raw = [th[b + k] - runs[j].theta for k, j in enumerate(idx)]
+            raws.append([th[b + k] - runs[j].theta for k, j in enumerate(idx)])
             b += len(idx)
-            problem.unstable += unstable_count(raw)
-            raws.append(pf.weighted(raw))
-        J = (np.column_stack([(r - raws[0]) / hi for r, hi in zip(raws[1:], h)]) if p
-             else np.zeros((len(raws[0]), 0)))
-        out.append(J * problem.scale)
+            problem.unstable += unstable_count(raws[-1])
+        out.append(pf.jacobian(raws, h)[1] * problem.scale)
     return out
 
 
-def _refit_folds(problem: Problem, fit: FitResult, folds: list[Fold], start: list[np.ndarray],
+def _refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
                  iterations: int = REFIT_ITERATIONS) -> list[np.ndarray]:
     """Per-fold refits, all folds in lockstep: each fold's parameters fitted on its own
     training samples only (the held-out samples never enter its steps).
@@ -280,8 +276,7 @@ def _refit_folds(problem: Problem, fit: FitResult, folds: list[Fold], start: lis
     own and not the all-runs fit's rows of it: on the real servo of examples/real_servo the
     all-runs Jacobian's refits left the corrections 5 points of held-out gap behind fresh
     per-fold fits (27 % removed against 32 %); the fold's own Jacobian at its start gives 33 %
-    for 23 % more physics steps (measured on that example).  ``fit`` is not used (the signature
-    of the screening and confirming callers).
+    for 23 % more physics steps (measured on that example).
     """
     runs = problem.runs
     # each fold's training runs (in run order; a run held out whole is not simulated at all)
@@ -551,9 +546,9 @@ def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], 
         last = it == iterations  # the last pass only scores the last step's end points
         models, pairs, spans = [], [], []
         for c, x in enumerate(xs):
-            h = [] if last else probs[c].steps(x)
+            pts, h = ([x], []) if last else probs[c].perturbed(x)
             first = len(models)
-            for xp in [x] + [x + hi * e for hi, e in zip(h, np.eye(len(x)))]:
+            for xp in pts:
                 models.append(probs[c].model(xp))
                 pairs += [(len(models) - 1, j) for j in range(nr)]
             spans.append((first, h))
@@ -574,9 +569,8 @@ def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], 
             if g0 > best_gap[c]:  # this point is worse: step again from the best one, damped more
                 xs[c] = best_x[c].copy()
                 continue
-            f0 = prob.weighted(raws[0])
-            J = np.column_stack([(prob.weighted(raws[1 + i]) - f0) / h[i] for i in range(len(h))]) * prob.scale
-            dz = damped_step(J, f0, lam[c])
+            f0, J = prob.jacobian(raws, h)
+            dz = damped_step(J * prob.scale, f0, lam[c])
             xs[c] = np.clip(xs[c] + dz * prob.scale, prob.lower, prob.upper)
     return best_x, best_gap
 
@@ -622,7 +616,7 @@ def _confirm(builder, s: Scored, runs, rep, folds, gap_start: float, log=None,
         # the folds are estimated the same way (so the jackknife sees the estimator's spread)
         s.fold_x = _polish_folds(prob, folds, s.fold_x)
     else:
-        s.fold_x = _refit_folds(prob, s.fit, folds, s.fold_x)
+        s.fold_x = _refit_folds(prob, folds, s.fold_x)
     s.heldout_raw = _heldout(prob, s.fold_x, folds)
     s.heldout_gap = gap(s.heldout_raw)
     s.share = share_of(s.heldout_gap, gap_start)
@@ -763,7 +757,7 @@ def rescore(builder, s: Scored, runs: list[ReplayRun], rep, folds: list[Fold], g
     prob.seed(s.fit)
     fold_x = _onestep_folds(prob, s.fit, folds)
     fold_x = (_polish_folds(prob, folds, fold_x) if rough(s.effects)
-              else _refit_folds(prob, s.fit, folds, fold_x))
+              else _refit_folds(prob, folds, fold_x))
     raw = _heldout(prob, fold_x, folds)
     g = gap(raw)
     return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, folds,
