@@ -590,7 +590,7 @@ class Device:
         stiffness of the first)."""
         m, acts = self.model, self.lugre_actuators()
         return {
-            "frictionloss": float(m.dof_frictionloss[self.ix.yaw_dof]),
+            "frictionloss": self.yaw_frictionloss,
             "lugre_sigma0": float(m.actuator_dynprm[acts[0], 5]) if acts else 0.0,
             "lugre_Fc": float(sum(m.actuator_biasprm[a, 3] for a in acts)),
             "lugre_Fs": float(sum(m.actuator_biasprm[a, 4] for a in acts)),
@@ -615,8 +615,8 @@ class Device:
         """Set the drive's dry-friction levels (``frictionloss`` and LuGre Fc, Fs) to ``factor``
         times those of ``base`` (default: this device itself), in place."""
         base = self if base is None else base
-        m, b, dof = self.model, base.model, self.ix.yaw_dof
-        m.dof_frictionloss[dof] = factor * b.dof_frictionloss[base.ix.yaw_dof]
+        m, b = self.model, base.model
+        self.yaw_frictionloss = factor * base.yaw_frictionloss
         for a in self.lugre_actuators():
             m.actuator_biasprm[a, 3:5] = factor * b.actuator_biasprm[a, 3:5]
 
