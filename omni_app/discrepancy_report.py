@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from omni_sim.discrepancy.localise import command_note, lag_text
+
 
 def _fmt(x, digits=3) -> str:
     if x is None:
@@ -181,9 +183,22 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
         L += ["| stage | seconds | physics steps |", "|---|---|---|"]
         L += [f"| {k.replace('_', ' ')} | {t.get(k + '_s', 0.0):.1f} | {v:,} |" for k, v in per.items()]
         L.append("")
-    L += ["The patched model is `model.xml` (nominal + named effects at their all-runs fit). "
+    L += [f"The patched model is `model.xml` ({patched_contents(rep)}). "
           "`report.json` holds every number of this page.", ""]
     return "\n".join(L)
+
+
+def patched_contents(rep: dict) -> str:
+    """What ``model.xml`` holds beside the nominal, in words: the refitted constants and the
+    named effects, both at their all-runs fit."""
+    parts = []
+    if rep.get("corrections"):
+        parts.append(f"{len(rep['corrections'])} of the nominal's constants refitted")
+    if rep["effects"][0]["name"] != "none":
+        parts.append("the named effects added")
+    if not parts:
+        return "the nominal, unchanged: nothing refitted, no effect named"
+    return "the nominal with " + " and ".join(parts) + ", at their all-runs fit; its header lists each value"
 
 
 def _md_sampling(rep: dict) -> list[str]:
@@ -250,13 +265,32 @@ def _md_corrections(rep: dict) -> list[str]:
     L = ["## Corrections to the nominal", "",
          "Constants the nominal already had, re-estimated jointly with every candidate (not named "
          "effects: the model had them). A named effect had to beat this corrected nominal held out.", "",
-         "| parameter | your value | fitted | ± (95 %) | x your value | note |", "|---|---|---|---|---|---|"]
+         "| parameter | your value | fitted | ± (95 %) | x your value | checked |", "|---|---|---|---|---|---|"]
     for c in rows:
         ratio = "-" if c["ratio_to_nominal"] is None else f"{c['ratio_to_nominal']:.3g}"
         L.append(f"| {c['effect']}: {c['parameter']} [{c['unit']}] | {_fmt(c['nominal'], 4)} | "
                  f"{_fmt(c['fitted'], 4)} | {_fmt(c['half_width_95'], 2)} | {ratio} | "
-                 f"{c.get('warning', 'plausible')} |")
-    return L + [""]
+                 f"{correction_note(c)} |")
+    factor = rows[0].get("plausible_factor", 2.0)
+    return L + ["", f"*checked* says what was tested, and nothing more: that the fitted value lies "
+                f"within a factor {factor:g} of your value and off its parameter's bounds. It does not say "
+                "the fitted value is right; the ± column is the interval the data support.", ""]
+
+
+def correction_note(c: dict) -> str:
+    """The *checked* column of one correction: its change from the user's value, whether
+    that stays within the factor checked and off the bounds, and its interval relative to the
+    fitted value."""
+    factor = c.get("plausible_factor", 2.0)
+    hw, fitted = c["half_width_95"], c["fitted"]
+    interval = (f"interval ±{100 * hw / abs(fitted):.0f} % of the fitted value"
+                if fitted and math.isfinite(hw) else f"interval ±{_fmt(hw, 2)}")
+    if c.get("warning"):
+        return f"{c['warning']}; {interval}"
+    if c["ratio_to_nominal"] is None:
+        return f"your value is 0 (no factor checked); off its bounds; {interval}"
+    return (f"change {100 * (c['ratio_to_nominal'] - 1):+.0f} % of your value (within the factor "
+            f"{factor:g} checked), off its bounds; {interval}")
 
 
 def _md_gaps(rep: dict) -> list[str]:
@@ -289,6 +323,9 @@ def _md_where(rep: dict) -> list[str]:
         L += ["## Where the gap lives (before)", "", "- spread evenly over the regimes mapped "
               "(speed, reversals, position, command, frequency, amplitude, time): no regime stands "
               "out.", ""]
+    note = command_note(rep["localisation"]["before"]["regimes"])
+    if note and rep["gap_before"] > 0:
+        L += [note[0].upper() + note[1:] + ".", ""]
     near = rep.get("nearest_candidates", [])
     if near and rep["unexplained"]:
         L += ["Nearest library candidates (**low confidence**: they do not explain the gap): "
@@ -327,9 +364,7 @@ def _md_worst(rep: dict) -> list[str]:
         after = _lookup(la, where)
         L.append(f"| {where} | {_fmt(w['rms_rad'])} | {_fmt(after)} |")
     L.append(f"| overall | {_fmt(rep['gap_before'])} | {_fmt(rep['gap_after'])} |")
-    cl = lb["command_lag"]
-    L += ["", f"Residual vs command: best correlation {cl['correlation']:+.2f} at lag "
-          f"{cl['lag_s'] * 1000:+.0f} ms (at zero lag {cl['correlation_at_zero']:+.2f}).", ""]
+    L += ["", f"Residual vs command: {lag_text(lb['command_lag'])}.", ""]
     L += ["Worst runs before: " + ", ".join(f"{d['run']} ({_fmt(d['rms_rad'])})" for d in lb["per_run"][:5]), ""]
     return L
 
@@ -350,16 +385,33 @@ def _lookup(loc, where: str):
 
 
 def model_xml(outcome) -> str:
-    eff = outcome.report["effects"]
-    xml = outcome.spec.to_xml()
+    """``model.xml``: the patched model, headed by a comment that lists what was refitted and
+    what was added (:func:`model_header`)."""
+    return model_header(outcome.report) + outcome.spec.to_xml()
+
+
+def model_header(rep: dict) -> str:
+    """The comment heading ``model.xml``: each refitted constant of the nominal (your value ->
+    fitted) and each named effect with its values (nominal -> fitted), all at their all-runs
+    fit."""
+    L = ["<!-- Patched by `omni discrepancy` (written with MjSpec.to_xml; the nominal file's comments "
+         "are not kept)."]
+    rows = rep.get("corrections") or []
+    if rows:
+        L.append("Refitted constants of the nominal (your value -> fitted, all-runs fit):")
+        L += [f"  {c['effect']}: {c['parameter']} [{c['unit']}] {c['nominal']:.6g} -> {c['fitted']:.6g}"
+              for c in rows]
+    eff = rep["effects"]
     if eff[0]["name"] == "none":
-        note = "no effect named: the model is unchanged"
+        L.append("Effects added: none (no effect named).")
     else:
-        note = "; ".join(f"{e['name']}: " + ", ".join(f"{k}={v:.6g}" for k, v in e["parameters"].items())
-                         for e in eff)
-    head = (f"<!-- Patched by `omni discrepancy` (written with MjSpec.to_xml; the nominal file's "
-            f"comments are not kept). {note}. See report.json for uncertainties. -->\n")
-    return head + xml
+        L.append("Effects added (named; nominal -> fitted, all-runs fit):")
+        L += [f"  {e['name']}: " + ", ".join(f"{k} [{e['units'][k]}] {e['nominal'][k]:.6g} -> {v:.6g}"
+                                            for k, v in e["parameters"].items()) for e in eff]
+    if not rows and eff[0]["name"] == "none":
+        L.append("Nothing refitted and nothing added: the model is the nominal.")
+    L.append("See report.json for the uncertainties. -->")
+    return "\n".join(L) + "\n"
 
 
 def write(outcome, folder: Path, title: str = "Model discrepancy report", intro: str = "") -> None:

@@ -4,7 +4,8 @@ All functions take the runs (:class:`~omni_sim.discrepancy.runs.ReplayRun`) and 
 residual ``theta_model - theta_measured`` [rad] per run, and return plain dicts (JSON-ready):
 where the residual's RMS is largest, by run, by sine frequency and amplitude (gain and phase of
 the fundamental, harmonic content), by time window, by regime (speed, direction, position,
-command near its limit), and the lag at which the residual best correlates with the command.
+command near the actuator's limit, or the largest commands logged when none came near it), and
+the lag at which the residual best correlates with the command.
 """
 
 from __future__ import annotations
@@ -18,8 +19,13 @@ import numpy as np
 WINDOW_S = 0.5
 #: A speed below this share of the data's 95th-percentile speed counts as "near zero".
 NEAR_ZERO_SHARE = 0.05
-#: A command above this share of the data's largest |v| counts as "near its limit".
+#: A command at or above this share of the actuator's limit (the smaller of the run's
+#: ``command_limit`` and the actuator's ``ctrlrange``) counts as "near its limit".  When no
+#: command comes near a limit (or none is known), the same share of the largest |command|
+#: logged marks "the largest commands" instead, never called a limit.
 NEAR_LIMIT_SHARE = 0.8
+#: A regime bin needs more samples than this to be compared (:func:`describe`) or ranked.
+MIN_BIN_SAMPLES = 50
 #: Half-width [s] of the window around a velocity reversal ("around reversals"): a few
 #: periods of the bristle/pre-sliding transient at the Omni's speeds.
 REVERSAL_S = 0.03
@@ -81,17 +87,53 @@ def _velocity(run) -> np.ndarray:
     return np.gradient(th, run.dt)
 
 
-def regimes(runs, residuals) -> dict:
-    """RMS residual [rad] by speed (near zero / low / high), direction, position and command."""
+def command_bins(runs, actuator_limit: float = math.inf) -> dict:
+    """Which samples count as a large command, and what that means.
+
+    The limit of a run is the smaller of its ``command_limit`` (metadata, the P law's
+    saturation) and ``actuator_limit`` (the actuator's ``ctrlrange``).  A sample is *near its
+    limit* when ``|v| >= NEAR_LIMIT_SHARE * limit``.  When more than :data:`MIN_BIN_SAMPLES`
+    samples are near a limit, the bins are ``"command: near its limit"`` / ``"command: below"``;
+    otherwise (no limit known, or never approached) they are the largest commands logged,
+    ``|v| >= NEAR_LIMIT_SHARE * max |v|``: ``"command: largest logged (>= X)"`` /
+    ``"command: smaller"``.
+
+    Returns
+    -------
+    dict
+        ``masks`` (one boolean array per run), ``near``, ``below`` (the two bin names),
+        ``kind`` (``"limit"`` or ``"largest logged"``), ``threshold`` (the command at the bins'
+        edge for the largest-logged kind, else None), ``command_max`` (largest |v| logged) and
+        ``limits`` (the finite limits of the runs, sorted, [] when none is known) and
+        ``n_near_limit`` (the samples near a limit).
+    """
+    cmd_max = max(float(np.max(np.abs(r.v))) for r in runs)
+    limits = [min(getattr(r, "command_limit", math.inf), actuator_limit) for r in runs]
+    masks = [np.abs(r.v) >= NEAR_LIMIT_SHARE * lim for r, lim in zip(runs, limits)]
+    finite = sorted({float(lim) for lim in limits if math.isfinite(lim)})
+    n_near = sum(int(np.count_nonzero(m)) for m in masks)
+    if n_near > MIN_BIN_SAMPLES:
+        return {"masks": masks, "near": "command: near its limit", "below": "command: below",
+                "kind": "limit", "threshold": None, "command_max": cmd_max, "limits": finite,
+                "n_near_limit": n_near}
+    thr = NEAR_LIMIT_SHARE * cmd_max
+    return {"masks": [np.abs(r.v) >= thr for r in runs], "near": f"command: largest logged (>= {thr:.3g})",
+            "below": "command: smaller", "kind": "largest logged", "threshold": thr,
+            "command_max": cmd_max, "limits": finite, "n_near_limit": n_near}
+
+
+def regimes(runs, residuals, actuator_limit: float = math.inf) -> dict:
+    """RMS residual [rad] by speed (near zero / low / high), direction, position and command
+    (near its limit, or the largest logged: :func:`command_bins`)."""
     vel = [_velocity(r) for r in runs]
     allv = np.abs(np.concatenate(vel))
     v95 = float(np.percentile(allv, 95)) if allv.size else 0.0
-    cmd_max = max(float(np.max(np.abs(r.v))) for r in runs)
+    cmd = command_bins(runs, actuator_limit)
     th_all = np.concatenate([r.theta for r in runs])
     edges = np.quantile(th_all, [0, 0.25, 0.5, 0.75, 1.0])
     abs_edges = np.quantile(np.abs(th_all), [0, 0.75]) if th_all.size else np.zeros(2)
     bins: dict[str, list] = defaultdict(list)
-    for run, res, w in zip(runs, residuals, vel):
+    for run, res, w, near in zip(runs, residuals, vel, cmd["masks"]):
         aw = np.abs(w)
         bins["speed: near zero"].append(res[aw < NEAR_ZERO_SHARE * v95])
         bins["speed: low"].append(res[(aw >= NEAR_ZERO_SHARE * v95) & (aw < 0.5 * v95)])
@@ -108,14 +150,32 @@ def regimes(runs, residuals) -> dict:
         rev = _near_reversal(w, NEAR_ZERO_SHARE * v95, max(1, int(round(REVERSAL_S / run.dt))))
         bins["motion: around reversals"].append(res[rev])
         bins["motion: away from reversals"].append(res[~rev])
-        near = np.abs(run.v) >= NEAR_LIMIT_SHARE * cmd_max
-        bins["command: near its limit"].append(res[near])
-        bins["command: below"].append(res[~near])
+        bins[cmd["near"]].append(res[near])
+        bins[cmd["below"]].append(res[~near])
     out = {}
     for k, parts in bins.items():
         x = np.concatenate(parts) if parts else np.zeros(0)
         out[k] = {"rms_rad": _rms(x), "n": int(x.size)}
-    return {"bins": out, "speed_p95_rad_s": v95, "command_max_v": cmd_max}
+    return {"bins": out, "speed_p95_rad_s": v95, "command_max_v": cmd["command_max"],
+            "command_limits": cmd["limits"], "command_bins": cmd["kind"],
+            "command_threshold": cmd["threshold"], "command_near_limit_samples": cmd["n_near_limit"]}
+
+
+def command_note(reg: dict) -> str | None:
+    """A sentence for a report when the commands never came near a known limit (so no
+    saturation bin was formed), else None.  ``reg``: :func:`regimes`'s output."""
+    limits = reg.get("command_limits") or []
+    if reg.get("command_bins") != "largest logged" or not limits:
+        return None
+    lim = (f"±{limits[0]:.3g}" if len(limits) == 1
+           else f"±{limits[0]:.3g} to ±{limits[-1]:.3g} by run")
+    largest = (f"largest |command| {reg['command_max_v']:.3g} of {lim}, in the actuator's control units")
+    n = reg.get("command_near_limit_samples", 0)
+    if n == 0:
+        return (f"the command never came near its limit ({largest}; none reached "
+                f"{100 * NEAR_LIMIT_SHARE:.0f} % of it): saturation is not where the gap lives")
+    return (f"the command came near its limit (at least {100 * NEAR_LIMIT_SHARE:.0f} % of it) in only {n} samples "
+            f"({largest}): too few to compare, so no saturation regime is reported")
 
 
 def _near_reversal(vel: np.ndarray, vmin: float, half: int) -> np.ndarray:
@@ -146,7 +206,15 @@ def time_windows(runs, residuals, window_s: float = WINDOW_S) -> list[dict]:
 
 def command_lag(runs, residuals, max_lag_s: float = MAX_LAG_S) -> dict:
     """Lag [s] at which the residual correlates best with the measured command (positive: the
-    residual follows the command), and that correlation."""
+    residual follows the command), and that correlation, searched over ``±max_lag_s``.
+
+    Returns
+    -------
+    dict
+        ``lag_s``, ``correlation``, ``correlation_at_zero``, ``max_lag_s`` (the search's
+        half-width) and ``at_edge`` (True when the best lag is the search's edge: the true lag
+        may be larger).
+    """
     dt = runs[0].dt
     L = int(round(max_lag_s / dt))
     lags = np.arange(-L, L + 1)
@@ -166,11 +234,25 @@ def command_lag(runs, residuals, max_lag_s: float = MAX_LAG_S) -> dict:
     corr = num / math.sqrt(max(den_r * den_v, 1e-300))
     i = int(np.argmax(np.abs(corr)))
     return {"lag_s": float(lags[i] * dt), "correlation": float(corr[i]),
-            "correlation_at_zero": float(corr[L])}
+            "correlation_at_zero": float(corr[L]), "max_lag_s": float(L * dt),
+            "at_edge": bool(L > 0 and abs(int(lags[i])) == L)}
 
 
-def localise(runs, theta_model) -> dict:
-    """Every map of the gap for one model's replay, and the worst bins."""
+def lag_text(cl: dict) -> str:
+    """The command lag in words: ``"best correlation +0.71 at lag +34 ms (at zero lag +0.58)"``,
+    with the search's edge named when the best lag sits there."""
+    text = (f"best correlation {cl['correlation']:+.2f} at lag {cl['lag_s'] * 1000:+.0f} ms "
+            f"(at zero lag {cl['correlation_at_zero']:+.2f})")
+    if cl.get("at_edge"):
+        text += (f", at the edge of the search (±{cl['max_lag_s'] * 1000:.0f} ms): the true lag "
+                 "may be larger")
+    return text
+
+
+def localise(runs, theta_model, actuator_limit: float = math.inf) -> dict:
+    """Every map of the gap for one model's replay, and the worst bins.  ``actuator_limit``:
+    the actuator's command limit (``ctrlrange``; inf if unlimited), for the command regime
+    (:func:`command_bins`)."""
     residuals = [th - r.theta for r, th in zip(runs, theta_model)]
     per_run = sorted(({"run": r.name, "kind": r.kind, "rms_rad": _rms(e),
                        "frequency_hz": r.frequency_hz, "amplitude_rad": r.amplitude_rad,
@@ -184,7 +266,7 @@ def localise(runs, theta_model) -> dict:
         by_amp[round(r.amplitude_rad, 6)].append(e)
         if r.kind == "sine":
             by_freq[round(r.frequency_hz, 6)].append(e)
-    reg = regimes(runs, residuals)
+    reg = regimes(runs, residuals, actuator_limit)
     overall = float(np.sqrt(np.mean([np.mean(e**2) for e in residuals])))
     out = {
         "overall_rms_rad": overall,
@@ -199,7 +281,7 @@ def localise(runs, theta_model) -> dict:
     }
     worst = []
     for k, b in reg["bins"].items():
-        if b["n"] > 50:
+        if b["n"] > MIN_BIN_SAMPLES:
             worst.append((b["rms_rad"], f"regime {k}"))
     for k, v in out["per_frequency"].items():
         worst.append((v, f"sine {k} Hz"))
@@ -232,7 +314,7 @@ def describe(loc: dict, noise_rad: float = 0.0) -> list[dict]:
     if not (overall > 0) or overall <= 2 * noise_rad:
         return out
     # (where, RMS there, RMS of the complement, text with {r} for the ratio)
-    comparisons = (_regime_comparisons(loc["regimes"]["bins"]) + _frequency_comparisons(loc)
+    comparisons = (_regime_comparisons(loc["regimes"]) + _frequency_comparisons(loc)
                    + _amplitude_comparisons(loc) + _record_comparisons(loc))
     for where, a, ref, text in comparisons:
         r = _ratio(a, ref)
@@ -240,18 +322,23 @@ def describe(loc: dict, noise_rad: float = 0.0) -> list[dict]:
             out.append({"where": where, "ratio": r, "text": text.format(r=r)})
     cl = loc.get("command_lag", {})
     if abs(cl.get("correlation", 0.0)) >= 0.5 and abs(cl.get("lag_s", 0.0)) > 0:
+        later = (f"at least {cl['lag_s'] * 1000:+.0f} ms later (the edge of the lag search: the true "
+                 "lag may be larger)" if cl.get("at_edge") else f"{cl['lag_s'] * 1000:+.0f} ms later")
         out.append({"where": "follows the command", "ratio": float("nan"),
-                    "text": f"the residual follows the command {cl['lag_s'] * 1000:+.0f} ms later "
+                    "text": f"the residual follows the command {later} "
                             f"(correlation {cl['correlation']:+.2f}): a loop delay or drive lag"})
     out.sort(key=lambda d: -(d["ratio"] if math.isfinite(d["ratio"]) else 0.0))
     return out
 
 
-def _regime_comparisons(bins: dict) -> list[tuple]:
-    """Speed, reversals, position and command regimes against their complements."""
+def _regime_comparisons(reg: dict) -> list[tuple]:
+    """Speed, reversals, position and command regimes against their complements (``reg``:
+    :func:`regimes`'s output)."""
+    bins = reg["bins"]
+
     def rms(key):
         v = bins.get(key, {})
-        return v.get("rms_rad") if v.get("n", 0) > 50 else None
+        return v.get("rms_rad") if v.get("n", 0) > MIN_BIN_SAMPLES else None
 
     out = []
     slow, low, fast = rms("speed: near zero"), rms("speed: low"), rms("speed: high")
@@ -269,14 +356,24 @@ def _regime_comparisons(bins: dict) -> list[tuple]:
                 "in a position band: the outer quarter of |theta| has {r:.1f}x the error of the rest "
                 "(a spring, gravity, an end stop, a position-dependent torque)"))
     pos = {k[len("position: ["):]: v["rms_rad"] for k, v in bins.items()
-           if k.startswith("position: [") and v.get("n", 0) > 50}
+           if k.startswith("position: [") and v.get("n", 0) > MIN_BIN_SAMPLES}
     if pos:
         k = max(pos, key=pos.get)
         others = [v for kk, v in pos.items() if kk != k]
         out.append((f"positions [{k}", pos[k], float(np.sqrt(np.mean(np.square(others)))) if others else None,
                     "at positions [" + k + ": {r:.1f}x the error of the other quartiles"))
-    out.append(("command near its limit", rms("command: near its limit"), rms("command: below"),
-                "when the command is near its limit: {r:.1f}x the error below it (saturation, a torque limit)"))
+    if reg.get("command_bins", "limit") == "limit":
+        out.append(("command near its limit", rms("command: near its limit"), rms("command: below"),
+                    f"when the command is near its limit (at least {100 * NEAR_LIMIT_SHARE:.0f} % of it): "
+                    "{r:.1f}x the error below it (saturation, a torque limit)"))
+    else:
+        thr = reg["command_threshold"]
+        never = " (the command never came near its limit)" if reg.get("command_limits") else ""
+        out.append(("largest commands", rms(f"command: largest logged (>= {thr:.3g})"), rms("command: smaller"),
+                    f"at the largest commands (above {100 * NEAR_LIMIT_SHARE:.0f} % of the largest logged, "
+                    f"{thr:.3g}){never}: {{r:.1f}}x the error of the smaller ones (a drive's "
+                    "nonlinearity at large commands, or what the large commands coincide with: speed, "
+                    "acceleration, the edges of steps)"))
     return out
 
 

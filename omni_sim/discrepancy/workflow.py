@@ -77,7 +77,9 @@ class Outcome:
 #: a position offset) -- what a datasheet or a CAD model gets "a little wrong everywhere".
 DEFAULT_CORRECTIONS = ("armature", "viscous_damping", "coulomb_friction", "torque_gain", "position_offset")
 #: A correction that moves its parameter by more than this factor from the user's value is
-#: flagged as implausible in the report (a 3x inertia change is a finding, not a correction).
+#: flagged in the report (a 3x inertia change is a finding, not a correction).  This factor and
+#: the parameter's bounds are the only checks behind a correction's ``plausible``: it does not
+#: say the fitted value is right (its interval may exclude the true one).
 PLAUSIBLE_FACTOR = 2.0
 
 
@@ -224,7 +226,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
                 "prescreen_s": sel.PRESCREEN_S, "n_screen": sel.N_SCREEN,
                 "mujoco": mujoco.__version__}
     report = assemble_report(builder, replay_runs, nominal, theta_after, selection, unc, settings,
-                             fixed=fixed)
+                             fixed=fixed, actuator_limit=device.voltage_limit)
     report["gaps"] = gaps
     report["mujoco_warnings"] = warnings
     timings["total_s"] = time.perf_counter() - t_start
@@ -659,9 +661,11 @@ def _patched_spec(builder: fx.ModelBuilder, best: Scored | None) -> mujoco.MjSpe
 # -- 4. the report -----------------------------------------------------------------------------
 def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: NominalReplay,
                     theta_after: list, selection: Selection, unc: dict | None, settings: dict,
-                    fixed: tuple[str, ...] = ()) -> dict:
+                    fixed: tuple[str, ...] = (), actuator_limit: float = math.inf) -> dict:
     """The content of ``report.json`` (the run-time fields ``mujoco_warnings`` and ``timings``
-    are added by :func:`run_discrepancy`)."""
+    are added by :func:`run_discrepancy`).  ``actuator_limit``: the actuator's command limit
+    (its ``ctrlrange``, inf if unlimited), which with each run's ``command_limit`` says when
+    the command is near its limit (:func:`~omni_sim.discrepancy.localise.command_bins`)."""
     noise = nominal.noise
     gap_before = nominal.gap
     gap_after = gap([th - r.theta for th, r in zip(theta_after, runs)])
@@ -679,8 +683,8 @@ def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: No
     else:
         effects = _effect_items(builder, best, selection.effect_entries, unc, left, fixed)
     corrections = _correction_items(builder, best, unc, fixed) if fixed else []
-    loc_before = localise(runs, nominal.theta)
-    loc_after = localise(runs, theta_after)
+    loc_before = localise(runs, nominal.theta, actuator_limit)
+    loc_after = localise(runs, theta_after, actuator_limit)
     rounds = selection.rounds
     # the library's nearest candidates (round 1, held-out share), for a gap left unexplained
     nearest = [{"name": c.name, "share": c.share, "confidence": "low"}
@@ -786,7 +790,12 @@ def _bound_flags(eff, x) -> dict:
 def _correction_items(builder: fx.ModelBuilder, best: Scored, unc: dict, fixed: tuple[str, ...]) -> list[dict]:
     """The report's ``corrections``: each refitted constant of the nominal with the user's value,
     the fitted one, its 95 % half-width (as the effects'), the factor moved, and a warning when
-    it moved by more than :data:`PLAUSIBLE_FACTOR` or sits on a bound."""
+    it moved by more than :data:`PLAUSIBLE_FACTOR` or sits on a bound.
+
+    ``within_factor`` (bool) says the fitted value lies within :data:`PLAUSIBLE_FACTOR` of the
+    user's value, ``plausible_factor`` is that factor, ``at_bound`` the bound it sits on (or
+    None); ``plausible`` (kept for compatibility) is ``within_factor and not at_bound``: those
+    two checks only, not a test of the value against the truth."""
     cover = un.coverage_factor(len(best.folds))
     se, bias = unc["se"], unc["measurement_bias"]
     out = []
@@ -806,7 +815,10 @@ def _correction_items(builder: fx.ModelBuilder, best: Scored, unc: dict, fixed: 
                              "check the nominal (or a missing effect it stands in for)")
             if p.name in bounds:
                 notes.append(f"on its {bounds[p.name]} bound: the interval is not a confidence interval")
-            item["plausible"] = not notes
+            item["within_factor"] = not (ratio is not None and (ratio > PLAUSIBLE_FACTOR
+                                                                or ratio < 1 / PLAUSIBLE_FACTOR))
+            item["plausible_factor"] = PLAUSIBLE_FACTOR
+            item["plausible"] = not notes  # = within_factor and not at_bound (the only checks)
             item["at_bound"] = bounds.get(p.name)
             if notes:
                 item["warning"] = "; ".join(notes)
