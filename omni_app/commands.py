@@ -179,10 +179,11 @@ def _print_scores(s: dict) -> None:
     if st and alpha:
         print(f"step: median |error| linear {st['median_abs_error_linear_rad']:.4f} rad, alpha "
               f"{st['median_abs_error_alpha_rad']:.4f} rad (ratio {st['ratio_of_medians']:.2f}); "
-              f"alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses")
+              f"alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses "
+              f"({st['alpha_better_runs']}/{st['n_runs']} runs)")
     elif st:
         print(f"step: median |error| linear {st['median_abs_error_linear_rad']:.4f} rad over "
-              f"{st['n_poses']} run(s)")
+              f"{st['n_runs']} run(s) at {st['n_poses']} pose(s)")
     if sn and alpha:
         print(f"sine: magnitude p90 linear {sn['magnitude_p90_linear']:.3f}, alpha "
               f"{sn['magnitude_p90_alpha']:.3f}; phase p90 linear {sn['phase_p90_linear_deg']:.1f} deg, "

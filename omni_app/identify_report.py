@@ -79,12 +79,19 @@ def _local_figure(ident, path: Path) -> None:
     save_png(fig, path, dpi=100)
 
 
+#: The legend of every report that shows the paper's equation numbers.
+EQUATIONS_LEGEND = ("Numbers in parentheses, such as (6) or (22), are the equation numbers of the paper this "
+                    "project implements, \"The α-invariant: an energy-based nonlinear minimal damping model "
+                    "for robotic joints with friction\" (Phantom Omni yaw axis); its tables and figures are "
+                    "named as there.")
+
+
 def format_report(ident, source: str = "") -> str:
     """The ``report.md`` text."""
-    out = ["# Identification report", ""]
+    out = ["# Identification report", "", EQUATIONS_LEGEND, ""]
     if source:
         out += [f"Dataset: `{source}`", ""]
-    out += ["## Global linear model (22) per pose", "",
+    out += ["## Global linear model per pose (22)", "",
             "| pose | gamma1 [deg] | gamma2 [deg] | kp [V/rad] | freqs (used) | C_linear [1/s] "
             "| beta_linear [1/s^2] | beta_tilde_linear |",
             "|---|---|---|---|---|---|---|---|"]
@@ -93,7 +100,7 @@ def format_report(ident, source: str = "") -> str:
         out.append(f"| {q.label} | {q.gamma1_deg:.2f} | {q.gamma2_deg:.2f} | {q.kp:g} | "
                    f"{len(q.frequencies)} ({n_used}) | {q.C_linear:.4g} | {q.beta_linear:.4g} | "
                    f"{q.beta_tilde_linear:.4g} |")
-    out += ["", "## Local linear model (19)-(20) and alpha (36)", "",
+    out += ["", "## Local linear model (19)-(20) and the alpha-invariant (36)", "",
             "| pose | f [Hz] | A1 [rad] | A2 [rad] | C_data [1/s] | beta_data [1/s^2] | alpha [V^2/s^2] "
             "| used | fit explained | 3rd harm. |",
             "|---|---|---|---|---|---|---|---|---|---|"]
@@ -102,12 +109,12 @@ def format_report(ident, source: str = "") -> str:
             out.append(f"| {q.label} | {x.frequency_hz:g} | {x.A1:.5g} | {x.A2:.5g} | {x.C_data:.4g} | "
                        f"{x.beta_data:.4g} | {x.alpha:.4g} | {'yes' if x.used else 'no'} | "
                        f"{x.explained_fraction:.4f} | {x.harmonic3_ratio:.3g} |")
-    out += ["", "## Inertia model (6)-(8)", ""]
+    out += ["", "## Inertia and damping model (6)-(8)", ""]
     if ident.inertia is None:
         out.append("Not fitted (see warnings): per-pose results above are complete.")
     else:
         fit = ident.inertia
-        out += [f"Fitted to {fit.n_poses} poses by (27)-(29) with relative residuals "
+        out += [f"Fitted to {fit.n_poses} poses by the non-linear regression (27)-(29) with relative residuals "
                 f"({fit.dof} degrees of freedom). Intervals are linearised 95% intervals.", "",
                 "| parameter | value | 95% interval | note |", "|---|---|---|---|"]
         for k in ("I_base", "I1", "I2", "I3", "gamma_offs_deg", "C0_bar"):

@@ -5,6 +5,8 @@ from __future__ import annotations
 from identification import paper
 from identification.simulate import DEFAULT_MAX_ITER
 
+from .identify_report import EQUATIONS_LEGEND
+
 #: Issue targets, checked and stated in the report (never used to tune anything).
 TARGET_INERTIA_REL = 0.02
 TARGET_STEP_RATIO = 3.0
@@ -12,10 +14,6 @@ TARGET_STEP_RATIO = 3.0
 
 def _f(x, nd=3):
     return "n/a" if x is None else f"{x:.{nd}f}"
-
-
-def _met(ok: bool) -> str:
-    return "met" if ok else "**not met**"
 
 
 def _run_counts(runs) -> str:
@@ -44,15 +42,17 @@ def _header(res: dict) -> list[str]:
     lines += [f"Model: `{run['model']}` (sha256 {run['model_sha256']}). Simulated "
               f"{run['simulated_time_s']:.0f} s of experiments ({_run_counts(res['runs'])}). "
               f"Every number below comes from this run; `dataset/` holds the data, `params.json` "
-              f"the identified parameters, `predictions/` both models' simulations.", ""]
+              f"the identified parameters, `predictions/` both models' simulations.", "",
+              EQUATIONS_LEGEND, ""]
 
     return lines
 
 
-def _targets(res: dict) -> list[str]:
-    """The issue's targets, each with the measured figure."""
+def target_rows(res: dict) -> list[tuple[str, str, str]]:
+    """The issue's targets, each ``(target, measured, verdict)``, verdict ``"met"`` or ``"not
+    met"`` (with a qualifier where one applies).  The report's target table and the console
+    summary of ``omni reproduce`` are both written from these rows, so they say the same."""
     s = res["scores"]["summary"]
-    lines = []
     inr = s["inertia"]
     st = s["step"]
     sn = s["sine"]
@@ -60,39 +60,54 @@ def _targets(res: dict) -> list[str]:
     after = st["windows"]["after_edges"]
     t8_avg = paper.table8_average()
     p11s = paper.table11_summary()  # Table 11 reduced with our statistics (like for like)
-    lines += ["## Targets", "",
-              "| target | measured | |", "|---|---|---|",
-              f"| identified inertia (6) x beta_bar within 2 % of MuJoCo at all 25 Table 2 poses | "
-              f"max {100 * inr['max_rel_error']:.1f} % (unseen poses: "
-              f"{100 * inr['max_rel_error_unseen_poses']:.1f} %) | "
-              f"{_met(inr['max_rel_error'] <= TARGET_INERTIA_REL)} |",
-              f"| alpha model beats linear on the step response at every pose (each run's median "
-              f"error over the whole record) | {st['alpha_better_poses']}/{st['n_poses']}; but by each "
-              f"run's p90 {whole['alpha_better_poses_p90']}/{st['n_poses']} (p90, median over runs: "
-              f"alpha {1e3 * whole['p90_abs_error_alpha_rad']:.1f} mrad, linear "
-              f"{1e3 * whole['p90_abs_error_linear_rad']:.1f} mrad), and in the first second after "
-              f"each edge {after['alpha_better_poses']}/{st['n_poses']} | "
-              f"{_met(st['alpha_better_poses'] == st['n_poses'])} (by the median only) |",
-              f"| ratio of medians linear/alpha >= 3 | whole record {whole['ratio_of_medians']:.2f} "
-              f"(paper's Table 11: {p11s['ratio_of_medians']:.2f}); first second after each edge "
-              f"{after['ratio_of_medians']:.2f}. Ratio of means (the paper's \"{paper.PAPER_STEP_RATIO}\"): "
-              f"whole record {whole['ratio_of_means']:.2f} (paper {p11s['ratio_of_means']:.2f}), after "
-              f"edges {after['ratio_of_means']:.2f} | whole record "
-              f"{_met(whole['ratio_of_medians'] >= TARGET_STEP_RATIO)}, after edges "
-              f"{_met(after['ratio_of_medians'] >= TARGET_STEP_RATIO)} |",
-              f"| alpha model halves the linear model's sine phase p90 error (paper "
-              f"{t8_avg['phase_p90_linear_deg']:.1f} -> {t8_avg['phase_p90_alpha_deg']:.1f} deg) | "
-              f"{sn['phase_p90_linear_deg']:.1f} -> {sn['phase_p90_alpha_deg']:.1f} deg | "
-              f"{_met(sn['phase_p90_alpha_deg'] <= 0.5 * sn['phase_p90_linear_deg'])} |",
-              f"| quasilinear iteration converges | {s['alpha_simulation']['steps_not_converged']} of "
-              f"{s['alpha_simulation']['steps']} steps did not "
-              f"({s['alpha_simulation'].get('steps_solved_by_bisection', 0)} more did not meet (46) "
-              f"within {DEFAULT_MAX_ITER} iterations, cycling or creeping, and were solved by a bracketed "
-              "bisection: "
-              "identification/simulate.py) | "
-              f"{_met(s['alpha_simulation']['steps_not_converged'] == 0)} |", ""]
+    sim = s["alpha_simulation"]
+    n = st["n_poses"]
+    return [
+        (f"identified inertia (6) x beta_bar within 2 % of MuJoCo at all {inr['n_poses']} Table 2 poses",
+         f"max {100 * inr['max_rel_error']:.1f} % (unseen poses: {100 * inr['max_rel_error_unseen_poses']:.1f} %)",
+         _verdict(inr["max_rel_error"] <= TARGET_INERTIA_REL)),
+        ("alpha model beats linear on the step response at every pose (each run's median error over "
+         "the whole record)",
+         f"{st['alpha_better_poses']}/{n}; but by each run's p90 {whole['alpha_better_poses_p90']}/{n} "
+         f"(p90, median over runs: alpha {1e3 * whole['p90_abs_error_alpha_rad']:.1f} mrad, linear "
+         f"{1e3 * whole['p90_abs_error_linear_rad']:.1f} mrad), and in the first second after each edge "
+         f"{after['alpha_better_poses']}/{n}",
+         f"{_verdict(st['alpha_better_poses'] == n)} (by the median only)"),
+        ("ratio of medians linear/alpha >= 3",
+         f"whole record {whole['ratio_of_medians']:.2f} (paper's Table 11: {p11s['ratio_of_medians']:.2f}); "
+         f"first second after each edge {after['ratio_of_medians']:.2f}. Ratio of means (the paper's "
+         f"\"{paper.PAPER_STEP_RATIO}\"): whole record {whole['ratio_of_means']:.2f} (paper "
+         f"{p11s['ratio_of_means']:.2f}), after edges {after['ratio_of_means']:.2f}",
+         f"whole record {_verdict(whole['ratio_of_medians'] >= TARGET_STEP_RATIO)}, after edges "
+         f"{_verdict(after['ratio_of_medians'] >= TARGET_STEP_RATIO)}"),
+        (f"alpha model halves the linear model's sine phase p90 error (paper "
+         f"{t8_avg['phase_p90_linear_deg']:.1f} -> {t8_avg['phase_p90_alpha_deg']:.1f} deg)",
+         f"{sn['phase_p90_linear_deg']:.1f} -> {sn['phase_p90_alpha_deg']:.1f} deg",
+         _verdict(sn["phase_p90_alpha_deg"] <= 0.5 * sn["phase_p90_linear_deg"])),
+        ("quasilinear iteration converges",
+         f"{sim['steps_not_converged']} of {sim['steps']} steps did not "
+         f"({sim.get('steps_solved_by_bisection', 0)} more did not meet the iteration's convergence "
+         f"test (46) within {DEFAULT_MAX_ITER} iterations, cycling or creeping, and were solved by a "
+         "bracketed bisection: identification/simulate.py)",
+         _verdict(sim["steps_not_converged"] == 0)),
+    ]
 
-    return lines
+
+def _verdict(ok: bool) -> str:
+    return "met" if ok else "not met"
+
+
+def _targets(res: dict) -> list[str]:
+    """The issue's targets, each with the measured figure (:func:`target_rows`)."""
+    lines = ["## Targets", "", "| target | measured | |", "|---|---|---|"]
+    lines += [f"| {t} | {m} | {v.replace('not met', '**not met**')} |" for t, m, v in target_rows(res)]
+    return lines + [""]
+
+
+def summary_lines(res: dict, label: str = "") -> list[str]:
+    """The console summary of ``omni reproduce``: every target of the report's table, met or
+    not, with its measured figure (:func:`target_rows`)."""
+    return [f"{label}[{v}] {t}: {m}" for t, m, v in target_rows(res)]
 
 
 def _inertia_truth(res: dict) -> list[str]:
@@ -159,13 +174,64 @@ def _alpha_model(res: dict) -> list[str]:
               f"(grid search; paper Table 7: {paper_breaks}). C_k1 = "
               f"{', '.join(f'{c:.2f}' for c in am.C_k1)} (paper, in the order Table 10 implies: "
               f"{paper_C_k1}). beta~_k1 = {', '.join(f'{b:.3f}' for b in am.beta_k1)} at "
-              f"alpha = {am.alpha_bar[0]:g}, {am.alpha_bar[1]:g} (paper Table 6 reordered: {paper_beta_k1}). "
-              f"Options: {am.options}.", "",
+              f"alpha = {am.alpha_bar[0]:g}, {am.alpha_bar[1]:g} (paper Table 6 reordered: {paper_beta_k1})."
+              + beta_k1_note(res["ident"]), "", "Options of the fit:", "", *options_table(am.options), "",
               "![Figs. 6-7](fig06_07_nonlinear_vs_inertia.png)",
               "![Fig. 8](fig08_alpha_vs_frequency.png)",
               "![Figs. 9-10](fig09_10_C_beta_vs_alpha.png)", ""]
 
     return lines
+
+
+#: What each option of :func:`identification.nonlinear.fit_alpha_model` means, for the
+#: report's table (an option not listed here is shown without a meaning).
+OPTION_MEANINGS = {
+    "use": "the sine frequencies fitted (up_to_resonance: those at or below each pose's resonance)",
+    "monotone": "C(alpha) constrained non-increasing in alpha",
+    "method": "two_stage: per-pose fits, then one value across poses by (40)/(42) (the paper's 2.3.5)",
+    "beta_floor_fraction": "floor of beta~ as a share of its smaller end value",
+    "beta_clamp": "beta~ held at its end values outside [alpha_bar_0, alpha_bar_1]",
+    "breaks_from": "how the breakpoints alpha_0..3 were chosen",
+}
+
+
+def options_table(options: dict) -> list[str]:
+    """The α model's options as a markdown table: option, value, what it means."""
+    rows = ["| option | value | meaning |", "|---|---|---|"]
+    rows += [f"| {k} | {v} | {OPTION_MEANINGS.get(k, '')} |" for k, v in options.items()]
+    return rows
+
+
+def beta_k1_note(ident) -> str:
+    """Why a fitted beta~_k1 can stand far from the paper's (`` ...`` appended to the α model's
+    paragraph), or ``""``.  beta~_k(I) = 1/(beta~_k1 I) (42): 1 means the global linear model's
+    beta~ = 1/I (7).  The value at alpha_bar_1 is the straight line (41) fitted to the sines'
+    alpha, read at alpha_bar_1; where the beta~ data fall with alpha the line reaches zero
+    before it and the per-pose fit (non-negative) stops at 0 there, which makes beta~_11
+    large."""
+    am = ident.alpha_model
+    fits = [d for d in am.diagnostics.get("poses", []) if "beta_k" in d]
+    at_zero = sum(d["beta_k"][1] <= 0 for d in fits)
+    if not fits or not at_zero:
+        return ""
+    physical = [p for p in ident.poses if p.physical]
+    used = [q.alpha for p, d in zip(physical, am.diagnostics["poses"])
+            for q, u in zip(p.frequencies, d["used"]) if u]
+    b0, b1 = am.beta_inv
+    a0, a1 = am.alpha_bar
+    top = max(used)
+    share = (b0 + (b1 - b0) * (min(top, a1) - a0) / (a1 - a0)) / b0
+    t6 = paper.table6()
+    k1 = [r["value"] for r in reversed(t6)]  # beta~_k1 at alpha_bar_0, _1 in the order Table 10 implies
+    paper_share = k1[0] / k1[1]  # beta~(alpha_bar_1) / beta~(alpha_bar_0), as beta~_k = 1/(beta~_k1 I)
+    return (f" The {am.beta_k1[1]:.3g} is not a units or scale difference (beta~_k(I) = 1/(beta~_k1 I) "
+            f"(42), so 1 is the global linear model's beta~ = 1/I (7), as in the paper): the straight "
+            f"line (41) through alpha_bar = {a0:g} and {a1:g} is fitted to the sines' alpha, which reach "
+            f"{top:.3g} V^2/s^2 here, and the beta~ data fall with alpha; at {at_zero} of {len(fits)} poses "
+            f"the line reaches zero before alpha_bar = {a1:g} and the (non-negative) fit stops at 0 there, so "
+            f"beta~ at alpha_bar = {a1:g} is an extrapolation near zero and its beta~_k1 is large. Over the "
+            f"alpha the data reach, the model's beta~ falls to {100 * share:.0f} % of its value at alpha = "
+            f"{a0:g} (the paper's, to {100 * paper_share:.0f} % by alpha_bar = {t6[-1]['alpha_bar']:g}).")
 
 
 def _sine_table(res: dict) -> list[str]:

@@ -123,16 +123,12 @@ def one_blas_thread():
 
 
 def _print_summary(res: dict, label: str = "") -> None:
-    s = res["scores"]["summary"]
-    st, sn, inr = s["step"], s["sine"], s["inertia"]
-    print(f"{label}inertia model vs MuJoCo at {inr['n_poses']} Table 2 poses: max error "
-          f"{100 * inr['max_rel_error']:.1f} %")
-    print(f"{label}step: alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses; median |error| "
-          f"linear {1e3 * st['median_abs_error_linear_rad']:.2f} mrad, alpha "
-          f"{1e3 * st['median_abs_error_alpha_rad']:.2f} mrad (ratio {st['ratio_of_medians']:.2f})")
-    print(f"{label}sine: phase p90 linear {sn['phase_p90_linear_deg']:.1f} deg, alpha "
-          f"{sn['phase_p90_alpha_deg']:.1f} deg; magnitude p90 linear {sn['magnitude_p90_linear']:.3f}, "
-          f"alpha {sn['magnitude_p90_alpha']:.3f}")
+    """Every target of the report's table, met or not, with its measured figure (the same
+    rows: :func:`omni_app.report.summary_lines`)."""
+    from .report import summary_lines
+
+    for line in summary_lines(res, label):
+        print(line)
 
 
 def reproduce_command(args) -> int:
