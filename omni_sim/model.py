@@ -251,7 +251,8 @@ def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>",
             raise UserError(f"{path}: model has no joint {joint!r} (the controlled joint, --joint; "
                             f"{found_names(model)})")
         if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
-            raise UserError(f"{path}: joint {joint!r} must be a hinge (the controlled joint, --joint)")
+            raise UserError(f"{path}: joint {joint!r} must be a hinge (the controlled joint, --joint; "
+                            f"{found_names(model)})")
         aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, actuator)
         if aid < 0:
             raise UserError(f"{path}: model has no actuator {actuator!r} (the controlled "

@@ -96,6 +96,7 @@ def test_forgotten_joint_names_the_flags_and_the_models_hinges(argv, tmp_path, m
 @pytest.mark.parametrize("flags, words", [
     (["--joint", "hing", "--actuator", "motor"], "model has no joint 'hing'"),
     (["--joint", "hinge", "--actuator", "motr"], "model has no actuator 'motr'"),
+    (["--joint", "rail", "--actuator", "motor"], "joint 'rail' must be a hinge"),
 ])
 def test_a_misspelt_name_lists_the_models_names(flags, words, tmp_path, monkeypatch, capsys):
     line = refused(["discrepancy", "--measured", "data", "--model", "robot.xml", "--out", "o", *flags],
