@@ -1,4 +1,4 @@
-"""Messages that tell the user the fix (issue 42): what a new user with a single-joint robot of
+"""Messages that tell the user the fix: what a new user with a single-joint robot of
 their own meets on a fresh clone -- a model without the Omni's names, a CSV separated by ';' or
 tabs, a folder given as the model, a file given as the dataset, runs without a control period.
 
