@@ -234,7 +234,9 @@ def _read_meta(json_path: Path, require_pose: bool) -> dict:
     required = REQUIRED_KEYS if require_pose else tuple(k for k in REQUIRED_KEYS if k not in POSE_KEYS)
     missing = [k for k in required if k not in meta]
     if missing:
-        raise _fail(json_path, f"missing required key(s): {', '.join(missing)}")
+        pose = (" (the Omni arm's angles [deg]; the runs of a single-joint robot of your own need "
+                "none in omni discrepancy --joint NAME --actuator NAME)") if set(missing) <= set(POSE_KEYS) else ""
+        raise _fail(json_path, f"missing required key(s): {', '.join(missing)}{pose}")
     if meta["kind"] not in KINDS:
         raise _fail(json_path, f"kind must be one of {', '.join(KINDS)}, got {meta['kind']!r}")
     # optional numbers: absent or null, else finite
@@ -259,6 +261,25 @@ def _read_meta(json_path: Path, require_pose: bool) -> dict:
     return meta
 
 
+#: Column separators other than the comma that spreadsheets and loggers write.
+OTHER_SEPARATORS = (";", "\t", "|", " ")
+
+
+def _other_separator(header: list[str], required) -> str | None:
+    """The separator a header that lacks ``required`` columns was written with instead of the
+    comma: ``;``, a tab or ``|`` anywhere in it, or -- a single column -- the separator (also a
+    space) that splits it into names including every required one; None if none fits."""
+    line = ",".join(header)
+    for sep in OTHER_SEPARATORS[:-1]:
+        if sep in line:
+            return sep
+    if len(header) == 1:
+        for sep in OTHER_SEPARATORS:
+            if set(required) <= {h.strip() for h in header[0].split(sep)}:
+                return sep
+    return None
+
+
 def read_table(csv_path: str | os.PathLike, required=REQUIRED_COLUMNS) -> tuple[list[str], np.ndarray]:
     """A numeric CSV file: its header names and its rows as a 2-D array of finite numbers, at
     least 2 rows (the samples of a run; ``required``: the columns it must have).
@@ -281,7 +302,13 @@ def read_table(csv_path: str | os.PathLike, required=REQUIRED_COLUMNS) -> tuple[
     header = [h.strip() for h in lines[0].strip().split(",")]
     missing = [c for c in required if c not in header]
     if missing:
-        raise _fail(csv_path, f"missing column(s): {', '.join(missing)} (need {', '.join(required)})")
+        sep = _other_separator(header, required)
+        problem = f"missing column(s): {', '.join(missing)} (need {', '.join(required)})"
+        if sep is not None:
+            raise _fail(csv_path, f"columns must be separated by commas (found {sep!r} in the header): "
+                                  f"{problem}; save the file with ',' between columns and '.' as "
+                                  "the decimal point")
+        raise _fail(csv_path, problem)
     rows = [ln for ln in lines[1:] if ln.strip()]
     if not rows:
         raise _fail(csv_path, "no data rows (only the header line)")
@@ -365,11 +392,19 @@ def read_dataset(folder: str | os.PathLike, require_pose: bool = True,
     Raises
     ------
     UserError
-        The folder does not exist or holds no ``.csv`` run, or any run is invalid.
+        The folder does not exist (a file gets the folder to give) or holds no ``.csv`` run, or
+        any run is invalid.
     """
     folder = Path(folder)
+    if folder.is_file():
+        hint = ""
+        if folder.suffix == ".csv" and folder.with_suffix(".json").is_file():
+            hint = f"; give the folder that holds it: {folder.parent}"
+        raise UserError(f"{folder}: is a file, not a dataset folder (a dataset is a folder of "
+                        f"NAME.csv + NAME.json pairs, one per run){hint}")
     if not folder.is_dir():
-        raise UserError(f"{folder}: dataset folder not found")
+        raise UserError(f"{folder}: dataset folder not found (a dataset is a folder of NAME.csv + "
+                        "NAME.json pairs, one per run)")
     paths = sorted(folder.glob("*.csv"))
     if not paths:
         raise UserError(f"{folder}: no runs (NAME.csv + NAME.json) in this folder")

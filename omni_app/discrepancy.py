@@ -16,7 +16,7 @@ from omni_sim.discrepancy import experiment_set, hidden
 from omni_sim.discrepancy.workflow import run_discrepancy
 
 from . import discrepancy_report as rp
-from .inputs import check_run_poses
+from .inputs import check_run_poses, require_run_poses
 
 #: The effect hidden by ``--demo``: a 4 ms loop delay (USB Omnis run their loop at 700-900 Hz).
 DEMO_CASE = "time_delay"
@@ -129,13 +129,39 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     runs = read_dataset(args.measured, require_pose=False, uniform=False)  # compared at the logged times
     if target == om.OMNI:  # the arm's actual angles too (the replay reads the set points)
         check_run_poses(runs, args.measured, model)
+        require_run_poses(runs, args.measured)
+    elif args.model is None and friction is None:  # --joint/--actuator on the built-in Omni
+        try:
+            om.load_model(None, target=target)
+        except UserError as exc:
+            raise UserError(f"{exc}; --joint/--actuator name your own robot's: give its model "
+                            "with --model FILE (the default is the virtual Omni's)") from None
+    note = period_note(runs, args.measured)
     with Progress() as log:
-        outcome = run_discrepancy(runs, model, log=log, target=target, progress=log.stage,
+        def stage(index: int, name: str, steps: int) -> None:
+            if index == 0 and note:  # the inputs passed the workflow's checks
+                log(note)
+            log.stage(index, name, steps)
+
+        outcome = run_discrepancy(runs, model, log=log, target=target, progress=stage,
                                   folds=getattr(args, "folds", "blocked"), corrections=corrections)
     with atomic_output_dir(out, force=args.force) as tmp:
         rp.write(outcome, tmp)
     _summary(outcome, out)
     return 0
+
+
+def period_note(runs, data) -> str | None:
+    """The ``note:`` line of a dataset ``data`` whose runs give no ``control_period_s`` (None if
+    every run gives one): such a run's loop is replayed at its sample period, which a 200 Hz log
+    of a servo that closes its loop at 1 kHz gets wrong without a word."""
+    lacking = [r for r in runs if r.meta.get("control_period_s") is None]
+    if not lacking:
+        return None
+    periods = ", ".join(sorted({f"{r.dt * 1e3:.3g}" for r in lacking}, key=float))
+    return (f"note: {data}: {len(lacking)} run(s) give no control_period_s: their loop is replayed "
+            f"at the sample period ({periods} ms); a servo that closes its loop faster says so in "
+            'NAME.json, e.g. "control_period_s": 0.001')
 
 
 def _summary(outcome, out: Path) -> None:

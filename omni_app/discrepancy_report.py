@@ -212,9 +212,14 @@ def _md_sampling(rep: dict) -> list[str]:
     for r in rows:
         L.append(f"| {r['run']} | {r['samples']} | {r['period_s'] * 1e3:.3g} | {r['jitter_s'] * 1e3:.2g} | "
                  f"{r['max_gap_s'] * 1e3:.3g} | {r['control_period_s'] * 1e3:.3g} | {r['torque_off_share']:.0%} |")
-    return L + ["", "The replay runs the device's loop at the loop period, holds the reference (and "
-                "the torque switch) between log samples and reads the model's angle at the logged "
-                "times.", ""]
+    L += ["", "The replay runs the device's loop at the loop period, holds the reference (and "
+          "the torque switch) between log samples and reads the model's angle at the logged "
+          "times.", ""]
+    guessed = [r["run"] for r in rows if not r.get("control_period_given", True)]
+    if guessed:
+        L += [f"{len(guessed)} run(s) give no `control_period_s` in their metadata ({', '.join(guessed)}): "
+              "their loop period is the sample period.", ""]
+    return L
 
 
 def _md_named(rep: dict) -> list[str]:

@@ -41,3 +41,16 @@ def check_run_poses(runs, data, model=None) -> None:
             except UserError as exc:
                 raise UserError(f"{Path(data) / run.name}.json: {keys[0]}, {keys[1]}: {exc} "
                                 "(the Omni's joint ranges)") from None
+
+
+def require_run_poses(runs, data) -> None:
+    """Refuse a run without an arm pose (each angle: its set point ``gammaI_set_deg`` or its
+    actual ``gammaI_deg``, the replay's rule) where the model is the Omni's, which needs one: the
+    message tells a user with a single-joint robot of their own how to name it.  ``data``: the
+    dataset folder (for the message)."""
+    for run in runs:
+        if not all(run.meta.get(f"gamma{i}_set_deg") is not None or run.meta.get(f"gamma{i}_deg") is not None
+                   for i in (1, 2)):
+            raise UserError(f"{Path(data) / run.name}.json: no arm pose (gamma1_deg, gamma2_deg [deg]), "
+                            f"which the Omni's model needs; {om.OWN_ROBOT_HINT}, and give its model: "
+                            "--model FILE")

@@ -68,8 +68,11 @@ def model_path(path: str | os.PathLike | None = None, friction: str | None = Non
 def model_not_found(path: str | os.PathLike) -> str:
     """The one-line error of a model file that does not exist.  A path that names a built-in
     file directly in a ``models/`` folder gets the file's place in its device's folder
-    (``models/scene.xml``: ``models/omni/scene.xml``)."""
+    (``models/scene.xml``: ``models/omni/scene.xml``); a folder gets the ``.xml`` file inside
+    it to give (``models/servo_pendulum``: ``models/servo_pendulum/servo_pendulum.xml``)."""
     p = Path(path)
+    if p.is_dir():
+        return _folder_not_model(p)
     msg = f"{p}: model file not found"
     if p.parent.name == MODELS_DIR.name:
         for folder in (OMNI_DIR, SERVO_PENDULUM_DIR):
@@ -77,6 +80,18 @@ def model_not_found(path: str | os.PathLike) -> str:
                 return msg + (f" (the built-in model files are in one folder per device: "
                               f"{p.parent / folder.name / p.name})")
     return msg
+
+
+def _folder_not_model(folder: Path) -> str:
+    """The one-line error of a folder given as the model: the file to give instead (the
+    ``scene.xml``, else the ``.xml`` file named as the folder, else the first), and the folder's
+    other ``.xml`` files."""
+    names = sorted(f.name for f in folder.glob("*.xml") if f.is_file())
+    if not names:
+        return f"{folder}: is a folder, not a model file, and holds no .xml file; give the model's MJCF file"
+    pick = next((n for n in ("scene.xml", f"{folder.name}.xml") if n in names), names[0])
+    msg = f"{folder}: is a folder, not a model file; give the MJCF file inside it, e.g. {folder / pick}"
+    return msg + (f" (its .xml files: {', '.join(names)})" if len(names) > 1 else "")
 
 
 def model_digest(path: str | os.PathLike | None) -> str:
@@ -184,6 +199,25 @@ def _is_hinge(model: mujoco.MjModel, jid: int) -> bool:
     return jid >= 0 and model.jnt_type[jid] == mujoco.mjtJoint.mjJNT_HINGE
 
 
+#: What a model without the Omni's names is told (a single-joint robot of the user's own).
+OWN_ROBOT_HINT = ("for a single-joint robot of your own, name its joint and actuator: "
+                  "--joint NAME --actuator NAME")
+
+
+def _names(model: mujoco.MjModel, obj, ids) -> str:
+    """The names of the elements ``ids`` of type ``obj`` (unnamed ones left out), or "none"."""
+    names = [mujoco.mj_id2name(model, obj, i) for i in ids]
+    return ", ".join(n for n in names if n) or "none"
+
+
+def found_names(model: mujoco.MjModel) -> str:
+    """The model's hinge joints and actuators, for a message that asks the user to pick one
+    (``the model has hinge joints: pivot; actuators: servo``)."""
+    hinges = [j for j in range(model.njnt) if _is_hinge(model, j)]
+    return (f"the model has hinge joints: {_names(model, mujoco.mjtObj.mjOBJ_JOINT, hinges)}; "
+            f"actuators: {_names(model, mujoco.mjtObj.mjOBJ_ACTUATOR, range(model.nu))}")
+
+
 def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>",
           target: Target | None = None) -> OmniIndex:
     """Find the contract's joints and actuators in ``model`` (UserError if missing).
@@ -197,14 +231,16 @@ def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>",
     if target is None:
         missing = [j for j in JOINTS if _joint_id(model, j) < 0]
         if missing:
-            raise UserError(f"{path}: model lacks the contract's joint(s) {', '.join(missing)}")
+            raise UserError(f"{path}: model lacks the contract's joint(s) {', '.join(missing)} (the "
+                            f"virtual Omni's); {OWN_ROBOT_HINT} ({found_names(model)})")
         jid = {j: _joint_id(model, j) for j in JOINTS}
         for j, i in jid.items():
             if model.jnt_type[i] != mujoco.mjtJoint.mjJNT_HINGE:
                 raise UserError(f"{path}: joint {j!r} must be a hinge")
         aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, YAW_ACTUATOR)
         if aid < 0:
-            raise UserError(f"{path}: model lacks the contract's actuator {YAW_ACTUATOR!r}")
+            raise UserError(f"{path}: model lacks the contract's actuator {YAW_ACTUATOR!r} (the "
+                            f"virtual Omni's); {OWN_ROBOT_HINT} ({found_names(model)})")
         if model.actuator_trntype[aid] != mujoco.mjtTrn.mjTRN_JOINT or model.actuator_trnid[aid, 0] != jid["yaw"]:
             raise UserError(f"{path}: actuator {YAW_ACTUATOR!r} must act on joint 'yaw'")
         joint, actuator, has_arm = "yaw", YAW_ACTUATOR, True
@@ -212,13 +248,15 @@ def index(model: mujoco.MjModel, path: str | os.PathLike = "<model>",
         joint, actuator = target.joint, target.actuator
         j = _joint_id(model, joint)
         if j < 0:
-            raise UserError(f"{path}: model has no joint {joint!r} (the controlled joint, --joint)")
+            raise UserError(f"{path}: model has no joint {joint!r} (the controlled joint, --joint; "
+                            f"{found_names(model)})")
         if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
-            raise UserError(f"{path}: joint {joint!r} must be a hinge (the controlled joint, --joint)")
+            raise UserError(f"{path}: joint {joint!r} must be a hinge (the controlled joint, --joint; "
+                            f"{found_names(model)})")
         aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, actuator)
         if aid < 0:
             raise UserError(f"{path}: model has no actuator {actuator!r} (the controlled "
-                            "joint's actuator, --actuator)")
+                            f"joint's actuator, --actuator; {found_names(model)})")
         if model.actuator_trntype[aid] != mujoco.mjtTrn.mjTRN_JOINT or model.actuator_trnid[aid, 0] != j:
             raise UserError(f"{path}: actuator {actuator!r} must act on joint {joint!r} "
                             "(a joint transmission on the controlled hinge)")

@@ -265,4 +265,9 @@ def test_pendulum_example_through_the_cli(tmp_path, capsys):
     assert md.main(["--out", str(tmp_path / "measured")]) == 0
     assert main(["discrepancy", "--measured", str(tmp_path / "measured"), "--model", str(MODEL),
                  "--joint", "pivot", "--actuator", "servo", "--out", str(tmp_path / "out")]) == 0
-    _check(json.loads((tmp_path / "out" / "report.json").read_text()), 0.015)
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    _check(report, 0.015)
+    # the example's runs give no control_period_s: said once on stderr, recorded per run
+    notes = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("note:")]
+    assert len(notes) == 1 and "10 run(s) give no control_period_s" in notes[0], notes
+    assert [s["control_period_given"] for s in report["sampling"]] == [False] * 10

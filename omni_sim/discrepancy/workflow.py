@@ -720,10 +720,13 @@ def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: No
 def sampling(run: ReplayRun) -> dict:
     """How a run was logged and replayed: its name, samples, median ``period_s``, ``jitter_s``
     (standard deviation of the spacing), longest ``max_gap_s``, the device's
-    ``control_period_s``, and the share of the run with the actuator off."""
+    ``control_period_s``, ``control_period_given`` (False: the metadata gave none, the loop
+    period is the sample period) and the share of the run with the actuator off."""
     off = 0.0 if run.enabled is None else float(np.mean(~run.enabled))
     return {"run": run.name, "samples": int(run.n), **spacing(run.t),
-            "control_period_s": float(run.period), "torque_off_share": off}
+            "control_period_s": float(run.period),
+            "control_period_given": run.meta.get("control_period_s") is not None,
+            "torque_off_share": off}
 
 
 def _candidate_row(s: Scored) -> dict:
