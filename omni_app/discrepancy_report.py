@@ -8,6 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
+from omni_sim import runtime
+from omni_sim.discrepancy import effects as fx
+
 
 def _fmt(x, digits=3) -> str:
     if x is None:
@@ -182,7 +185,7 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
         L += [f"| {k.replace('_', ' ')} | {t.get(k + '_s', 0.0):.1f} | {v:,} |" for k, v in per.items()]
         L.append("")
     L += ["The patched model is `model.xml` (nominal + named effects at their all-runs fit). "
-          "`report.json` holds every number of this page.", ""]
+          + _md_runtime(outcome) + "`report.json` holds every number of this page.", ""]
     return "\n".join(L)
 
 
@@ -351,7 +354,8 @@ def _lookup(loc, where: str):
 
 def model_xml(outcome) -> str:
     eff = outcome.report["effects"]
-    xml = outcome.spec.to_xml()
+    spec = _declared_spec(outcome)
+    xml = spec.to_xml()
     if eff[0]["name"] == "none":
         note = "no effect named: the model is unchanged"
     else:
@@ -359,7 +363,46 @@ def model_xml(outcome) -> str:
                          for e in eff)
     head = (f"<!-- Patched by `omni discrepancy` (written with MjSpec.to_xml; the nominal file's "
             f"comments are not kept). {note}. See report.json for uncertainties. -->\n")
-    return head + xml
+    return head + "<!--\n" + "\n".join(_runtime_lines(outcome, spec)) + "\n-->\n" + xml
+
+
+def _declared_spec(outcome):
+    """The patched spec with its drive laws' control period and target declared for the
+    runtime (:func:`omni_sim.runtime.declare`; unchanged when it needs none)."""
+    st = outcome.report["settings"]
+    return runtime.declare(outcome.spec, st["joint"], st["actuator"], outcome.runs[0].period)
+
+
+def _not_carried(outcome) -> list[str]:
+    """Named effects ``model.xml`` does not hold: not a library effect (every library effect
+    is native MJCF or a drive law of :mod:`omni_sim.runtime`, tests/test_runtime.py)."""
+    return [e["name"] for e in outcome.report["effects"] if e["name"] not in ("none", *fx.NAMES)]
+
+
+def _runtime_lines(outcome, spec) -> list[str]:
+    """``model.xml``'s lines on what it needs beyond plain MuJoCo
+    (:func:`omni_sim.runtime.runtime_note`), and any named effect it does not carry."""
+    lines = runtime.runtime_note(spec)[1]
+    lost = _not_carried(outcome)
+    if lost:
+        lines.append(", ".join(lost) + ": not carried by model.xml (neither MJCF nor a runtime law); "
+                     "report.json holds its fitted values.")
+    return lines
+
+
+def _md_runtime(outcome) -> str:
+    """report.md's sentence on what ``model.xml`` needs beyond plain MuJoCo."""
+    laws = ", ".join(runtime.needed_laws(outcome.spec))
+    if laws:
+        text = (f"It needs the runtime `{runtime.RUNTIME}` for {laws} (a drive law MuJoCo cannot "
+                "express; its header says how to call it): stepped with `mujoco.mj_step` alone it "
+                "is not the named model. ")
+    else:
+        text = "It runs in plain MuJoCo, no runtime. "
+    lost = _not_carried(outcome)
+    if lost:
+        text += ", ".join(lost) + " is not carried by model.xml (report.json holds its values). "
+    return text
 
 
 def write(outcome, folder: Path, title: str = "Model discrepancy report", intro: str = "") -> None:

@@ -128,7 +128,8 @@ def drive_laws(model: mujoco.MjModel, control_period_s: float | None = None,
     -------
     DriveLawsCallback
         ``cb(model, data)``, to call before every ``mujoco.mj_step(model, data)``.  A model
-        that declares no law gets a callback that does nothing.
+        that declares no law, or only laws at zero (:func:`needed_laws`), gets a callback that
+        does nothing (the engine's level is then the joint's own ``frictionloss``, bit for bit).
 
     Raises
     ------
@@ -148,7 +149,7 @@ def drive_laws(model: mujoco.MjModel, control_period_s: float | None = None,
                          "joint= and actuator= (the drive the laws act on)")
     dof = int(model.jnt_dofadr[j])
     friction = DriveFriction.of(model, act, dof, "model")
-    if friction is None:
+    if friction is None or not needed_laws(model):  # laws at zero: the engine's level is Fc
         return DriveLawsCallback(None, dof, 1)
     if control_period_s is None:
         p = _numeric(model, PERIOD_NUMERIC)
@@ -179,16 +180,22 @@ def declare(spec: mujoco.MjSpec, joint: str, actuator: str, control_period_s: fl
     return out
 
 
-def _declared_laws(model: mujoco.MjModel) -> dict:
-    return {name: v for name in DRIVE_LAWS if (v := _numeric(model, name)) is not None}
+def needed_laws(model) -> dict:
+    """The drive laws ``model`` (an ``MjModel`` or ``MjSpec``) declares with a value other than
+    zero, ``{name: values}`` in :data:`~omni_sim.device.DRIVE_LAWS`'s order: what plain MuJoCo
+    leaves out.  (A law declared at zero adds nothing: the engine's level is then the joint's
+    own ``frictionloss``.)"""
+    if isinstance(model, mujoco.MjSpec):
+        model = model.copy().compile()
+    return {name: v for name in DRIVE_LAWS if (v := _numeric(model, name)) is not None and np.any(v != 0)}
 
 
 def runtime_note(model) -> tuple[bool, list[str]]:
     """Whether ``model`` (an ``MjModel`` or ``MjSpec``) needs :func:`drive_laws` to be the
     model it declares, and the lines that say so (``omni discrepancy``'s ``model.xml`` header).
 
-    A declared law whose values are all zero adds nothing (the engine's level is the joint's
-    own ``frictionloss``): such a model runs in plain MuJoCo.
+    A declared law whose values are all zero adds nothing (:func:`needed_laws`): such a model
+    runs in plain MuJoCo.
 
     Returns
     -------
@@ -199,7 +206,7 @@ def runtime_note(model) -> tuple[bool, list[str]]:
     """
     if isinstance(model, mujoco.MjSpec):
         model = model.copy().compile()
-    laws = {name: v for name, v in _declared_laws(model).items() if np.any(v != 0)}
+    laws = needed_laws(model)
     if not laws:
         return False, ["runs in plain MuJoCo, no runtime"]
     params = "; ".join(f"{name} (" + ", ".join(f"{p}={x:.6g}" for p, x in zip(DRIVE_LAWS[name].params, v))
