@@ -103,7 +103,7 @@ def _copy(model: mujoco.MjModel) -> mujoco.MjModel:
 def test_the_runtime_replays_like_the_engine(laws):
     """Two physics steps per period (the level is set at the period's start only): the plain
     loop with the runtime equals the one-row engine bit for bit (the same mj_step arithmetic
-    and the same law terms) and the batch engine to 1e-6 rad (measured 2.4e-16: rollout's
+    and the same law terms) and the batch engine to 1e-6 rad (measured up to 6.1e-16: rollout's
     last bits, see DriveFriction); without the runtime it is another model."""
     model, period = _hinge(**laws), 0.002
     runs = _runs(1000, period)
@@ -235,3 +235,20 @@ def test_every_library_effect_is_native_mjcf_or_a_runtime_law():
     # MjSpec.to_xml writes 6 significant digits (0.08942492 -> "0.0894249"): half a unit of
     # the 6th digit is at most 5e-6 relative
     np.testing.assert_allclose(fx.nominal_values(e, back), x, rtol=5e-6)
+
+
+def test_a_control_callback_would_not_be_the_engine():
+    """Why the runtime is not offered as ``mujoco.set_mjcb_control``: MuJoCo calls it inside
+    mj_step after the step's friction rows are built, so the level acts a step late; the same
+    callback installed there leaves the engine's trajectory (measured 2.1e-2 rad here)."""
+    model, period = _hinge(load=(0.25, 0.6), asym=0.01), 0.002
+    runs = _runs(1000, period)[:1]
+    want = _engine(model, HINGE, runs, period, batch=False)
+    m = _copy(model)
+    cb = runtime.drive_laws(m, period, "hinge", "drive")
+    mujoco.set_mjcb_control(lambda mm, dd: cb(mm, dd))
+    try:
+        late = _plain_p_loop(m, HINGE, *runs[0], period)
+    finally:
+        mujoco.set_mjcb_control(None)
+    assert np.max(np.abs(late - want[0])) > 1e-4
