@@ -135,7 +135,7 @@ def drive_laws(model: mujoco.MjModel, control_period_s: float | None = None,
     ------
     ValueError
         No control period given or declared; a joint or actuator the model lacks.
-    omni_sim.device.UserError
+    identification.errors.UserError
         A law's values are not a law (e.g. a negative coefficient), or ``load_friction``
         without an ``actuatorfrc`` sensor on the actuator.
     """
