@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from omni_sim import runtime
+from omni_sim.discrepancy import effects as fx
 from omni_sim.discrepancy.localise import command_note, lag_text
 
 
@@ -184,7 +186,7 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
         L += [f"| {k.replace('_', ' ')} | {t.get(k + '_s', 0.0):.1f} | {v:,} |" for k, v in per.items()]
         L.append("")
     L += [f"The patched model is `model.xml` ({patched_contents(rep)}). "
-          "`report.json` holds every number of this page.", ""]
+          + _md_runtime(outcome) + "`report.json` holds every number of this page.", ""]
     return "\n".join(L)
 
 
@@ -391,8 +393,11 @@ def _lookup(loc, where: str):
 
 def model_xml(outcome) -> str:
     """``model.xml``: the patched model, headed by a comment that lists what was refitted and
-    what was added (:func:`model_header`)."""
-    return model_header(outcome.report) + outcome.spec.to_xml()
+    what was added (:func:`model_header`) and one on what it needs beyond plain MuJoCo
+    (:func:`_runtime_lines`)."""
+    spec = _declared_spec(outcome)
+    return (model_header(outcome.report) + "<!--\n" + "\n".join(_runtime_lines(outcome, spec))
+            + "\n-->\n" + spec.to_xml())
 
 
 def model_header(rep: dict) -> str:
@@ -417,6 +422,45 @@ def model_header(rep: dict) -> str:
         L.append("Nothing refitted and nothing added: the model is the nominal.")
     L.append("See report.json for the uncertainties. -->")
     return "\n".join(L) + "\n"
+
+
+def _declared_spec(outcome):
+    """The patched spec with its drive laws' control period and target declared for the
+    runtime (:func:`omni_sim.runtime.declare`; unchanged when it needs none)."""
+    st = outcome.report["settings"]
+    return runtime.declare(outcome.spec, st["joint"], st["actuator"], outcome.runs[0].period)
+
+
+def _not_carried(outcome) -> list[str]:
+    """Named effects ``model.xml`` does not hold: not a library effect (every library effect
+    is native MJCF or a drive law of :mod:`omni_sim.runtime`, tests/test_runtime.py)."""
+    return [e["name"] for e in outcome.report["effects"] if e["name"] not in ("none", *fx.NAMES)]
+
+
+def _runtime_lines(outcome, spec) -> list[str]:
+    """``model.xml``'s lines on what it needs beyond plain MuJoCo
+    (:func:`omni_sim.runtime.runtime_note`), and any named effect it does not carry."""
+    lines = runtime.runtime_note(spec)[1]
+    lost = _not_carried(outcome)
+    if lost:
+        lines.append(", ".join(lost) + ": not carried by model.xml (neither MJCF nor a runtime law); "
+                     "report.json holds its fitted values.")
+    return lines
+
+
+def _md_runtime(outcome) -> str:
+    """report.md's sentence on what ``model.xml`` needs beyond plain MuJoCo."""
+    laws = ", ".join(runtime.needed_laws(outcome.spec))
+    if laws:
+        text = (f"It needs the runtime `{runtime.RUNTIME}` for {laws} (a drive law MuJoCo cannot "
+                "express; its header says how to call it): stepped with `mujoco.mj_step` alone it "
+                "is not the named model. ")
+    else:
+        text = "It runs in plain MuJoCo, no runtime. "
+    lost = _not_carried(outcome)
+    if lost:
+        text += ", ".join(lost) + " is not carried by model.xml (report.json holds its values). "
+    return text
 
 
 def write(outcome, folder: Path, title: str = "Model discrepancy report", intro: str = "") -> None:

@@ -32,7 +32,9 @@ floor of 6.3e-4 rad.  The restored effect, a :class:`Effect` over the numeric wi
 parameter ``asymmetry_nm`` in +-0.3 N*m, is in that commit.)
 
 ``load_friction`` adds an ``actuatorfrc`` sensor on the target actuator if the model has none
-(the engine's source of the transmitted torque).
+(the engine's source of the transmitted torque).  It is the one library effect plain MuJoCo
+does not carry: ``model.xml`` says so in its header and names the runtime that applies it in a
+user's own ``mj_step`` loop (:mod:`omni_sim.runtime`).
 """
 
 from __future__ import annotations
