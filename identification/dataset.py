@@ -10,8 +10,8 @@ any sample period and irregular timestamps (a host that polls its servo at 50-20
 jitter).  What each command does with them:
 
 * ``omni discrepancy`` compares at the logged times (:func:`read_dataset` with
-  ``uniform=False``): the replay runs the device's loop at its own control period (metadata
-  ``control_period_s``, default the median sample period) with the reference and the
+  ``purpose="discrepancy"``): the replay runs the device's loop at its own control period
+  (metadata ``control_period_s``, default the median sample period) with the reference and the
   ``enabled`` switch held between log samples, as a servo holds its goal, and reads the model's
   angle at each logged time;
 * ``omni identify``/``omni validate`` fit sines and step responses on a uniform grid: an
@@ -28,8 +28,9 @@ angles [deg]), ``kp`` [V/rad], ``frequency_hz`` [Hz], ``amplitude_rad`` [rad]; o
 actuator's control units); ``control_period_s`` [s] (the device's own loop period, e.g. 0.001
 for a servo that closes its loop at 1 kHz and is logged at 200 Hz; default: the sample
 period); anything else is kept.  A single-joint device without the Omni's arm
-(``omni discrepancy --joint``) has no pose: its runs are read with ``require_pose=False``,
-which makes ``gamma1_deg``/``gamma2_deg`` optional (finite if given).
+(``omni discrepancy --joint``) has no pose: its runs are read with ``require_pose=False``
+(``read_dataset(folder, purpose="discrepancy")``), which makes ``gamma1_deg``/``gamma2_deg``
+optional (finite if given).
 
 Numbers no run has are refused (:func:`read_run`): ``kp`` <= 0; a negative ``frequency_hz``;
 a ``frequency_hz`` or ``amplitude_rad`` that is not positive for a sine or a step (an "other"
@@ -384,10 +385,19 @@ def read_run(csv_path: str | os.PathLike, require_pose: bool = True, uniform: bo
     return resample_uniform(run) if uniform else run
 
 
-def read_dataset(folder: str | os.PathLike, require_pose: bool = True,
-                 uniform: bool = True) -> list[Run]:
-    """Read every run in ``folder`` (sorted by name); ``require_pose``, ``uniform``: see
-    :func:`read_run`.
+#: What a dataset is read for (:func:`read_dataset`'s ``purpose``): ``require_pose``, ``uniform``.
+PURPOSES = {"identify": (True, True), "discrepancy": (False, False)}
+
+
+def read_dataset(folder: str | os.PathLike, require_pose: bool | None = None,
+                 uniform: bool | None = None, purpose: str = "identify") -> list[Run]:
+    """Read every run in ``folder`` (sorted by name).
+
+    ``purpose`` says what the runs are for: ``"identify"`` (default; the paper's method,
+    ``omni identify``/``validate``): the arm pose is required and an irregular run is resampled
+    onto a uniform grid; ``"discrepancy"`` (``omni discrepancy``, your own single-joint robot):
+    the pose is optional and the runs are kept at their logged times.  ``require_pose``,
+    ``uniform`` (see :func:`read_run`), when given, override the purpose's.
 
     Raises
     ------
@@ -395,6 +405,11 @@ def read_dataset(folder: str | os.PathLike, require_pose: bool = True,
         The folder does not exist (a file gets the folder to give) or holds no ``.csv`` run, or
         any run is invalid.
     """
+    if purpose not in PURPOSES:
+        raise ValueError(f"purpose must be one of {', '.join(PURPOSES)}, got {purpose!r}")
+    pose, grid = PURPOSES[purpose]
+    require_pose = pose if require_pose is None else require_pose
+    uniform = grid if uniform is None else uniform
     folder = Path(folder)
     if folder.is_file():
         hint = ""

@@ -74,20 +74,35 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_generate(sub) -> None:
-    p = sub.add_parser("generate", help="run experiments on the virtual Omni and write a dataset")
-    p.add_argument("--campaign", default="paper", metavar="{paper,sine,step,FILE.toml}",
+    p = sub.add_parser("generate", help="run experiments on the virtual Omni (or your own "
+                                        "single-joint model) and write a dataset")
+    p.add_argument("--campaign", default=None, metavar="{paper,sine,step,FILE.toml}",
                    help="paper (Table 1 sines + Table 2 squares; the file omni_sim/campaigns/paper.toml), "
                         "sine or step (its halves), or a campaign file of your own (format: "
-                        "docs/usage/campaigns.md); default: paper")
+                        "docs/usage/campaigns.md); default: paper on the Omni; a single-joint device "
+                        "needs a file whose groups have no poses_deg")
     p.add_argument("--model", default=None, help="MJCF file (default: the built-in models/omni/scene.xml)")
     _friction_option(p)
+    p.add_argument("--joint", default=None, metavar="NAME",
+                   help="the controlled hinge of your own --model (the joint the encoder reads; "
+                        "default: yaw, the Omni's); with --actuator")
+    p.add_argument("--actuator", default=None, metavar="NAME",
+                   help="the actuator driving --joint, whose control is the P law's command "
+                        "(default: yaw_motor); with --joint")
+    p.add_argument("--kp", type=float, default=None,
+                   help="P gain [control units/rad] (default: the paper's 2 V/rad)")
+    p.add_argument("--command-limit", type=float, default=None, metavar="U",
+                   help="the P law's saturation in the actuator's control units, written to the "
+                        "runs' metadata (default: the actuator's ctrlrange)")
     p.add_argument("--out", default="dataset", help="output folder (default: ./dataset)")
     p.add_argument("--seed", type=_nonnegative_int, default=0, help="seed for encoder noise (default: 0)")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
     p.add_argument("--reference", default=None, metavar="CSV",
                    help="drive one run with a user reference (CSV with columns t, r) instead of a campaign")
-    p.add_argument("--gamma1", type=float, default=65.0, help="shoulder set point [deg] for --reference (default 65)")
-    p.add_argument("--gamma2", type=float, default=90.0, help="elbow set point [deg] for --reference (default 90)")
+    p.add_argument("--gamma1", type=float, default=None,
+                   help="shoulder set point [deg] for --reference on the Omni (default 65)")
+    p.add_argument("--gamma2", type=float, default=None,
+                   help="elbow set point [deg] for --reference on the Omni (default 90)")
     p.add_argument("--quantize", action="store_true",
                    help="quantize the measured yaw to the encoder's 15000 counts/rev")
     p.add_argument("--noise", type=float, default=0.0, metavar="RAD",

@@ -11,7 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from identification.dataset import (atomic_output_dir, atomic_write_text, check_output_dir,
+from identification.dataset import (POSE_KEYS, atomic_output_dir, atomic_write_text, check_output_dir,
                                     check_output_file, read_dataset, read_table, write_dataset)
 from identification.errors import UserError
 from identification.identify import check_closed_loop_runs, fit_inertia_table, identify_runs
@@ -27,8 +27,16 @@ def _settings(args: argparse.Namespace) -> ex.Settings:
     noise = float(getattr(args, "noise", 0.0) or 0.0)
     if not (noise >= 0 and math.isfinite(noise)):
         raise UserError(f"--noise must be a finite standard deviation >= 0, got {noise}")
+    kp = getattr(args, "kp", None)
+    if kp is not None and not (kp > 0 and math.isfinite(kp)):
+        raise UserError(f"--kp must be a finite P gain > 0, got {kp}")
+    limit = getattr(args, "command_limit", None)
+    if limit is not None and not limit > 0:
+        raise UserError(f"--command-limit must be > 0 (the P law's saturation, in the actuator's "
+                        f"control units), got {limit}")
     return ex.Settings(quantize=bool(getattr(args, "quantize", False)), noise_rad=noise,
-                       seed=int(getattr(args, "seed", 0) or 0))
+                       seed=int(getattr(args, "seed", 0) or 0),
+                       kp=ex.KP_DEFAULT if kp is None else kp, command_limit=limit)
 
 
 def _check_jobs(jobs: int | None) -> int | None:
@@ -47,28 +55,58 @@ def model_arg(args: argparse.Namespace):
     return str(om.model_path(model, friction))
 
 
+def _generate_target(args: argparse.Namespace) -> om.Target | None:
+    """``--joint``/``--actuator`` of ``omni generate`` (both or neither; None: the Omni's)."""
+    joint, actuator = getattr(args, "joint", None), getattr(args, "actuator", None)
+    if joint is None and actuator is None:
+        return None
+    if joint is None or actuator is None:
+        raise UserError("generate: give --joint and --actuator together (your model's controlled "
+                        "hinge and the actuator that drives it)")
+    return om.Target(joint, actuator)
+
+
 def generate(args: argparse.Namespace) -> int:
-    """``omni generate``: run a campaign (or one user reference) and write a dataset."""
+    """``omni generate``: run a campaign (or one user reference) and write a dataset.
+
+    On a single-joint device (``--joint``/``--actuator``, a model without the Omni's arm) the
+    runs have no arm pose: ``--gamma1``/``--gamma2`` and campaign groups with ``poses_deg``
+    (the built-in campaigns) are refused."""
     jobs = _check_jobs(args.jobs)
     model = model_arg(args)
     settings = _settings(args)
+    target = _generate_target(args)
     out = Path(args.out)
-    campaign_file = None if args.reference is not None or args.campaign in ex.CAMPAIGNS else args.campaign
+    campaign = args.campaign or "paper"
+    campaign_file = None if args.reference is not None or campaign in ex.CAMPAIGNS else campaign
     check_output_dir(out, args.force, inputs=(args.reference, campaign_file, model))
+    if args.reference is not None and Path(args.reference).is_file():
+        read_table(args.reference, ("t", "r"))  # one clear line for an empty or malformed file
+    device = Device.load(model, target=target)  # the model file: refused here if bad
+    arm = device.ix.has_arm
+    gammas = (args.gamma1, args.gamma2)
+    if not arm:
+        what = f"this device (joint {target.joint!r})" if target is not None else "this model"
+        if gammas != (None, None):
+            raise UserError(f"generate: --gamma1/--gamma2 set the Omni's arm; {what} has no arm: "
+                            "leave them out")
+        if args.reference is None and campaign in ex.CAMPAIGNS:
+            raise UserError(f"generate: --campaign {campaign} is the Omni's (every group sets arm "
+                            f"poses); {what} has no arm: give a campaign file whose groups have no "
+                            "poses_deg (docs/usage/campaigns.md), or --reference CSV")
     if args.reference is not None:
-        if Path(args.reference).is_file():
-            read_table(args.reference, ("t", "r"))  # one clear line for an empty or malformed file
-        exps = [ex.reference_experiment(args.reference, args.gamma1, args.gamma2)]
+        if arm:
+            gammas = (65.0 if gammas[0] is None else gammas[0], 90.0 if gammas[1] is None else gammas[1])
+        exps = [ex.reference_experiment(args.reference, *gammas)]
         source = "--gamma1/--gamma2"
     else:
-        exps = ex.campaign(args.campaign)
-        source = str(args.campaign)
-    device = Device.load(model)  # the model file: refused here if bad
+        exps = ex.load_campaign(campaign).experiments(arm=arm)
+        source = str(campaign)
     for e in exps:
         try:
-            device.check_pose(e.gamma1_set_deg, e.gamma2_set_deg)
+            ex.check_experiment(device, e)
         except UserError as exc:
-            raise UserError(f"{source}: run {e.name}: {exc}") from None
+            raise UserError(f"{source}: {exc}") from None
     runs = ex.simulate(device, exps, settings, jobs=jobs, progress=sys.stderr.isatty())
     write_dataset(runs, out, args.force)
     n_sine = sum(r.kind == "sine" for r in runs)
@@ -105,10 +143,32 @@ def discrepancy(args: argparse.Namespace) -> int:
     return discrepancy_command(args)
 
 
+def read_omni_runs(data, command: str) -> list:
+    """The runs of dataset ``data`` for the paper's method (``command``: identify, validate).
+
+    A run without an arm pose (neither ``gamma1_deg`` nor ``gamma2_deg``: a single-joint
+    device of your own) is refused in one line that says what to run instead: the paper's
+    method is for the Omni's gravity-free (vertical) yaw axis, and nothing here can tell a
+    made-up pose from a real one, so it is not asked for one."""
+    runs = read_dataset(data, require_pose=False)
+    for run in runs:
+        have = [k for k in POSE_KEYS if run.meta.get(k) is not None]
+        where = f"{Path(data) / run.name}.json"
+        if not have:
+            raise UserError(
+                f"{where}: no arm pose (gamma1_deg, gamma2_deg): omni {command} is the paper's method "
+                "for the Omni's gravity-free yaw axis, not for a single-joint robot of your own; run "
+                f"omni discrepancy --measured {data} --model FILE --joint J --actuator A")
+        if len(have) < len(POSE_KEYS):
+            missing = [k for k in POSE_KEYS if k not in have]
+            raise UserError(f"{where}: missing required key(s): {', '.join(missing)}")
+    return runs
+
+
 def identify(args: argparse.Namespace) -> int:
     """``omni identify DATA --out DIR [--force]``: writes params.json, report.md, figures."""
     check_output_dir(args.out, getattr(args, "force", False), inputs=(args.data,))
-    runs = read_dataset(args.data)
+    runs = read_omni_runs(args.data, "identify")
     check_run_poses(runs, args.data)
     check_closed_loop_runs([r for r in runs if r.kind == "sine"], "identify", args.data)
     ident = identify_runs(runs)
@@ -156,7 +216,7 @@ def validate(args: argparse.Namespace) -> int:
     """``omni validate DATA --params FILE --out DIR [--force]``."""
     check_output_dir(args.out, getattr(args, "force", False), inputs=(args.data, args.params))
     params = read_params(args.params)
-    runs = read_dataset(args.data)
+    runs = read_omni_runs(args.data, "validate")
     check_run_poses(runs, args.data)
     check_closed_loop_runs(runs, "validate", args.data)
     for run in runs:

@@ -7,13 +7,18 @@ Public API::
     equilibrium_pose(model, gamma1_set_deg, gamma2_set_deg) -> (gamma1_deg, gamma2_deg)
     Device(model)   # the device: gear, friction, inertia at a pose, equilibria, start state,
                     # encoder, P law, Engine (yaw_inertia and equilibrium_pose ask it)
-    experiments.campaign(name_or_file), experiments.simulate(Device.load(path), exps, settings)
+    Device.load(path, target=Target("pivot", "servo"))  # a single-joint device of your own
+    campaign(name_or_file, arm=True) -> [Experiment]; Experiment(name, kind, r=r) (no arm)
+    simulate(device, exps, Settings(kp=..., command_limit=...)) -> [identification.Run]
+
+A walk through them: docs/usage/python.md.
 """
 
 import gymnasium
 
 from .device import Device, Encoder, Engine
-from .model import DEFAULT_SCENE, FRICTION_FAMILIES, MODELS_DIR, OMNI_DIR, load_model
+from .experiments import Experiment, Settings, campaign, simulate
+from .model import DEFAULT_SCENE, FRICTION_FAMILIES, MODELS_DIR, OMNI_DIR, Target, load_model
 
 
 def yaw_inertia(gamma1_deg: float, gamma2_deg: float, model_path=None, model=None) -> float:
@@ -31,7 +36,8 @@ def equilibrium_pose(model, gamma1_set_deg: float, gamma2_set_deg: float) -> tup
 
 
 __all__ = ["DEFAULT_SCENE", "FRICTION_FAMILIES", "MODELS_DIR", "OMNI_DIR", "Device", "Encoder", "Engine",
-           "equilibrium_pose", "load_model", "yaw_inertia"]
+           "Experiment", "Settings", "Target", "campaign", "equilibrium_pose", "load_model", "simulate",
+           "yaw_inertia"]
 
 # the gymnasium environments (gymnasium's documented way: registered when the package is imported)
 gymnasium.register(id="omni_sim/OmniYaw-v0", entry_point="omni_sim.env:OmniYawEnv",

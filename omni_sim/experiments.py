@@ -76,17 +76,17 @@ def _groups(source: str, doc: dict, kind: str, keys: dict) -> list[dict]:
             if k not in keys:
                 raise _campaign_error(source, f"{where}.{k}", f"unknown key (known: {', '.join(keys)})")
         for k in keys:
-            if k not in g:
+            if k not in g and k != "poses_deg":  # poses: checked against the device (experiments)
                 raise _campaign_error(source, f"{where}.{k}", "missing")
-        poses = g["poses_deg"]
-        if (not isinstance(poses, list) or not poses
-                or not all(isinstance(p, list) and len(p) == 2 for p in poses)):
+        poses = g.get("poses_deg")
+        if poses is not None and (not isinstance(poses, list) or not poses
+                                  or not all(isinstance(p, list) and len(p) == 2 for p in poses)):
             raise _campaign_error(source, f"{where}.poses_deg",
                                   "must be a non-empty list of [gamma1, gamma2] set points [deg]")
-        for p in poses:
+        for p in poses or ():
             for x in p:
                 _number(source, f"{where}.poses_deg", x, positive=False)
-        grp = {"where": where, "poses": tuple(tuple(p) for p in poses)}
+        grp = {"where": where, "poses": None if poses is None else tuple(tuple(p) for p in poses)}
         for k in keys:
             if k == "poses_deg":
                 continue
@@ -110,30 +110,46 @@ class Campaign:
     source : str
         The file (or built-in name) it came from, for messages.
     sine, step : tuple of dict
-        Groups: ``poses`` (set points [deg]) and the group's keys.
+        Groups: ``poses`` (set points [deg]; None for a group without ``poses_deg``, which
+        only a device without the Omni's arm runs) and the group's keys.
     """
 
     source: str
     sine: tuple = ()
     step: tuple = ()
 
-    def experiments(self, sine_amplitude_rad: float | None = None) -> list["Experiment"]:
+    def _poses(self, g: dict, arm: bool) -> tuple:
+        """A group's set points: its poses on a device with the Omni's arm, ``((None, None),)``
+        (one run, no pose) on one without; UserError when the group does not fit the device."""
+        if arm and g["poses"] is None:
+            raise _campaign_error(self.source, f"{g['where']}.poses_deg",
+                                  "missing (the Omni's arm set points [[gamma1, gamma2], ...] [deg]; "
+                                  "only a single-joint device without the arm runs a group without them)")
+        if not arm and g["poses"] is not None:
+            raise _campaign_error(self.source, f"{g['where']}.poses_deg",
+                                  "this device has no arm to pose (a single-joint device): remove "
+                                  "poses_deg (each group then runs once; docs/usage/campaigns.md)")
+        return g["poses"] if arm else ((None, None),)
+
+    def experiments(self, sine_amplitude_rad: float | None = None, arm: bool = True) -> list["Experiment"]:
         """Every run: each sine group's poses x frequencies, then each step group's poses.
 
-        ``sine_amplitude_rad`` overrides the sine groups' amplitude (the calibration's search)."""
+        ``sine_amplitude_rad`` overrides the sine groups' amplitude (the calibration's search).
+        ``arm`` False: the device has no arm (:attr:`omni_sim.model.OmniIndex.has_arm`); its
+        groups must have no ``poses_deg`` and give one run per frequency, without set points."""
         out: list[Experiment] = []
         for g in self.sine:
             amp = g["amplitude_rad"] if sine_amplitude_rad is None else sine_amplitude_rad
             out += [sine_experiment(g1, g2, f, amp, settle_s=g["settle_s"], record_s=g["record_s"])
-                    for g1, g2 in g["poses"] for f in g["frequencies_hz"]]
+                    for g1, g2 in self._poses(g, arm) for f in g["frequencies_hz"]]
         for g in self.step:
             out += [square_experiment(g1, g2, g["frequency_hz"], g["amplitude_rad"], g["duration_s"])
-                    for g1, g2 in g["poses"]]
+                    for g1, g2 in self._poses(g, arm)]
         names = [e.name for e in out]
         if len(set(names)) != len(names):
             dup = sorted({n for n in names if names.count(n) > 1})
             raise UserError(f"{self.source}: two runs would share the name {dup[0]!r} "
-                            "(same pose and frequency in two groups)")
+                            "(same pose, frequency and amplitude in two groups)")
         return out
 
 
@@ -190,7 +206,11 @@ KP_DEFAULT = paper.kp()
 
 @dataclass(frozen=True)
 class Experiment:
-    """One run to perform: arm set points and a sampled yaw reference.
+    """One run to perform: arm set points (none on a single-joint device) and a sampled
+    reference of the controlled joint.
+
+    ``Experiment(name, kind, gamma1_set_deg, gamma2_set_deg, r, frequency_hz, amplitude_rad)``
+    for the Omni; ``Experiment(name, "other", r=r)`` for a device without the Omni's arm.
 
     Attributes
     ----------
@@ -198,10 +218,10 @@ class Experiment:
         Run name (file stem of the dataset).
     kind : str
         ``"sine"``, ``"step"`` or ``"other"``.
-    gamma1_set_deg, gamma2_set_deg : float [deg]
-        Arm servo set points.
+    gamma1_set_deg, gamma2_set_deg : float or None [deg]
+        Arm servo set points; None (both) for a device without the Omni's arm.
     r : ndarray [rad]
-        Yaw reference, one value per control period.
+        Reference of the controlled joint (the yaw), one value per control period (required).
     frequency_hz, amplitude_rad : float
         Metadata of the reference (0 if not periodic).
     theta0_rad : float [rad]
@@ -210,48 +230,77 @@ class Experiment:
 
     name: str
     kind: str
-    gamma1_set_deg: float
-    gamma2_set_deg: float
-    r: np.ndarray = field(repr=False)
-    frequency_hz: float
-    amplitude_rad: float
+    gamma1_set_deg: float | None = None
+    gamma2_set_deg: float | None = None
+    r: np.ndarray = field(default=None, repr=False)
+    frequency_hz: float = 0.0
+    amplitude_rad: float = 0.0
     theta0_rad: float = 0.0
+
+    def __post_init__(self):
+        if self.r is None:
+            raise TypeError(f"Experiment {self.name!r}: the reference r is required")
+        r = np.asarray(self.r, dtype=float)
+        if r.ndim != 1 or len(r) < 2 or not np.all(np.isfinite(r)):
+            raise UserError(f"run {self.name}: the reference r must be >= 2 finite samples in a row")
+        object.__setattr__(self, "r", r)
+        if self.kind not in ("sine", "step", "other"):
+            raise UserError(f"run {self.name}: kind must be sine, step or other, got {self.kind!r}")
+        if (self.gamma1_set_deg is None) != (self.gamma2_set_deg is None):
+            raise UserError(f"run {self.name}: give both arm set points gamma1, gamma2 (the Omni) "
+                            "or neither (a device without the arm)")
+
+    @property
+    def pose(self) -> tuple[float, float] | None:
+        """The arm set points ``(gamma1, gamma2)`` [deg], or None without them."""
+        return None if self.gamma1_set_deg is None else (self.gamma1_set_deg, self.gamma2_set_deg)
 
 
 def _time(duration_s: float, dt: float) -> np.ndarray:
     return np.arange(int(round(duration_s / dt))) * dt
 
 
-def sine_experiment(gamma1_set_deg: float, gamma2_set_deg: float, frequency_hz: float,
+def sine_experiment(gamma1_set_deg: float | None, gamma2_set_deg: float | None, frequency_hz: float,
                     amplitude_rad: float = SINE_AMPLITUDE_RAD, dt: float = CONTROL_PERIOD_S,
                     settle_s: float = SINE_SETTLE_S, record_s: float = SINE_RECORD_S) -> Experiment:
-    """A sine run ``r = A_r sin(2 pi f t)``: settle, then whole cycles (>= ``record_s``)."""
+    """A sine run ``r = A_r sin(2 pi f t)``: settle, then whole cycles (>= ``record_s``).
+
+    Set points None: a device without the Omni's arm (run name ``sine_fF_aA``)."""
     if not (frequency_hz > 0 and math.isfinite(frequency_hz)):
         raise UserError(f"sine frequency must be positive, got {frequency_hz}")
     cycles = math.ceil(record_s * frequency_hz - 1e-9)
     duration = settle_s + cycles / frequency_hz
     t = _time(duration, dt)
     r = amplitude_rad * np.sin(2 * np.pi * frequency_hz * t)
-    name = f"sine_g{gamma1_set_deg:02.0f}_{gamma2_set_deg:03.0f}_f{frequency_hz:04.2f}".replace(".", "p")
+    if gamma1_set_deg is None:  # a device without the arm: the amplitude tells groups apart
+        name = f"sine_f{frequency_hz:04.2f}_a{amplitude_rad:.3f}".replace(".", "p")
+    else:
+        name = f"sine_g{gamma1_set_deg:02.0f}_{gamma2_set_deg:03.0f}_f{frequency_hz:04.2f}".replace(".", "p")
     return Experiment(name, "sine", gamma1_set_deg, gamma2_set_deg, r, frequency_hz, amplitude_rad)
 
 
-def square_experiment(gamma1_set_deg: float, gamma2_set_deg: float,
+def square_experiment(gamma1_set_deg: float | None, gamma2_set_deg: float | None,
                       frequency_hz: float = STEP_FREQUENCY_HZ,
                       amplitude_rad: float = STEP_AMPLITUDE_RAD,
                       duration_s: float = STEP_DURATION_S, dt: float = CONTROL_PERIOD_S) -> Experiment:
-    """The paper's square wave (47): ``r = +A_r`` for the first half period, from ``theta=-A_r``."""
+    """The paper's square wave (47): ``r = +A_r`` for the first half period, from ``theta=-A_r``.
+
+    Set points None: a device without the Omni's arm (run name ``step_fF_aA``)."""
     t = _time(duration_s, dt)
     phase = (t * frequency_hz) % 1.0
     r = np.where(phase < 0.5 - 1e-12, amplitude_rad, -amplitude_rad)
-    name = f"step_g{gamma1_set_deg:02.0f}_{gamma2_set_deg:03.0f}"
+    if gamma1_set_deg is None:  # a device without the arm
+        name = f"step_f{frequency_hz:04.2f}_a{amplitude_rad:.3f}".replace(".", "p")
+    else:
+        name = f"step_g{gamma1_set_deg:02.0f}_{gamma2_set_deg:03.0f}"
     return Experiment(name, "step", gamma1_set_deg, gamma2_set_deg, r, frequency_hz,
                       amplitude_rad, theta0_rad=-amplitude_rad)
 
 
-def reference_experiment(path: str | os.PathLike, gamma1_set_deg: float, gamma2_set_deg: float,
-                         dt: float = CONTROL_PERIOD_S) -> Experiment:
-    """A run driven by a user's reference: a CSV with columns ``t`` [s], ``r`` [rad].
+def reference_experiment(path: str | os.PathLike, gamma1_set_deg: float | None = None,
+                         gamma2_set_deg: float | None = None, dt: float = CONTROL_PERIOD_S) -> Experiment:
+    """A run driven by a user's reference: a CSV with columns ``t`` [s], ``r`` [rad] (arm set
+    points None: a device without the Omni's arm).
 
     The reference is linearly interpolated onto the control grid ``0, dt, ..., t_end``.
     """
@@ -275,10 +324,12 @@ def reference_experiment(path: str | os.PathLike, gamma1_set_deg: float, gamma2_
                       float(np.max(np.abs(r))), theta0_rad=float(r[0]))
 
 
-def campaign(name: str | os.PathLike, sine_amplitude_rad: float | None = None) -> list[Experiment]:
+def campaign(name: str | os.PathLike, sine_amplitude_rad: float | None = None,
+             arm: bool = True) -> list[Experiment]:
     """The experiments of a campaign (:func:`load_campaign`): ``paper`` = ``sine`` (Table 1) +
-    ``step`` (Table 2), or a campaign file; ``sine_amplitude_rad`` overrides the sine amplitude."""
-    return load_campaign(name).experiments(sine_amplitude_rad)
+    ``step`` (Table 2), or a campaign file; ``sine_amplitude_rad`` overrides the sine amplitude;
+    ``arm`` False: a device without the Omni's arm (:meth:`Campaign.experiments`)."""
+    return load_campaign(name).experiments(sine_amplitude_rad, arm)
 
 
 # --- The runner ----------------------------------------------------------------------------
@@ -298,6 +349,11 @@ class Settings:
         Standard deviation of white measurement noise (the controller sees it).
     seed : int
         Seed of the noise generator (one stream per run, derived from the seed and run name).
+    command_limit : float, optional
+        The P law's saturation, in the actuator's control units ([V] on the Omni): the command
+        is clipped to +-command_limit, and the drive still clips to its own ``ctrlrange``.
+        Default None: the device's own limit (:attr:`Device.voltage_limit`).  Written to the
+        runs' metadata when given.
     """
 
     kp: float = KP_DEFAULT
@@ -305,6 +361,7 @@ class Settings:
     quantize: bool = False
     noise_rad: float = 0.0
     seed: int = 0
+    command_limit: float | None = None
 
     @property
     def encoder(self) -> Encoder:
@@ -330,12 +387,20 @@ def fast_path_ok(device: Device, settings: Settings) -> bool:
             and _plain_motor(device.model, device.ix.yaw_act))
 
 
-def _servo_model(device: Device, kp: float) -> mujoco.MjModel:
-    """A copy of the device's model whose ``yaw_motor`` is the P controller: ctrl = r, force = v."""
+def _limit(device: Device, settings: Settings) -> float:
+    """The P law's saturation: the device's limit, or the settings' ``command_limit`` if lower."""
+    if settings.command_limit is None:
+        return device.voltage_limit
+    return min(device.voltage_limit, float(settings.command_limit))
+
+
+def _servo_model(device: Device, kp: float, vmax: float | None = None) -> mujoco.MjModel:
+    """A copy of the device's model whose ``yaw_motor`` is the P controller: ctrl = r, force = v
+    (clipped to +-``vmax``, default the device's limit)."""
     model = device.model
     m = _copy_model(model)
     a = device.ix.yaw_act
-    vmax = device.voltage_limit
+    vmax = device.voltage_limit if vmax is None else vmax
     lo, hi = (-vmax, vmax)
     if model.actuator_forcelimited[a]:
         lo, hi = max(lo, model.actuator_forcerange[a, 0]), min(hi, model.actuator_forcerange[a, 1])
@@ -369,10 +434,10 @@ def run_reference(device: Device, exps: list[Experiment], settings: Settings,
         r[b, len(e.r):] = e.r[-1]
         if noise is not None:
             noise[b, : len(e.r)] = enc.noise(e.name, len(e.r))
-    eng = device.engine([e.theta0_rad for e in exps],
-                        [(e.gamma1_set_deg, e.gamma2_set_deg) for e in exps], nthread=nthread)
+    eng = device.engine([e.theta0_rad for e in exps], [e.pose for e in exps], nthread=nthread)
     with eng:
-        res = run_p_loop(eng, r, settings.kp, noise, enc.quantum_rad, record_arm=True)
+        res = run_p_loop(eng, r, settings.kp, noise, enc.quantum_rad, record_arm=True,
+                         command_limit=settings.command_limit)
     return [{k: res[k][b, : len(e.r)].copy() for k in ("theta", "v", "q1", "q2")}
             for b, e in enumerate(exps)]
 
@@ -381,20 +446,20 @@ def run_fast(device: Device, exps: list[Experiment], settings: Settings,
              nthread: int) -> list[dict]:
     """The fast path: all runs through ``mujoco.rollout`` with the P loop inside the model."""
     model, ix = device.model, device.ix
-    servo = _servo_model(device, settings.kp)
+    vmax = _limit(device, settings)
+    servo = _servo_model(device, settings.kp, vmax)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     nstate = mujoco.mj_stateSize(servo, spec)
     nstep = max(len(e.r) for e in exps)
     x0 = np.empty((len(exps), nstate))
     ctrl = np.zeros((len(exps), nstep, servo.nu))
     for b, exp in enumerate(exps):
-        x0[b], ctrl[b] = device.start_state(exp.theta0_rad, (exp.gamma1_set_deg, exp.gamma2_set_deg))
+        x0[b], ctrl[b] = device.start_state(exp.theta0_rad, exp.pose)
         ctrl[b, : len(exp.r), ix.yaw_act] = exp.r
         ctrl[b, len(exp.r):, ix.yaw_act] = exp.r[-1]
     datas = [mujoco.MjData(servo) for _ in range(max(1, nthread))]
     state, _ = rollout.rollout(servo, datas, x0, ctrl, nstep=nstep)
     qoff = 1  # FULLPHYSICS state = [time, qpos, qvel, ...]
-    vmax = device.voltage_limit
     out = []
     for b, exp in enumerate(exps):
         n = len(exp.r)
@@ -403,25 +468,32 @@ def run_fast(device: Device, exps: list[Experiment], settings: Settings,
         if not np.all(np.isfinite(theta)):
             raise RuntimeError(f"{exp.name}: simulation diverged")
         v = p_law(settings.kp, exp.r, theta, vmax)
-        out.append({"theta": theta.copy(), "v": v, "q1": qpos[:, ix.shoulder_qpos].copy(),
-                    "q2": qpos[:, ix.elbow_qpos].copy()})
+        if ix.has_arm:
+            q1, q2 = qpos[:, ix.shoulder_qpos].copy(), qpos[:, ix.elbow_qpos].copy()
+        else:  # no arm: as the engine records it
+            q1, q2 = np.full(n, np.nan), np.full(n, np.nan)
+        out.append({"theta": theta.copy(), "v": v, "q1": q1, "q2": q2})
     return out
 
 
 def _to_run(exp: Experiment, res: dict, settings: Settings, device: Device, friction: str) -> Run:
     dt = settings.control_period_s
     t = np.arange(len(exp.r)) * dt
-    meta = {
-        "kind": exp.kind,
-        "gamma1_deg": round(float(np.degrees(np.mean(res["q1"]))), 6),
-        "gamma2_deg": round(float(np.degrees(np.mean(res["q2"]))), 6),
-        "gamma1_set_deg": exp.gamma1_set_deg,
-        "gamma2_set_deg": exp.gamma2_set_deg,
+    meta = {"kind": exp.kind}
+    if exp.pose is not None:  # the Omni's arm: its actual (mean) angles and set points
+        meta.update({
+            "gamma1_deg": round(float(np.degrees(np.mean(res["q1"]))), 6),
+            "gamma2_deg": round(float(np.degrees(np.mean(res["q2"]))), 6),
+            "gamma1_set_deg": exp.gamma1_set_deg,
+            "gamma2_set_deg": exp.gamma2_set_deg,
+        })
+    meta.update({
         "kp": settings.kp,
         "frequency_hz": exp.frequency_hz,
         "amplitude_rad": exp.amplitude_rad,
         "theta0_rad": exp.theta0_rad,
-        "source": "virtual Omni (omni_sim)",
+        "source": ("virtual Omni (omni_sim)" if device.ix.has_arm
+                   else "simulated single-joint device (omni_sim)"),
         "model": device.run_model_name,
         "model_sha256": "in-memory model" if device.in_memory else device.digest,
         "friction": friction,
@@ -429,23 +501,47 @@ def _to_run(exp: Experiment, res: dict, settings: Settings, device: Device, fric
         "encoder_quantized": settings.quantize,
         "noise_rad": settings.noise_rad,
         "seed": settings.seed,
-    }
+    })
+    if device.target is not None:  # a device named by its joint and actuator
+        meta.update(joint=device.target.joint, actuator=device.target.actuator)
+    if settings.command_limit is not None:
+        meta["command_limit"] = settings.command_limit
     return Run(exp.name, t, exp.r.copy(), res["theta"], res["v"], meta)
+
+
+def check_experiment(device: Device, exp: Experiment) -> None:
+    """Refuse (UserError naming the run) an experiment the device cannot run: set points on a
+    device without the Omni's arm, none on one with it, or a pose outside the arm's ranges."""
+    if device.ix.has_arm and exp.pose is None:
+        raise UserError(f"run {exp.name}: this model has the Omni's arm (shoulder, elbow): a run "
+                        "needs its two set points gamma1, gamma2 [deg]")
+    if not device.ix.has_arm and exp.pose is not None:
+        raise UserError(f"run {exp.name}: this device has no arm (no shoulder/elbow): give no "
+                        "set points gamma1, gamma2")
+    if exp.pose is not None:
+        try:
+            device.check_pose(*exp.pose)
+        except UserError as exc:
+            raise UserError(f"run {exp.name}: {exc}") from None
 
 
 def simulate(device: Device, exps: list[Experiment], settings: Settings = Settings(),
              jobs: int | None = None, progress: bool = False,
              force_reference: bool = False) -> list[Run]:
-    """Run experiments on the virtual Omni and return them as dataset runs.
+    """Run experiments on the virtual Omni (or a single-joint device) and return them as
+    dataset runs.
 
     Parameters
     ----------
     device : Device
         The model to run (:meth:`Device.load` for a file, which the runs' metadata then name
-        with its digest; ``Device(model)`` for a model compiled in memory).  Run at the
-        settings' control period (the same model; its equilibrium poses are reused when the
-        period is the device's).
+        with its digest; ``Device(model)`` for a model compiled in memory; a ``target`` for a
+        device of your own).  Run at the settings' control period (the same model; its
+        equilibrium poses are reused when the period is the device's).
     exps : list of Experiment
+        With arm set points on a device with the Omni's arm, without (None) on one without it;
+        the runs' metadata have the arm's actual angles ``gamma1_deg``/``gamma2_deg`` only then,
+        and name the device's joint and actuator when it has a ``target``.
     settings : Settings
     jobs : int, optional
         Threads of the rollouts; default: all cores.
@@ -461,8 +557,13 @@ def simulate(device: Device, exps: list[Experiment], settings: Settings = Settin
     settings.encoder  # validates the noise level
     if not (settings.kp > 0 and math.isfinite(settings.kp)):
         raise UserError(f"kp must be positive, got {settings.kp}")
+    limit = settings.command_limit
+    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, (int, float))
+                              or not limit > 0):
+        raise UserError(f"command_limit must be > 0 (the P law's saturation, in the actuator's "
+                        f"control units), got {limit!r}")
     for e in exps:
-        device.check_pose(e.gamma1_set_deg, e.gamma2_set_deg)
+        check_experiment(device, e)
     bar = tqdm(total=len(exps), desc="simulating", unit="run", disable=not progress, leave=False)
     results: list[dict] = []
     fast = fast_path_ok(device, settings) and not force_reference
