@@ -134,6 +134,7 @@ class Smoothed:
     sigma_rad: float
     dt: float
     pose: tuple
+    half_window_s: float
 
     @property
     def qd(self) -> np.ndarray:
@@ -263,6 +264,14 @@ def smooth(run: ReplayRun, dt: float, est: Estimator = Estimator()) -> Smoothed:
     v_fine = np.where(on_fine, np.interp(t_fine, t_log, np.asarray(run.v, float)), 0.0)
     G0 = _rows(K, centres, nfine)
     sigma = noise_sigma(run, est)
+    # the command is known at the log times only: a log coarser than the control period
+    # misses its sample-to-sample noise (a quantised P loop's), taken as white noise of the
+    # logged command (1.4826 MAD of the third differences / sqrt(20)) through the same window
+    sig_cmd = 0.0
+    if run.dt > 1.01 * run.period:
+        d3 = np.diff(np.asarray(run.v, float), 3)
+        sig_cmd = float(1.4826 * np.median(np.abs(d3 - np.median(d3))) / math.sqrt(20.0))
+    W = W + (((G0 @ L).tocsr(), sig_cmd),)
     q_f = np.convolve(L @ theta, K, mode="same")  # the fine grid's smoothed angle
     vel = np.diff(q_f, prepend=q_f[0]) / dt  # start-of-step velocity
     acc = np.diff(vel, append=vel[-1]) / dt
@@ -274,7 +283,7 @@ def smooth(run: ReplayRun, dt: float, est: Estimator = Estimator()) -> Smoothed:
         trusted &= np.abs(centres - s) > len(K) // 2 + 1
     return Smoothed(run.name, t_fine[centres], W[0] @ theta, W[1] @ theta, W[2] @ theta,
                     G0 @ v_fine, on_fine[centres], fine, trusted, W, sigma, dt,
-                    tuple(run.gamma_set_deg))
+                    tuple(run.gamma_set_deg), h)
 
 
 def _held(run: ReplayRun, t_fine: np.ndarray) -> np.ndarray:
@@ -339,9 +348,10 @@ class InverseModel:
         self.data.qvel[:] = 0.0
         self.data.qacc[:] = 0.0
 
-    def required(self, sm: Smoothed, q=None, qd=None, qdd=None) -> tuple[np.ndarray, np.ndarray]:
+    def required(self, sm: Smoothed, q=None, qd=None, qdd=None, ctrl=None) -> tuple[np.ndarray, np.ndarray]:
         """``tau_req = qfrc_inverse - qfrc_actuator`` [N*m] and the drive's torque
-        ``tau_motor`` at each output time (states default to the smoothed ones)."""
+        ``tau_motor`` at each output time (states and command default to the smoothed ones)."""
+        ctrl = sm.v if ctrl is None else ctrl
         q = sm.q if q is None else q
         qd = sm.qd_start if qd is None else qd
         qdd = sm.qdd if qdd is None else qdd
@@ -351,7 +361,7 @@ class InverseModel:
         for i in range(len(q)):
             m = self.on_model if sm.on[i] else self.off_model
             d.qpos[self.qadr], d.qvel[dof], d.qacc[dof] = q[i], qd[i], qdd[i]
-            d.ctrl[act] = sm.v[i] if sm.on[i] else 0.0
+            d.ctrl[act] = ctrl[i] if sm.on[i] else 0.0
             mujoco.mj_inverse(m, d)
             mujoco.mj_fwdActuation(m, d)
             req[i] = d.qfrc_inverse[dof] - d.qfrc_actuator[dof]
@@ -389,15 +399,17 @@ class InverseModel:
 
     def band(self, sm: Smoothed) -> np.ndarray:
         """The noise band [N*m] (module docstring): 3 sigma of ``tau_req`` from the logged
-        angle's noise, through finite-difference derivatives in each state."""
+        angle's and command's noise, through finite-difference derivatives in each."""
         base, _ = self.required(sm)
         jac = []
-        for k, step in enumerate((1e-6, 1e-4, 1e-2)):
-            x = [sm.q, sm.qd_start, sm.qdd]
+        for k, step in enumerate((1e-6, 1e-4, 1e-2, 1e-3)):
+            x = [sm.q, sm.qd_start, sm.qdd, sm.v]
             x[k] = x[k] + step
             jac.append((self.required(sm, *x)[0] - base) / step)
-        comb = sum(sparse.diags(j) @ w for j, w in zip(jac, sm.weights))
-        return BAND_SIGMAS * sm.sigma_rad * _row_norms(comb.tocsr())
+        comb = sum(sparse.diags(j) @ w for j, w in zip(jac[:3], sm.weights[:3]))
+        var = (sm.sigma_rad * _row_norms(comb.tocsr())) ** 2
+        var += (sm.weights[3][1] * jac[3] * _row_norms(sm.weights[3][0])) ** 2
+        return BAND_SIGMAS * np.sqrt(var)
 
 
 def friction_rate(model: mujoco.MjModel, dof: int) -> float:
