@@ -152,7 +152,8 @@ class MissingTorque:
     t, q, qd, qdd : ndarray [s, rad, rad/s, rad/s^2]
         Output times and the smoothed states.
     tau_motor : ndarray [N*m]
-        The model's drive torque (``gear * actuator_force`` of the target actuator; 0 off).
+        The model's drive torque (moment arm x ``actuator_force`` of the target actuator,
+        ``gear * force`` for a joint transmission; 0 off).
     tau_miss : ndarray [N*m]
         The missing torque (> 0: the robot needed more torque in +q than the model gives).
     band : ndarray [N*m]
@@ -326,7 +327,6 @@ class InverseModel:
         check_supported(model, dev)
         self.dof, self.act = dev.ix.yaw_dof, dev.ix.yaw_act
         self.qadr = dev.ix.yaw_qpos
-        self.gear = float(model.actuator_gear[self.act, 0])
         self.frictionloss = float(model.dof_frictionloss[self.dof])
         self.on_model = self._inverse_copy(model)
         self.off_model = self._inverse_copy(dev.off_model())
@@ -365,7 +365,7 @@ class InverseModel:
             mujoco.mj_inverse(m, d)
             mujoco.mj_fwdActuation(m, d)
             req[i] = d.qfrc_inverse[dof] - d.qfrc_actuator[dof]
-            motor[i] = self.gear * d.actuator_force[act]
+            motor[i] = _moment(d, act, dof) * d.actuator_force[act]
         self.calls += len(q)
         return req, motor
 
@@ -410,6 +410,16 @@ class InverseModel:
         var = (sm.sigma_rad * _row_norms(comb.tocsr())) ** 2
         var += (sm.weights[3][1] * jac[3] * _row_norms(sm.weights[3][0])) ** 2
         return BAND_SIGMAS * np.sqrt(var)
+
+
+def _moment(d: mujoco.MjData, act: int, dof: int) -> float:
+    """The actuator's moment arm on the joint (its gear for a joint transmission), from
+    MuJoCo's sparse ``actuator_moment`` (position stage done)."""
+    adr, nnz = int(d.moment_rowadr[act]), int(d.moment_rownnz[act])
+    for k in range(adr, adr + nnz):
+        if d.moment_colind[k] == dof:
+            return float(d.actuator_moment[k])
+    return 0.0
 
 
 def friction_rate(model: mujoco.MjModel, dof: int) -> float:
