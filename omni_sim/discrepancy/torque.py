@@ -1,28 +1,9 @@
 """The missing torque, seen: what joint torque a model lacks along every logged run, by
 inverse dynamics on the smoothed log.
 
-The estimator (:class:`Estimator`, :func:`smooth`)
---------------------------------------------------
-The logged angle ``theta_i`` at times ``t_i`` (any spacing, quantised) is interpolated linearly
-onto the model's timestep grid ``tau_k = t_0 + k dt`` and smoothed by a Hann window of
-half-width ``h``::
-
-    K(s) = (1 + cos(pi s / h)) / (2 h)   for |s| <= h,   q_f = K * theta,
-
-with ``h = 0.360 / f_c`` (:data:`HANN_CUTOFF`), so that the window passes ``1/sqrt(2)`` of a
-sine at the stated bandwidth ``f_c`` [Hz].  The states are the discrete derivatives of ``q_f``
-at each output time ``tau_k`` (every ``step_s``):
-
-    q = q_f[k],  qd_start = (q_f[k] - q_f[k-1]) / dt,  qdd = (q_f[k+1] - 2 q_f[k] + q_f[k-1]) / dt^2
-
-(``qd_start`` is the velocity at the start of MuJoCo's step, ``qdd`` its acceleration: the
-model's own discrete time, so the model's replay gives ``tau_miss`` = 0 up to the noise).  The
-logged command ``v`` (linear between log samples, 0 while ``enabled`` is 0) is smoothed by the
-same window: *consistent filtering* -- every linear term of ``M qdd + D qd + ... = gear v +
-tau_miss`` sees the same low-pass, so the window's attenuation cancels and what is estimated
-is ``K * tau_miss``, the missing torque seen through the window (a jump, e.g. a missing Coulomb
-level at a reversal, appears as a ramp over ``2 h``).  The model's Coulomb friction is filtered
-the same way (below).  The first and last ``h`` of a run give no estimate.
+The states come from :mod:`.smoothing`: the logged angle and command smoothed by one Hann
+window of a stated bandwidth (consistent filtering), their discrete-time derivatives in the
+model's timestep; what is estimated is the missing torque seen through that window.
 
 The missing torque (:class:`InverseModel`)
 ------------------------------------------
@@ -39,8 +20,14 @@ torque-off model, :meth:`~omni_sim.device.Device.off_model`)::
 The model's Coulomb friction is set-valued, so it is written out here, not left to the
 inverse's soft constraint: its level ``F = max(0, frictionloss + drive laws)`` (the device's
 :class:`~omni_sim.device.DriveFriction` terms at ``qd_start`` and the transmitted torque), its
-direction ``s_f = K * sign(qd)`` and its sticking share ``w_f = K * [|qd| < v_stick]`` on the
-fine grid (``v_stick`` = 3 sigma of the velocity estimate), and::
+direction and sticking share on the fine grid, through the window::
+
+    s_f = K * sign(qdd + B qd),     w_f = K * [|qdd + B qd| < 3 sigma]
+
+(MuJoCo's ``frictionloss`` row is a bounded servo of the velocity towards 0 with reference
+acceleration ``-B qd``, :func:`friction_rate`: it opposes ``qdd + B qd``, not ``qd`` alone, so
+braking harder than ``B qd`` it pushes along the motion; sigma: the noise of ``qdd + B qd``),
+and::
 
     f = -F s_f + clip(tau_req + F s_f, -F w_f, F w_f),     tau_miss = tau_req - f
 
@@ -55,16 +42,17 @@ function of the logged angle), or a two-mass drive (a hinge tied to the joint by
 
 The noise band
 --------------
-Every state is a linear map of the logged angles, ``x = W theta`` (rows of the interpolation
-and the window).  White noise ``sigma`` on each logged angle (``sigma^2 = step^2 / 12 +
+Every state is a linear map of the logged angles, ``x = W theta`` (:mod:`.smoothing`).  White noise ``sigma`` on each logged angle (``sigma^2 = step^2 / 12 +
 noise^2`` from the run's metadata ``encoder_step_rad``/``encoder_noise_rad``, the
 :class:`Estimator`'s ``noise_rad``, else 1.4826 MAD of the third differences / sqrt(20))
 gives ``tau_miss`` the spread::
 
-    band = 3 sigma || J_q W_q + J_qd W_qd + J_qdd W_qdd ||,
+    band = 3 sqrt( sigma^2 || J_q W_q + J_qd W_qd + J_qdd W_qdd ||^2 + (sigma_v J_v ||W_v||)^2 ),
 
-``J`` the derivatives of ``tau_req`` in each state (finite differences through
-``mj_inverse``).  The band is the estimator's noise alone: what the window smooths away of a
+``J`` the derivatives of ``tau_req`` in each state and the command (finite differences through
+``mj_inverse``); ``sigma_v`` the logged command's noise when the log is coarser than the
+control period (the command between log samples is unknown: a quantised P loop's command
+jumps by ``kp`` times a count every period), 1.4826 MAD of its third differences / sqrt(20).  The band is the estimator's noise alone: what the window smooths away of a
 fast missing torque is not in it (that is the bandwidth's statement).
 """
 
@@ -83,63 +71,10 @@ from identification.errors import UserError
 from .. import model as om
 from ..device import DRIVE_LAWS, Device
 from .runs import ReplayRun
+from .smoothing import BAND_SIGMAS, HANN_CUTOFF, Estimator, Smoothed, hann_taps, row_norms, smooth
 
-#: ``f_c h`` at which the Hann window of half-width ``h`` passes 1/sqrt(2) of a sine of
-#: frequency ``f_c`` (computed numerically; tests/test_torque.py checks it).
-HANN_CUTOFF = 0.3601
-#: The band's width in standard deviations of the estimator's noise.
-BAND_SIGMAS = 3.0
-
-
-@dataclass(frozen=True)
-class Estimator:
-    """The derivative estimator's settings.
-
-    Attributes
-    ----------
-    bandwidth_hz : float [Hz]
-        ``f_c``: the window passes 1/sqrt(2) of a sine at ``f_c``; half-width ``h = 0.360 / f_c``.
-    step_s : float [s], optional
-        Spacing of the output times (default ``h / 4``, rounded to the model's timestep: the
-        estimates are smooth on the scale of ``h``).
-    noise_rad : float [rad], optional
-        The logged angle's noise sigma (default: from the run, see the module docstring).
-    """
-
-    bandwidth_hz: float = 5.0
-    step_s: float | None = None
-    noise_rad: float | None = None
-
-    @property
-    def half_window_s(self) -> float:
-        return HANN_CUTOFF / self.bandwidth_hz
-
-
-@dataclass(frozen=True)
-class Smoothed:
-    """The smoothed states of one run at its output times (model-independent but for the
-    timestep): what :class:`InverseModel` reads.  ``W0, W1, W2`` map the logged angles to
-    ``q``, ``qd_start``, ``qdd`` (sparse, one row per output time)."""
-
-    name: str
-    t: np.ndarray
-    q: np.ndarray
-    qd_start: np.ndarray
-    qdd: np.ndarray
-    v: np.ndarray
-    on: np.ndarray
-    fine: tuple
-    trusted: np.ndarray
-    weights: tuple
-    sigma_rad: float
-    dt: float
-    pose: tuple
-    half_window_s: float
-
-    @property
-    def qd(self) -> np.ndarray:
-        """Velocity [rad/s] at the output time (the mean of the step's start and end)."""
-        return self.qd_start + 0.5 * self.dt * self.qdd
+__all__ = ["BAND_SIGMAS", "HANN_CUTOFF", "Estimator", "Smoothed", "MissingTorque", "InverseModel",
+           "hann_taps", "smooth", "missing_torque", "check_supported", "friction_rate"]
 
 
 @dataclass(frozen=True)
@@ -182,122 +117,6 @@ class MissingTorque:
         """Where the drive drives the load (``tau_motor qd > 0``); elsewhere it is back-driven
         (or at rest)."""
         return self.tau_motor * self.qd > 0
-
-
-def hann_taps(h: float, dt: float) -> np.ndarray:
-    """The Hann window ``K(s) = (1 + cos(pi s/h)) / (2h)`` at ``s = j dt``, ``|s| <= h``,
-    scaled so that ``sum(K) dt = 1``; returned already multiplied by ``dt`` (taps)."""
-    J = max(1, int(math.floor(h / dt)))
-    s = np.arange(-J, J + 1) * dt
-    k = 1.0 + np.cos(np.pi * s / h)
-    return k / k.sum()
-
-
-def noise_sigma(run: ReplayRun, est: Estimator) -> float:
-    """The logged angle's noise sigma [rad] (module docstring: the estimator's, the run's
-    metadata, else 1.4826 MAD(third differences) / sqrt(20))."""
-    if est.noise_rad is not None:
-        return float(est.noise_rad)
-    step = run.meta.get("encoder_step_rad")
-    if step is not None:
-        return math.sqrt(float(step) ** 2 / 12 + float(run.meta.get("encoder_noise_rad", 0.0)) ** 2)
-    d3 = np.diff(run.theta, 3)
-    return float(1.4826 * np.median(np.abs(d3 - np.median(d3))) / math.sqrt(20.0))
-
-
-def _interp_matrix(t_fine: np.ndarray, t_log: np.ndarray) -> sparse.csr_matrix:
-    """Sparse ``L``: ``L @ y_log`` is ``np.interp(t_fine, t_log, y_log)``."""
-    j = np.clip(np.searchsorted(t_log, t_fine, side="right") - 1, 0, len(t_log) - 2)
-    f = np.clip((t_fine - t_log[j]) / (t_log[j + 1] - t_log[j]), 0.0, 1.0)
-    rows = np.repeat(np.arange(len(t_fine)), 2)
-    cols = np.stack([j, j + 1], axis=1).ravel()
-    vals = np.stack([1.0 - f, f], axis=1).ravel()
-    return sparse.csr_matrix((vals, (rows, cols)), shape=(len(t_fine), len(t_log)))
-
-
-def _rows(taps: np.ndarray, centres: np.ndarray, nfine: int) -> sparse.csr_matrix:
-    """Sparse rows applying ``taps`` (odd length, centred) at the fine indices ``centres``."""
-    J = len(taps) // 2
-    cols = centres[:, None] + np.arange(-J, J + 1)[None, :]
-    rows = np.repeat(np.arange(len(centres)), len(taps))
-    return sparse.csr_matrix((np.tile(taps, len(centres)), (rows, cols.ravel())),
-                             shape=(len(centres), nfine))
-
-
-def _derivative_taps(K: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Taps of ``q_f[k]``, ``(q_f[k] - q_f[k-1]) / dt`` and the second difference over
-    ``dt^2``, on one common (padded) support."""
-    k = np.concatenate([[0.0, 0.0], K, [0.0, 0.0]])
-    # q_f[k + m] = sum_j K_j y[k + m + j]: the tap of y[k + i] is K_{i - m} (np.roll by m)
-    shifted = {m: np.roll(k, m) for m in (-1, 0, 1)}
-    g0 = shifted[0]
-    g1 = (shifted[0] - shifted[-1]) / dt
-    g2 = (shifted[-1] - 2 * shifted[0] + shifted[1]) / dt ** 2
-    return g0, g1, g2
-
-
-def smooth(run: ReplayRun, dt: float, est: Estimator = Estimator()) -> Smoothed:
-    """The smoothed states of ``run`` on the model's timestep ``dt`` (module docstring).
-
-    Raises
-    ------
-    UserError
-        The run is shorter than the window (``2 h``) plus two output steps.
-    """
-    h = est.half_window_s
-    t_log = np.asarray(run.t, float)
-    nfine = int(math.floor((t_log[-1] - t_log[0]) / dt + 1e-9)) + 1
-    K = hann_taps(h, dt)
-    J = len(K) // 2 + 2  # support of the padded derivative taps
-    stride = max(1, int(round((est.step_s if est.step_s else h / 4) / dt)))
-    # two half-windows from either end: the fine grid's smoothed velocity read by the
-    # friction's direction (InverseModel.direction) has its whole window there too
-    centres = np.arange(2 * J, nfine - 2 * J, stride)
-    if len(centres) < 2:
-        raise UserError(f"run {run.name!r} lasts {t_log[-1] - t_log[0]:.3g} s, shorter than twice the "
-                        f"estimator's window {2 * h:.3g} s (bandwidth {est.bandwidth_hz:g} Hz): "
-                        "raise the bandwidth or use a longer run")
-    t_fine = t_log[0] + np.arange(nfine) * dt
-    L = _interp_matrix(t_fine, t_log)
-    W = tuple((_rows(g, centres, nfine) @ L).tocsr() for g in _derivative_taps(K, dt))
-    theta = np.asarray(run.theta, float)
-    on_fine = _held(run, t_fine)
-    v_fine = np.where(on_fine, np.interp(t_fine, t_log, np.asarray(run.v, float)), 0.0)
-    G0 = _rows(K, centres, nfine)
-    sigma = noise_sigma(run, est)
-    # the command is known at the log times only: a log coarser than the control period
-    # misses its sample-to-sample noise (a quantised P loop's), taken as white noise of the
-    # logged command (1.4826 MAD of the third differences / sqrt(20)) through the same window
-    sig_cmd = 0.0
-    if run.dt > 1.01 * run.period:
-        d3 = np.diff(np.asarray(run.v, float), 3)
-        sig_cmd = float(1.4826 * np.median(np.abs(d3 - np.median(d3))) / math.sqrt(20.0))
-    W = W + (((G0 @ L).tocsr(), sig_cmd),)
-    q_f = np.convolve(L @ theta, K, mode="same")  # the fine grid's smoothed angle
-    vel = np.diff(q_f, prepend=q_f[0]) / dt  # start-of-step velocity
-    acc = np.diff(vel, append=vel[-1]) / dt
-    fine = (G0, vel, acc, sigma * float(np.mean(_row_norms(W[1]))),
-            sigma * float(np.mean(_row_norms(W[2]))))
-    switch = np.flatnonzero(np.diff(on_fine.astype(int)) != 0)
-    trusted = np.ones(len(centres), bool)
-    for s in switch:
-        trusted &= np.abs(centres - s) > len(K) // 2 + 1
-    return Smoothed(run.name, t_fine[centres], W[0] @ theta, W[1] @ theta, W[2] @ theta,
-                    G0 @ v_fine, on_fine[centres], fine, trusted, W, sigma, dt,
-                    tuple(run.gamma_set_deg), h)
-
-
-def _held(run: ReplayRun, t_fine: np.ndarray) -> np.ndarray:
-    """``enabled`` on the fine grid: that of the last logged sample at or before each time
-    (a servo holds its switch between host writes; all True without the column)."""
-    if run.enabled is None:
-        return np.ones(len(t_fine), bool)
-    i = np.clip(np.searchsorted(run.t, t_fine + 1e-9, side="right") - 1, 0, len(run.t) - 1)
-    return np.asarray(run.enabled, bool)[i]
-
-
-def _row_norms(W: sparse.csr_matrix) -> np.ndarray:
-    return np.sqrt(np.asarray(W.multiply(W).sum(axis=1)).ravel())
 
 
 class InverseModel:
@@ -407,8 +226,8 @@ class InverseModel:
             x[k] = x[k] + step
             jac.append((self.required(sm, *x)[0] - base) / step)
         comb = sum(sparse.diags(j) @ w for j, w in zip(jac[:3], sm.weights[:3]))
-        var = (sm.sigma_rad * _row_norms(comb.tocsr())) ** 2
-        var += (sm.weights[3][1] * jac[3] * _row_norms(sm.weights[3][0])) ** 2
+        var = (sm.sigma_rad * row_norms(comb.tocsr())) ** 2
+        var += (sm.weights[3][1] * jac[3] * row_norms(sm.weights[3][0])) ** 2
         return BAND_SIGMAS * np.sqrt(var)
 
 
