@@ -201,7 +201,7 @@ def test_shape_names_a_hidden_change(name, change, truth, rel):
 def test_shape_names_load_friction_on_the_servo_truth():
     """The bank's geared-servo truth (servo_truth.py, its own loop; 200 Hz log with jitter, 6 of
     its runs): load_friction first; mu_drive within 20 %, mu_back within 35 % of 0.15, 0.45
-    (12 runs measured: 0.135, 0.341: the window smooths the short back-driven spans away, 0.28
+    (12 runs measured: 0.137, 0.337: the window smooths the short back-driven spans away, 0.28
     at 3 Hz, 0.38 at 10 Hz)."""
     runs = st.generate(experiments=st.EXPERIMENTS[::2])
     fits = ranked(runs)
