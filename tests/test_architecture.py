@@ -297,7 +297,8 @@ DISCREPANCY = "omni_sim.discrepancy"
 DISCREPANCY_LAYERS = {
     "runs": ("runs",),  # a run prepared for replay: plain data
     "statistics": ("localise", "fit", "select", "uncertainty"),
-    "simulation": ("replay", "effects"),  # MuJoCo: the replay and the effect library
+    # MuJoCo: the replay, the effect library, the missing torque and its equation-error naming
+    "simulation": ("replay", "effects", "smoothing", "torque", "shape"),
     "workflow": ("workflow",),  # joins statistics and simulation
     "truth": ("truth_models", "servo_truth", "hidden", "experiment_set", "bank"),  # hidden effects, the bank
 }
