@@ -157,7 +157,7 @@ sys.exit(os.waitstatus_to_exitcode(status))
 
 def _bench_discrepancy_servo(jobs: int) -> dict:
     """``omni discrepancy`` on 12 runs of 6 s of the geared-servo case with its nominal off
-    (:data:`SERVO_CASE`; its truth :mod:`omni_sim.discrepancy.servo_truth`), in a child process
+    (:data:`SERVO_CASE`; its truth :mod:`discrepancy.servo_truth`), in a child process
     started by :data:`_LAUNCHER`: wall time (imports and writing included), peak memory, the
     physics steps per stage, the unstable replays and whether the bank's criteria pass (and
     if not, why: ``bank_verdict``)."""
@@ -167,8 +167,8 @@ def _bench_discrepancy_servo(jobs: int) -> dict:
     import sys
 
     from identification.dataset import write_dataset
-    from omni_sim.discrepancy import hidden
-    from omni_sim.discrepancy import servo_truth as st
+    from discrepancy import hidden
+    from discrepancy import servo_truth as st
 
     case = hidden.case(SERVO_CASE)
     exps = [dataclasses.replace(e, duration_s=6.0) for e in st.EXPERIMENTS]

@@ -12,8 +12,8 @@ from identification.dataset import atomic_output_dir, check_output_dir, read_dat
 from identification.errors import UserError
 
 from omni_sim import model as om
-from omni_sim.discrepancy import experiment_set, hidden
-from omni_sim.discrepancy.workflow import run_discrepancy
+from discrepancy import experiment_set, hidden
+from discrepancy.workflow import run_discrepancy
 
 from . import discrepancy_report as rp
 from .inputs import check_run_poses, require_run_poses
@@ -24,7 +24,7 @@ DEMO_CASE = "time_delay"
 
 class Progress:
     """The workflow's log: each line on ``file`` (stderr); on a terminal, below them, a bar over
-    the workflow's stages (:data:`~omni_sim.discrepancy.workflow.STAGES`) with the current one,
+    the workflow's stages (:data:`~discrepancy.workflow.STAGES`) with the current one,
     the physics steps so far, the last log line and the elapsed time, redrawn every ``tick_s``
     seconds (the search runs for minutes between two lines on long logs).  A context manager;
     call it with a line, pass :meth:`stage` as the workflow's ``progress``.
@@ -33,7 +33,7 @@ class Progress:
     def __init__(self, enabled: bool | None = None, file=None, tick_s: float = 1.0):
         from tqdm import tqdm
 
-        from omni_sim.discrepancy.workflow import STAGES
+        from discrepancy.workflow import STAGES
 
         self.file = file or sys.stderr
         if enabled is None:
@@ -85,7 +85,7 @@ def _target(args: argparse.Namespace) -> om.Target:
 def _corrections(args: argparse.Namespace):
     """``--corrections``: a keyword (auto, default, none) or a tuple of library names, checked
     before any work."""
-    from omni_sim.discrepancy import effects as fx
+    from discrepancy import effects as fx
 
     text = (getattr(args, "corrections", None) or "auto").strip()
     if text in ("auto", "default", "none"):
@@ -223,9 +223,9 @@ CAMPAIGN_CASE = "viscous_damping"
 def bench_discrepancy_campaign(case_name: str = CAMPAIGN_CASE, jobs: int | None = None,
                                log=None) -> dict:
     """Time the workflow on the whole paper campaign (106 runs, 686 s at 1 kHz) with the
-    whole library: the truth is the hidden case ``case_name`` (:mod:`omni_sim.discrepancy.hidden`,
+    whole library: the truth is the hidden case ``case_name`` (:mod:`discrepancy.hidden`,
     independent of the library), measured with the quantised, noisy encoder of the compact
-    experiment set (:mod:`omni_sim.discrepancy.experiment_set`).
+    experiment set (:mod:`discrepancy.experiment_set`).
 
     Returns
     -------
@@ -234,7 +234,7 @@ def bench_discrepancy_campaign(case_name: str = CAMPAIGN_CASE, jobs: int | None 
         and truth, with the 95 % half-width), ``shrink_factor``, ``physics_steps``.
     """
     from omni_sim import experiments as ex
-    from omni_sim.discrepancy import effects as fx
+    from discrepancy import effects as fx
 
     case = hidden.case(case_name)
     runs = hidden.generate(case, exps=ex.campaign("paper"), jobs=jobs)

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from omni_sim import runtime
-from omni_sim.discrepancy import effects as fx
-from omni_sim.discrepancy.localise import command_note, lag_text
+from discrepancy import effects as fx
+from discrepancy.localise import command_note, lag_text
 
 
 def _fmt(x, digits=3) -> str:

@@ -123,10 +123,10 @@ def render(record: dict) -> str:
     hc = [c for c in cases if "hook_check" in c]
     L += ["## How the two are set side by side", "",
           "* **The same parameters**: each `sysid.Parameter`'s modifier writes its value with the effect "
-          "library's own writer (`omni_sim/discrepancy/effects/`), so both sides make the same MJCF change; "
+          "library's own writer (`discrepancy/effects/`), so both sides make the same MJCF change; "
           "the same bounds (the library's, fitted to the nominal); the same start (the nominal's values, moved "
           "5 % into the box where one sits on a bound: sysid's `move_off_bound` rule).",
-          "* **ours**: `omni_sim.discrepancy.fit.Problem.fit` (closed-loop replay of every run, scipy's "
+          "* **ours**: `discrepancy.fit.Problem.fit` (closed-loop replay of every run, scipy's "
           "trust region, forward differences of 0.05 x the library's scale), interval 1.96 x "
           "`fit.jacobian_se` (its sandwich for the run weights, inflated by the residuals' correlation time). "
           "**ours, workflow interval**: the interval `omni discrepancy` reports for the same parameters "
@@ -137,7 +137,7 @@ def render(record: dict) -> str:
           "measured: the joint's `qpos`), `build_residual_fn`, its default rollout (wrapped only to count "
           "the steps), `optimize(optimizer=\"mujoco\")` with its defaults, `calculate_intervals`.",
           "* **sysid closed loop**: `sysid.optimize` and `calculate_intervals` on sysid's residual whose "
-          "rollout is the device's closed loop (`omni_sim.discrepancy.replay.Replayer`: the P law on the "
+          "rollout is the device's closed loop (`discrepancy.replay.Replayer`: the P law on the "
           "model's own angle, the torque switch, the engine's friction laws), default finite-difference "
           "step. **scaled**: each parameter in units of the library's scale and `eps` = 0.05 (our step).",
           "* **Weights differ**: ours weights each run by 1/sqrt(its samples), sysid by 1/(norm of its "

@@ -1,4 +1,4 @@
-"""Maps of the missing torque (:mod:`omni_sim.discrepancy.torque`) for the discrepancy report:
+"""Maps of the missing torque (:mod:`discrepancy.torque`) for the discrepancy report:
 ``tau_miss`` against velocity, against the drive's torque (driving and back-driven apart),
 against position and over time, the estimator's noise band shaded."""
 
@@ -54,7 +54,7 @@ def _stack(results) -> dict:
 
 def draw(results: list, path: Path, title: str = "missing torque") -> Path:
     """Write the four maps of ``results`` (a list of
-    :class:`~omni_sim.discrepancy.torque.MissingTorque`) as one PNG at ``path``.
+    :class:`~discrepancy.torque.MissingTorque`) as one PNG at ``path``.
 
     Panels: ``tau_miss`` [mN*m] against velocity, against the drive's torque (driving,
     ``tau_motor qd > 0``, and back-driven in two colours), against position, and over time

@@ -26,7 +26,7 @@ or a user's hinge):
 :class:`Engine` is the one closed loop every user of the device steps through: the generator's
 reference path (:func:`run_p_loop`, used by :func:`omni_sim.experiments.simulate`), the gymnasium
 environment (:mod:`omni_sim.env`, an agent instead of the P law) and the discrepancy replay
-(:mod:`omni_sim.discrepancy.replay`, many models in one batch).  The ``mujoco.rollout`` fast path
+(:mod:`discrepancy.replay`, many models in one batch).  The ``mujoco.rollout`` fast path
 of :mod:`omni_sim.experiments` (the P law folded into the model) is a shortcut, tested bit for
 bit against it.
 
@@ -64,7 +64,7 @@ LOAD_FRICTION = "load_friction"
 #: The speed [rad/s] over which :data:`LOAD_FRICTION`'s coefficient passes from ``mu_back``
 #: to ``mu_drive`` (a smooth sign, ``tanh(sign(tau) w / w_b)``): 0.05 rad/s.  An ESTIMATE, a
 #: modelling choice like any regularised Coulomb law's transition speed: the speed the bank's
-#: gear-efficiency truth uses for its smooth sign (omni_sim/discrepancy/servo_truth.py,
+#: gear-efficiency truth uses for its smooth sign (discrepancy/servo_truth.py,
 #: 0.5 % of the geared servo's no-load speed), 0.12 of one encoder count per 1 ms period on
 #: the Omni (0.42 rad/s), so no log resolves it within one period.  Why not a switch on
 #: ``sign(tau w)`` (mu_back at rest): the training error is jagged in the coefficients and a

@@ -2,17 +2,17 @@
 bank's settings, the gear_efficiency case's record (:mod:`omni_app.bank_report` renders and
 writes them; ``scripts/discrepancy_bank.py`` is the command).
 
-For every case of :data:`omni_sim.discrepancy.hidden.CASES` a truth model (the virtual Omni
-with the effect written by :mod:`omni_sim.discrepancy.truth_models` with MuJoCo's own features,
+For every case of :data:`discrepancy.hidden.CASES` a truth model (the virtual Omni
+with the effect written by :mod:`discrepancy.truth_models` with MuJoCo's own features,
 independently of the effect library) generates quantised, noisy "measured" runs (exact ones for
 ``none_exact``); the workflow sees only those runs and the nominal model, and
-:func:`omni_sim.discrepancy.hidden.assess` gives the verdict.  A case with a truth of its own
-(``truth="servo"``: the geared-servo pendulum of :mod:`omni_sim.discrepancy.servo_truth`) is
-given its own nominal model and target (:func:`omni_sim.discrepancy.hidden.nominal`).
+:func:`discrepancy.hidden.assess` gives the verdict.  A case with a truth of its own
+(``truth="servo"``: the geared-servo pendulum of :mod:`discrepancy.servo_truth`) is
+given its own nominal model and target (:func:`discrepancy.hidden.nominal`).
 
 The gear_efficiency case's truth is written in another form than the library's law
-(:func:`omni_sim.discrepancy.servo_truth.generate_efficiency`: a gear efficiency law with a
-smooth sign; judged by :func:`~omni_sim.discrepancy.servo_truth.assess_efficiency`).
+(:func:`discrepancy.servo_truth.generate_efficiency`: a gear efficiency law with a
+smooth sign; judged by :func:`~discrepancy.servo_truth.assess_efficiency`).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from omni_sim.discrepancy import experiment_set, hidden, servo_truth
+from discrepancy import experiment_set, hidden, servo_truth
 
 #: The checkout this module runs from (a case's nominal model is named relative to it).
 ROOT = Path(__file__).resolve().parents[1]
@@ -59,7 +59,7 @@ def case_entry(c: hidden.HiddenCase, *, jobs: int | None, merged: dict | None = 
     """Case ``c`` through the workflow: its record entry (the case, the verdict and the full
     report, or the crash; time and load).  ``merged``: the meta of a run merged into an existing
     record (``--merge``): the entry records its commit, start and command."""
-    from omni_sim.discrepancy.workflow import run_discrepancy
+    from discrepancy.workflow import run_discrepancy
 
     t0 = time.perf_counter()
     model, target = hidden.nominal(c)
@@ -108,7 +108,7 @@ def efficiency_report(meta: dict, *, jobs: int | None, only_load_friction: bool 
     """The workflow's report on the gear_efficiency case; ``meta`` gets the time, end and load.
     ``only_load_friction``: the workflow restricted to the library's ``load_friction`` (a
     diagnostic: what the engine's law makes of this truth when nothing else is scored)."""
-    from omni_sim.discrepancy.workflow import run_discrepancy
+    from discrepancy.workflow import run_discrepancy
 
     cands = ("load_friction",) if only_load_friction else None
     t0 = time.perf_counter()

@@ -3,8 +3,8 @@
 figure and prints its summary).
 
 For every effect asked for, ``n`` random magnitudes are drawn uniformly in the effect's
-realistic range (:data:`omni_sim.discrepancy.bank.RANGES`, stated in the record); for each, the
-independent truth model (:mod:`omni_sim.discrepancy.truth_models`, written without the effect
+realistic range (:data:`discrepancy.bank.RANGES`, stated in the record); for each, the
+independent truth model (:mod:`discrepancy.truth_models`, written without the effect
 library) generates "measured" runs, with the encoder's quantisation and noise ("noisy") and/or
 exactly ("exact": no noise, no quantisation), and the workflow fits them.  To keep the cost down
 the workflow's candidates are restricted to the true effect: this measures the interval, not the
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.errors import UserError
-from omni_sim.discrepancy import bank, experiment_set, hidden
+from discrepancy import bank, experiment_set, hidden
 
 CONDITIONS = ("noisy", "exact")
 #: Target coverage of the nominal 95 % intervals.
@@ -53,7 +53,7 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 
 def one_draw(effect: str, values: tuple, condition: str, seed: int, exps, jobs: int | None) -> dict:
-    from omni_sim.discrepancy.workflow import run_discrepancy
+    from discrepancy.workflow import run_discrepancy
     c = hidden.HiddenCase(f"{effect}_draw", ((effect, values),), expect=(effect,),
                           exact=condition == "exact")
     t0 = time.perf_counter()

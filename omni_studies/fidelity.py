@@ -146,7 +146,7 @@ def footing(family: str) -> tuple[dict, str]:
 
 def free_parameters(cand: dict) -> list[dict]:
     """The candidate's free parameters: the family's friction, then each effect's."""
-    from omni_sim.discrepancy import effects
+    from discrepancy import effects
 
     free = [{"kind": "friction", "name": n, "lower": cal.BY_NAME[n].lower,
              "upper": cal.BY_NAME[n].upper} for n in cal.FAMILY_PARAMETERS[cand["family"]]]
@@ -168,7 +168,7 @@ def build(cand: dict, base: dict, x: np.ndarray, free: list[dict]):
     """The candidate's compiled model at free values ``x`` and its A_r."""
     import mujoco
 
-    from omni_sim.discrepancy import effects
+    from discrepancy import effects
 
     values = dict(base)
     eff_values = {n: np.array(EFFECTS[n][1], float) for n in cand["effects"] if n != "arm_servos"}

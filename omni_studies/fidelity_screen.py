@@ -7,7 +7,7 @@ Omni's (Table 11, linear column: median over the 25 Table 2 poses 11.2 mrad; lug
 coulomb 2.9 mrad).  This study is a first *screen* for the missing effect: for each base scene
 (``lugre`` = models/omni/scene.xml, ``coulomb`` = models/omni/scene_coulomb.xml) and each (effect,
 magnitude) of :data:`CONFIGURATIONS`, one effect at a time is written into a copy of the base's
-MjSpec (:func:`omni_sim.discrepancy.effects.apply`, target OMNI), the model is compiled and the
+MjSpec (:func:`discrepancy.effects.apply`, target OMNI), the model is compiled and the
 paper's campaign runs on it in memory (:func:`omni_studies.reproduce.simulate_campaign`).  Nothing
 is re-calibrated: the friction and inertia stay the base scene's.
 
@@ -62,7 +62,7 @@ LUGRE = (3.20549, 0.012916, 0.0316457, 0.615182)
 
 # -- the configurations (fixed before any result) -----------------------------------------------
 #: ``(effect, label, values, provenance)`` per base; values in the effect's parameter order
-#: (omni_sim/discrepancy/effects).  Every magnitude lies inside the library's bounds and its
+#: (discrepancy/effects).  Every magnitude lies inside the library's bounds and its
 #: documented plausible range (the provenance says where).
 _SHARED = [
     ("coulomb_friction", "10mNm", [0.010],
@@ -171,7 +171,7 @@ def build_model(cfg: dict):
     """The base's MjSpec with the configuration's effect written in, compiled."""
     import mujoco
 
-    from omni_sim.discrepancy import effects
+    from discrepancy import effects
 
     spec = mujoco.MjSpec.from_file(str(ROOT / BASES[cfg["base"]]))
     if cfg["effect"] is not None:

@@ -15,10 +15,10 @@ Pipelines:
   both models, inertia against MuJoCo's mass matrix) with the variant's run settings; the
   summary figures.
 * ``discrepancy``: "measured" data of the variant with a hidden effect of
-  :mod:`omni_sim.discrepancy.hidden` (the compact experiment set of
-  :mod:`omni_sim.discrepancy.experiment_set`, quantised, noisy encoder), the discrepancy
+  :mod:`discrepancy.hidden` (the compact experiment set of
+  :mod:`discrepancy.experiment_set`, quantised, noisy encoder), the discrepancy
   workflow with the variant as the nominal model; the effects it names, whether the bank's
-  criteria (:func:`omni_sim.discrepancy.hidden.assess`) pass, the gap's shrink factor.
+  criteria (:func:`discrepancy.hidden.assess`) pass, the gap's shrink factor.
 * ``simulate``: the campaign only; tracking errors (cheap: for checking a study file).
 """
 
@@ -282,7 +282,7 @@ def _parse_pipeline(doc: dict, source: str, base_dir: Path) -> dict:
     """``[pipeline]``: reproduce or simulate a campaign, or the discrepancy workflow on a
     hidden case."""
     from omni_sim import experiments as ex
-    from omni_sim.discrepancy import experiment_set, hidden
+    from discrepancy import experiment_set, hidden
 
     p = doc.get("pipeline")
     if not isinstance(p, dict):
@@ -399,7 +399,7 @@ def load_study(path: str | os.PathLike) -> Study:
 # -- one variant (runs on a Dask worker) ---------------------------------------------------
 def _settings(values: dict, seed: int, pipeline: str):
     from omni_sim import experiments as ex
-    from omni_sim.discrepancy import experiment_set
+    from discrepancy import experiment_set
 
     disc = pipeline == "discrepancy"
     return ex.Settings(kp=values.get("kp", ex.KP_DEFAULT),
@@ -477,8 +477,8 @@ def _discrepancy(spec, model, values, settings, pipe) -> tuple[dict, dict]:
 
     from omni_sim import experiments as ex
     from omni_sim.device import Device
-    from omni_sim.discrepancy import experiment_set, hidden
-    from omni_sim.discrepancy.workflow import run_discrepancy
+    from discrepancy import experiment_set, hidden
+    from discrepancy.workflow import run_discrepancy
 
     case = hidden.case(pipe["hidden"])
     amp = values.get("amplitude_rad")

@@ -20,10 +20,10 @@ Cases (each a set of parameters fitted by every method that can hold them):
 
 Methods:
 
-* ``ours``: :class:`omni_sim.discrepancy.fit.Problem` (closed-loop replay, trust-region fit) from
-  the common start, intervals 1.96 x :func:`omni_sim.discrepancy.fit.jacobian_se`;
-  ``ours_workflow``: the interval the workflow reports (:func:`omni_sim.discrepancy.select.score_set`
-  + :func:`omni_sim.discrepancy.uncertainty.uncertainty`: jackknife over 5 blocked folds, Jacobian,
+* ``ours``: :class:`discrepancy.fit.Problem` (closed-loop replay, trust-region fit) from
+  the common start, intervals 1.96 x :func:`discrepancy.fit.jacobian_se`;
+  ``ours_workflow``: the interval the workflow reports (:func:`discrepancy.select.score_set`
+  + :func:`discrepancy.uncertainty.uncertainty`: jackknife over 5 blocked folds, Jacobian,
   measurement bootstrap, numerical terms);
 * ``sysid_open``: ``mujoco.sysid``'s own pipeline (``ModelSequences``, its residual, its default
   rollout: open loop on the logged command ``v``, interpolated to the timestep), optimizer
@@ -56,13 +56,13 @@ import numpy as np
 
 from identification.dataset import read_dataset
 from omni_sim.device import Device
-from omni_sim.discrepancy import effects as fx
-from omni_sim.discrepancy import hidden
-from omni_sim.discrepancy import select as sel
-from omni_sim.discrepancy import servo_truth
-from omni_sim.discrepancy import uncertainty as un
-from omni_sim.discrepancy.fit import Problem, gap, jacobian_se
-from omni_sim.discrepancy.replay import Replayer, control_period_of, prepare_runs
+from discrepancy import effects as fx
+from discrepancy import hidden
+from discrepancy import select as sel
+from discrepancy import servo_truth
+from discrepancy import uncertainty as un
+from discrepancy.fit import Problem, gap, jacobian_se
+from discrepancy.replay import Replayer, control_period_of, prepare_runs
 from omni_sim.model import Target
 
 #: The checkout the study runs in (examples/real_servo, the truth models' paths in the record).
@@ -74,7 +74,7 @@ MJCF_SET = ("armature", "viscous_damping", "coulomb_friction", "torque_gain")
 #: Fold count of the workflow's interval (its default ``k``).
 FOLDS = 5
 #: Finite-difference step of the scaled sysid variant, in units of the library's scale: the
-#: step :meth:`omni_sim.discrepancy.fit.Problem._steps` takes (0.05 x scale).
+#: step :meth:`discrepancy.fit.Problem._steps` takes (0.05 x scale).
 SCALED_EPS = 0.05
 #: Iteration cap of sysid's optimizer (its default, ``optimize``'s ``max_iters``).
 SYSID_MAX_ITERS = 200

@@ -19,11 +19,11 @@ per law:
 and, with the blend, ``prescreen``: the corrections fitted without the effect (all runs), and
 on the prescreen's 1 s records the gap of every point of load_friction's grid with the other
 parameters at those corrections and at the nominal's own values, and where the prescreen
-(:func:`omni_sim.discrepancy.select.prescreen`) ends.
+(:func:`discrepancy.select.prescreen`) ends.
 
-The training gap is :func:`omni_sim.discrepancy.fit.gap` on all runs.  Deterministic (the
+The training gap is :func:`discrepancy.fit.gap` on all runs.  Deterministic (the
 case's seed); a few minutes on 2 cores.  The scan sets the blend speed of
-:mod:`omni_sim.device` and :mod:`omni_sim.discrepancy.servo_truth` for the switch and restores
+:mod:`omni_sim.device` and :mod:`discrepancy.servo_truth` for the switch and restores
 it before it returns.
 """
 
@@ -35,11 +35,11 @@ import numpy as np
 from omni_sim import device
 from omni_sim import model as om
 from omni_sim.device import Device
-from omni_sim.discrepancy import effects as fx
-from omni_sim.discrepancy import fit as fitm
-from omni_sim.discrepancy import hidden, select, servo_truth
-from omni_sim.discrepancy import workflow as wf
-from omni_sim.discrepancy.replay import Replayer, control_period_of, prepare_runs
+from discrepancy import effects as fx
+from discrepancy import fit as fitm
+from discrepancy import hidden, select, servo_truth
+from discrepancy import workflow as wf
+from discrepancy.replay import Replayer, control_period_of, prepare_runs
 
 CASE = "load_friction_nominal_off"
 #: The point CI reported at 66d9989 with the switch (the failing test's message).

@@ -30,7 +30,7 @@ CONDITIONS = cov.CONDITIONS
 
 def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
-                                 epilog="Ranges of the random magnitudes: omni_sim/discrepancy/bank.py RANGES.")
+                                 epilog="Ranges of the random magnitudes: discrepancy/bank.py RANGES.")
     ap.add_argument("--effects", nargs="*", default=None,
                     help="library effects to study (default: every effect with a range)")
     ap.add_argument("--n", type=int, default=20, help="random magnitudes per effect (default 20)")

@@ -27,7 +27,7 @@ from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim.device import (ENCODER_STEP_RAD, Device, Encoder, Engine, p_law, read_encoder,
                              run_p_loop)
-from omni_sim.discrepancy.replay import Replayer, prepare_runs
+from discrepancy.replay import Replayer, prepare_runs
 from omni_sim.env import OmniYawEnv
 
 

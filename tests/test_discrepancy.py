@@ -14,11 +14,11 @@ from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim.device import Device
 from omni_app.cli import main
-from omni_sim.discrepancy import experiment_set, hidden
-from omni_sim.discrepancy import effects as fx
-from omni_sim.discrepancy.localise import command_lag
-from omni_sim.discrepancy.replay import Replayer, ReplayRun, prepare_runs
-from omni_sim.discrepancy.workflow import run_discrepancy
+from discrepancy import experiment_set, hidden
+from discrepancy import effects as fx
+from discrepancy.localise import command_lag
+from discrepancy.replay import Replayer, ReplayRun, prepare_runs
+from discrepancy.workflow import run_discrepancy
 
 
 #: Rollout threads of the workflow runs: one per xdist worker (the workers already fill the
@@ -116,7 +116,7 @@ def test_fast_unexplained_gap_is_flagged(tmp_path):
     """An effect outside the (here restricted) library leaves a large gap: ``none`` is named and
     report.json/report.md say the gap is unexplained, not that the model is fine."""
     from omni_app import discrepancy_report as rp
-    from omni_sim.discrepancy.workflow import STAGES
+    from discrepancy.workflow import STAGES
     case = hidden.case("cogging")
     runs = hidden.generate(case, _one_pose_exps(), jobs=JOBS)
     seen = []
@@ -247,12 +247,12 @@ def test_polish_moves_a_stalled_backlash_fit_into_its_basin(spec):
     the trust-region fit stops where it starts; the basin search (Problem.polish) brings the
     slack to the truth hidden by the bank's independent truth model (1 mrad), within the
     basin's smallest bracket (fit.BASIN_SMALLEST of the value)."""
-    from omni_sim.discrepancy.fit import BASIN_SMALLEST, Problem
+    from discrepancy.fit import BASIN_SMALLEST, Problem
     case = hidden.case("backlash")
     truth = case.effects[0][1][0]
     m0 = spec.compile()
     rr = prepare_runs(hidden.generate(case, _one_pose_exps(), jobs=JOBS), Device(m0))
-    from omni_sim.discrepancy.fit import FitResult
+    from discrepancy.fit import FitResult
     with Replayer(JOBS) as rep:
         prob = Problem(fx.ModelBuilder(spec), [], [fx.get("backlash")], rr, rep)
         for start in (0.6 * truth, 1.6 * truth):  # a fit stalled 40 % low / 60 % high
@@ -268,8 +268,8 @@ def test_polish_moves_a_stalled_backlash_fit_into_its_basin(spec):
 def test_member_runner_up_is_the_best_set_without_it():
     """Each member's runner-up: the best scored set that lacks it, named by what it holds
     instead (None: dropped); margin 1 - best / alternative."""
-    from omni_sim.discrepancy.fit import FitResult
-    from omni_sim.discrepancy.select import Scored, member_runner_up
+    from discrepancy.fit import FitResult
+    from discrepancy.select import Scored, member_runner_up
 
     def s(names, g):
         effs = [fx.get(n) for n in names]
@@ -294,7 +294,7 @@ def test_damped_step_is_the_least_squares_step():
     """The damped Gauss-Newton step of a linear residual ``J z - b`` from z = 0 is the least-
     squares solution up to the damping (1e-6 of the mean diagonal: relative 1e-5 here), more
     damping shortens it, and an all-zero Jacobian gives no step."""
-    from omni_sim.discrepancy.fit import damped_step
+    from discrepancy.fit import damped_step
 
     rng = np.random.default_rng(0)
     J, b = rng.normal(size=(40, 3)), rng.normal(size=40)

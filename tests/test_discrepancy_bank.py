@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 
 from omni_sim import model as om
-from omni_sim.discrepancy import bank, hidden, truth_models
-from omni_sim.discrepancy import effects as fx
+from discrepancy import bank, hidden, truth_models
+from discrepancy import effects as fx
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The truth side: the modules that write truth models, hold the hidden cases and their
 #: experiments, judge a report or draw magnitudes.  None may use the effect library.
-TRUTH_SIDE = ("omni_sim.discrepancy.truth_models", "omni_sim.discrepancy.hidden",
-              "omni_sim.discrepancy.experiment_set", "omni_sim.discrepancy.bank",
-              "omni_sim.discrepancy.servo_truth")
+TRUTH_SIDE = ("discrepancy.truth_models", "discrepancy.hidden",
+              "discrepancy.experiment_set", "discrepancy.bank",
+              "discrepancy.servo_truth")
 
 
 def _source(module: str) -> str:
@@ -35,14 +35,14 @@ def _source(module: str) -> str:
 WRITERS = ("apply", "compile_with", "write", "nominal_values")
 #: The project's top-level packages: imports into them are followed, others (numpy, mujoco,
 #: the standard library) are not.
-PROJECT_PACKAGES = ("omni_sim", "omni_studies", "identification", "omni_app")
-EFFECTS = "omni_sim.discrepancy.effects"
+PROJECT_PACKAGES = ("omni_sim", "discrepancy", "omni_studies", "identification", "omni_app")
+EFFECTS = "discrepancy.effects"
 
 
 def writer_uses(source: str) -> list[str]:
     """Where ``source`` imports the effect library or uses one of its writers (:data:`WRITERS`):
     an import of a module named ``effects`` (``from . import effects``, ``from .effects import
-    apply``, ``import omni_sim.discrepancy.effects``), a writer's name called or read (``apply``
+    apply``, ``import discrepancy.effects``), a writer's name called or read (``apply``
     bound by an import, or an alias of it), an attribute named like a writer (``fx.apply``,
     ``Effect.write``), a ``getattr(..., "apply")``.  Each hit is ``"line N: what"``."""
     hits = []
@@ -87,11 +87,11 @@ def test_truth_side_does_not_use_the_effect_writers(module):
     ("from .effects import apply\nspec = apply(base, changes)\n",
      ["line 1: imports from effects", "line 1: imports apply", "line 2: uses apply"]),
     # ... under another name (the import gives it away)
-    ("from omni_sim.discrepancy.effects import compile_with as build\nm = build(spec)\n",
-     ["line 1: imports from omni_sim.discrepancy.effects", "line 1: imports compile_with"]),
+    ("from discrepancy.effects import compile_with as build\nm = build(spec)\n",
+     ["line 1: imports from discrepancy.effects", "line 1: imports compile_with"]),
     # the module imported by its full name, the writer reached through attributes
-    ("import omni_sim.discrepancy.effects\nomni_sim.discrepancy.effects.LIBRARY[0].write(spec, v)\n",
-     ["line 1: imports omni_sim.discrepancy.effects", "line 2: .write"]),
+    ("import discrepancy.effects\ndiscrepancy.effects.LIBRARY[0].write(spec, v)\n",
+     ["line 1: imports discrepancy.effects", "line 2: .write"]),
     # a writer of an object that came from elsewhere (no import in this file)
     ("def f(effect, spec, v):\n    effect.write(spec, v)\n", ["line 2: .write"]),
     ("w = getattr(lib, 'apply')\n", ["line 1: getattr 'apply'"]),
@@ -182,7 +182,7 @@ def library_modules(reached) -> list[str]:
 def test_truth_side_reaches_no_effect_library_through_other_modules(module):
     """Each truth-side module's imports, followed through the project's packages (omni_sim,
     identification, omni_app), never reach the effect library (the package
-    ``omni_sim/discrepancy/effects/``, any of its modules), nor any module of the discrepancy
+    ``discrepancy/effects/``, any of its modules), nor any module of the discrepancy
     package outside the truth side.
 
     What ``hidden`` reaches today: ``truth_models`` and ``experiment_set``,
@@ -191,18 +191,18 @@ def test_truth_side_reaches_no_effect_library_through_other_modules(module):
     data) and what those import (``omni_sim.device``, ``identification.errors``,
     ``identification.paper``, ``identification.csvformat``, ``omni_sim._resources``): none of
     them writes a model with the library.  Not followed: ``omni_sim/__init__`` and
-    ``omni_sim/discrepancy/__init__`` (the latter re-exports the library), which Python runs
+    ``discrepancy/__init__`` (the latter re-exports the library), which Python runs
     before these modules without binding a name in them; a ``from . import X`` that binds a
     name of that ``__init__`` (e.g. ``LIBRARY``) is followed and reaches the library."""
     reached = reachable(_source(module), module)
     library = library_modules(reached)
     assert not library, " -> ".join(reached[library[0]])
-    others = [m for m in reached if m.startswith("omni_sim.discrepancy") and m not in TRUTH_SIDE]
+    others = [m for m in reached if m.startswith("discrepancy") and m not in TRUTH_SIDE]
     assert not others, [" -> ".join(reached[m]) for m in others]
-    if module == "omni_sim.discrepancy.hidden":
+    if module == "discrepancy.hidden":
         # the walk does follow the imports (a walk that found nothing would pass trivially)
         assert {"identification.dataset", "omni_sim.experiments", "omni_sim.device",
-                "omni_sim.discrepancy.truth_models", "omni_sim.discrepancy.experiment_set"} <= set(reached)
+                "discrepancy.truth_models", "discrepancy.experiment_set"} <= set(reached)
 
 
 @pytest.mark.parametrize("src", [
@@ -211,12 +211,12 @@ def test_truth_side_reaches_no_effect_library_through_other_modules(module):
     "from .effects import friction\n",  # one of the library's modules
     "from . import LIBRARY\n",  # a name of the package's __init__, which re-exports the library
     "def f():\n    from omni_app.discrepancy import demo\n    return demo\n",  # the app, inside a function
-    "import importlib\nm = importlib.import_module('omni_sim.discrepancy.workflow')\n",
+    "import importlib\nm = importlib.import_module('discrepancy.workflow')\n",
 ])
 def test_the_import_check_follows_other_modules(src):
     """A truth-side module that imports (at any depth) a module that imports the library fails
     the walk."""
-    assert library_modules(reachable(src, "omni_sim.discrepancy.hidden"))
+    assert library_modules(reachable(src, "discrepancy.hidden"))
 
 
 def test_the_import_check_follows_a_chain(tmp_path):
@@ -606,7 +606,7 @@ KNOWN_FAILURES = {
     pytest.param(c.name, marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[c.name]))
     if c.name in KNOWN_FAILURES else c.name for c in hidden.CASES + hidden.NOMINAL_OFF_CASES])
 def test_bank(case_name):
-    from omni_sim.discrepancy.workflow import run_discrepancy
+    from discrepancy.workflow import run_discrepancy
     case = hidden.case(case_name)
     model, target = hidden.nominal(case)  # None, None: the Omni
     rep = run_discrepancy(hidden.generate(case), model, target=target).report
@@ -634,8 +634,8 @@ def test_bank_gear_efficiency():
     (another form than the engine's law the library fits): a correct workflow names load_friction
     first, with mu_back > mu_drive, and shrinks the held-out gap >= 3x
     (servo_truth.GEAR_EFFICIENCY_CASE, stated before the run)."""
-    from omni_sim.discrepancy import servo_truth
-    from omni_sim.discrepancy.workflow import run_discrepancy
+    from discrepancy import servo_truth
+    from discrepancy.workflow import run_discrepancy
     rep = run_discrepancy(servo_truth.generate_efficiency(), servo_truth.model_path(),
                           target=servo_truth.target()).report
     ok, why = servo_truth.assess_efficiency(rep)
@@ -646,7 +646,7 @@ def test_docs_gear_efficiency_section_is_the_record():
     """docs/studies/discrepancy/bank.md ends with the gear_efficiency section rendered from its record;
     the record's verdict is what assess_efficiency says of its report, its case is the truth's
     as the code states it now, and the slow test's expected outcome is the record's."""
-    from omni_sim.discrepancy import servo_truth
+    from discrepancy import servo_truth
     from omni_app import bank_report
     rec = json.loads(bank_report.EFFICIENCY_JSON.read_text())
     assert servo_truth.assess_efficiency(rec["report"]) == (rec["pass"], rec["why"])

@@ -16,13 +16,13 @@ from identification.errors import UserError
 from omni_app.cli import main
 from omni_sim import model as om
 from omni_sim.device import Device, Engine, run_p_loop
-from omni_sim.discrepancy import effects as fx
-from omni_sim.discrepancy import hidden
-from omni_sim.discrepancy import select as sel
-from omni_sim.discrepancy.fit import UNSTABLE_PENALTY_RAD, Problem, gap
-from omni_sim.discrepancy.replay import Replayer
-from omni_sim.discrepancy.runs import ReplayRun
-from omni_sim.discrepancy.workflow import (DEFAULT_CORRECTIONS, _bound_flags, correction_names,
+from discrepancy import effects as fx
+from discrepancy import hidden
+from discrepancy import select as sel
+from discrepancy.fit import UNSTABLE_PENALTY_RAD, Problem, gap
+from discrepancy.replay import Replayer
+from discrepancy.runs import ReplayRun
+from discrepancy.workflow import (DEFAULT_CORRECTIONS, _bound_flags, correction_names,
                                            whole_run_folds)
 
 PENDULUM = om.Target("pivot", "servo")

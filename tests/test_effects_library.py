@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from omni_sim import model as om
-from omni_sim.discrepancy import effects as fx
+from discrepancy import effects as fx
 from omni_sim.device import Device
 
 NEW = ("presliding_friction", "stribeck_friction", "drive_compliance", "backlash", "arm_mass", "cogging")
@@ -366,7 +366,7 @@ def test_bounds_fit_the_nominal_model():
     import mujoco
 
     from omni_sim import model as om
-    from omni_sim.discrepancy import effects as fx
+    from discrepancy import effects as fx
 
     omni = mujoco.MjSpec.from_file(str(om.DEFAULT_SCENE))
     assert all(fx.for_model(e, omni, om.OMNI) is e for e in fx.LIBRARY if e.applies(omni, om.OMNI))

@@ -29,7 +29,7 @@ def _keys(x):
 
 
 def test_configurations_are_library_effects_inside_their_bounds(screen):
-    from omni_sim.discrepancy import effects
+    from discrepancy import effects
 
     ids = [c["id"] for c in screen.CONFIGURATIONS]
     assert len(ids) == len(set(ids)) and len(ids) <= 45

@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_candidates_are_library_effects_and_never_the_family_twice():
-    from omni_sim.discrepancy import effects
+    from discrepancy import effects
 
     cands = search.candidates()
     for c in cands:

@@ -122,8 +122,10 @@ def test_runs_without_a_pose_on_the_omni_name_the_flags(tmp_path, monkeypatch, c
 
 def test_identify_names_the_pose_keys(tmp_path, monkeypatch, capsys):
     line = refused(["identify", "data", "--out", "o"], robot_data(), tmp_path, monkeypatch, capsys)
-    assert "data/a.json: missing required key(s): gamma1_deg, gamma2_deg (the Omni arm's angles [deg]" in line
-    assert "omni discrepancy --joint NAME --actuator NAME" in line
+    # the run is named with the keys it lacks, and what to run instead
+    assert "data/a.json: no arm pose (gamma1_deg, gamma2_deg)" in line
+    assert "gravity-free yaw axis" in line and "run omni discrepancy --measured data" in line
+    assert "--joint J --actuator A" in line
 
 
 # -- 2. a CSV separated by something else than commas ------------------------------------------
@@ -205,7 +207,7 @@ def test_a_missing_control_period_is_noted_once(periods, n, tmp_path, monkeypatc
     """A 200 Hz log: the note names the runs without ``control_period_s`` and their 5 ms sample
     period, on one stderr line for the dataset, once the inputs passed every check (the long
     work is patched to raise where it begins: the nominal replay)."""
-    from omni_sim.discrepancy import workflow
+    from discrepancy import workflow
 
     monkeypatch.chdir(tmp_path)
     files = robot_data(dt=0.005)
@@ -236,8 +238,8 @@ def test_the_report_records_whether_the_period_was_given(tmp_path):
     which runs did not, and a report without the field (an older record) reads as before."""
     from identification.dataset import Run
     from omni_app import discrepancy_report as rp
-    from omni_sim.discrepancy.replay import prepare_runs
-    from omni_sim.discrepancy.workflow import sampling
+    from discrepancy.replay import prepare_runs
+    from discrepancy.workflow import sampling
     from omni_sim.device import Device
 
     t = np.arange(200) * 0.005

@@ -5,8 +5,8 @@ and an evenly spread residual must not be pinned anywhere."""
 import numpy as np
 import pytest
 
-from omni_sim.discrepancy.localise import command_lag, command_note, describe, lag_text, localise
-from omni_sim.discrepancy.replay import ReplayRun
+from discrepancy.localise import command_lag, command_note, describe, lag_text, localise
+from discrepancy.replay import ReplayRun
 
 DT = 1e-3
 

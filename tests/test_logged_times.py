@@ -17,8 +17,8 @@ from identification.dataset import Run, read_dataset, resample_uniform, timing, 
 from identification.errors import UserError
 from omni_sim import model as om
 from omni_sim.device import Device
-from omni_sim.discrepancy.replay import Replayer, control_period_of, prepare_runs
-from omni_sim.discrepancy.runs import ON_GRID, ReplayRun
+from discrepancy.replay import Replayer, control_period_of, prepare_runs
+from discrepancy.runs import ON_GRID, ReplayRun
 
 # a rotor on a torsion spring: J = 0.01 kg*m^2, k = 1 N*m/rad (w0 = 10 rad/s), b = 0.004
 # N*m*s/rad (zeta = 0.02); no gravity; a 1:1 motor limited to +-5 (N*m = control units)
@@ -113,7 +113,7 @@ def test_torque_off_opens_a_dcmotor_winding():
 
 def _reference_loop(model, t, r, on, theta0, control_period):
     """The slow reference: the servo's loop written out with mj_step, by the documented rule
-    (omni_sim.discrepancy.runs.ReplayRun).  Grid time tau_j = j T; the goal and switch of the
+    (discrepancy.runs.ReplayRun).  Grid time tau_j = j T; the goal and switch of the
     last logged sample at or before tau_j; the command clip(kp (goal - q), -5, 5) (0 when off)
     held for T; the angle at each logged time interpolated linearly between the grid samples
     around it; a logged time within ON_GRID periods of a grid time is that grid time."""
@@ -250,7 +250,7 @@ def test_replay_run_grid_of_a_truncated_run():
 def test_batches_of_the_replay_change_nothing_but_memory(model, monkeypatch):
     """Many models on a run are stepped in batches of BATCH_SAMPLES control periods; every
     row's trajectory is its own, so batches of 1 row give the same arrays bit for bit."""
-    from omni_sim.discrepancy import replay
+    from discrepancy import replay
     rng = np.random.default_rng(11)
     t = _log_times(rng, duration=0.5)
     run = _run("square", t, np.where(t > 0.1, 0.2, 0.0), 0.0, enabled=t < 0.4)

@@ -18,8 +18,8 @@ from identification.errors import UserError
 from omni_app.cli import main
 from omni_sim import model as om
 from omni_sim.device import Device, Engine, run_p_loop
-from omni_sim.discrepancy.replay import Replayer, prepare_runs
-from omni_sim.discrepancy.workflow import run_discrepancy
+from discrepancy.replay import Replayer, prepare_runs
+from discrepancy.workflow import run_discrepancy
 
 ROOT = Path(__file__).resolve().parents[1]
 PENDULUM = ROOT / "examples" / "pendulum"

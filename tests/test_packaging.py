@@ -138,7 +138,7 @@ import sys, sysconfig
 from pathlib import Path
 import omni_sim
 from omni_sim import model as om
-from omni_sim.discrepancy import servo_truth
+from discrepancy import servo_truth
 site = Path(sys.argv[1]).resolve()
 for p in (Path(omni_sim.__file__), om.MODELS_DIR, om.DEFAULT_SCENE, servo_truth.model_path()):
     assert site in p.resolve().parents, f"{p} is not in {site}"

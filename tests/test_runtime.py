@@ -18,7 +18,7 @@ from omni_app import discrepancy_report as rp
 from omni_sim import model as om
 from omni_sim import runtime
 from omni_sim.device import DRIVE_LAWS, Device, Engine, run_p_loop
-from omni_sim.discrepancy import effects as fx
+from discrepancy import effects as fx
 
 HINGE = om.Target("hinge", "drive")
 SERVO = om.Target("pivot", "servo")

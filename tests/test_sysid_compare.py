@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from omni_app import sysid_report as sr
-from omni_sim.discrepancy import servo_truth
-from omni_sim.discrepancy.replay import Replayer
+from discrepancy import servo_truth
+from discrepancy.replay import Replayer
 from omni_studies import sysid_compare as sc
 
 ROOT = Path(__file__).resolve().parents[1]

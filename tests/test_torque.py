@@ -1,5 +1,5 @@
-"""The missing torque (omni_sim/discrepancy/torque.py) and its equation-error naming
-(omni_sim/discrepancy/shape.py), against an independent truth: the servo pendulum's nominal
+"""The missing torque (discrepancy/torque.py) and its equation-error naming
+(discrepancy/shape.py), against an independent truth: the servo pendulum's nominal
 model stepped here with ``mujoco.mj_step`` in a plain P loop (1 kHz, 4096-count encoder), a known
 extra torque applied through ``qfrc_applied`` or a known change written into the spec by hand,
 logged at 1 ms, 5 ms or 10 ms (irregular times too) with the encoder's rounding."""
@@ -13,10 +13,10 @@ import pytest
 from identification.dataset import Run
 from identification.errors import UserError
 from omni_sim.device import Device
-from omni_sim.discrepancy import servo_truth as st
-from omni_sim.discrepancy import shape
-from omni_sim.discrepancy import torque as tq
-from omni_sim.discrepancy.replay import prepare_runs
+from discrepancy import servo_truth as st
+from discrepancy import shape
+from discrepancy import torque as tq
+from discrepancy.replay import prepare_runs
 
 PATH = str(st.model_path())
 TARGET = st.target()

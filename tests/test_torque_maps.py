@@ -3,7 +3,7 @@
 import numpy as np
 
 from omni_app import torque_maps
-from omni_sim.discrepancy.torque import MissingTorque
+from discrepancy.torque import MissingTorque
 
 
 def _result(name, seed):

@@ -3,7 +3,7 @@
 Five sources are combined (:func:`uncertainty`):
 
 * statistical: the spread of the parameters over the k folds (jackknife), the Jacobian at the
-  all-runs optimum (:func:`omni_sim.discrepancy.fit.jacobian_se`) and the measurement process
+  all-runs optimum (:func:`discrepancy.fit.jacobian_se`) and the measurement process
   through the closed loop (:func:`measurement_effect`, a parametric bootstrap);
 * numerical (they matter when the data hold little noise, e.g. exact simulated data, where the
   statistical terms vanish): the optimiser's stopping point (:func:`optimiser_term`) and the
@@ -12,7 +12,7 @@ Five sources are combined (:func:`uncertainty`):
 The optimiser's term
 --------------------
 ``least_squares`` stops on its tolerances (``xtol``, ``ftol`` in
-:meth:`omni_sim.discrepancy.fit.Problem.fit`), not at the optimum ``x*``.  Near ``x*`` the
+:meth:`discrepancy.fit.Problem.fit`), not at the optimum ``x*``.  Near ``x*`` the
 weighted residual is ``f(x) ~ f(x*) + J_t (x - x*)``; a Gauss-Newton step computed with the
 finite-difference Jacobian ``J`` at the final ``x`` is ``dx1 = -(J'J)^-1 J'f(x) = -(I - E)(x - x*)``
 with ``E = I - (J'J)^-1 J'J_t`` (the Jacobian's relative error; zero-residual or small-residual

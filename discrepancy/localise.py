@@ -1,6 +1,6 @@
 """Localise the gap between measured runs and a model's replay.
 
-All functions take the runs (:class:`~omni_sim.discrepancy.runs.ReplayRun`) and the model's
+All functions take the runs (:class:`~discrepancy.runs.ReplayRun`) and the model's
 residual ``theta_model - theta_measured`` [rad] per run, and return plain dicts (JSON-ready):
 where the residual's RMS is largest, by run, by sine frequency and amplitude (gain and phase of
 the fundamental, harmonic content), by time window, by regime (speed, direction, position,

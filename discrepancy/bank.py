@@ -1,9 +1,9 @@
 """The hidden-effect bank's own parts: what only the validation uses.
 
-The bank is the set of hidden-effect cases (:data:`omni_sim.discrepancy.hidden.CASES`: truth
+The bank is the set of hidden-effect cases (:data:`discrepancy.hidden.CASES`: truth
 models written independently of the effect library, :mod:`.truth_models`) run through the
 workflow by ``scripts/discrepancy_bank.py`` and the tests, each judged by
-:func:`~omni_sim.discrepancy.hidden.assess`.  The cases themselves live in :mod:`.hidden`
+:func:`~discrepancy.hidden.assess`.  The cases themselves live in :mod:`.hidden`
 because the application hides them too (``omni discrepancy --demo``, ``omni bench``,
 ``omni sweep``); this module holds the coverage study's random magnitudes
 (``scripts/discrepancy_coverage.py``) and is imported by no module of the application.

@@ -5,7 +5,7 @@ Independence
 ------------
 A truth model is written here by the writers in :data:`TRUTH` (and :data:`OUTSIDE` for effects
 the library does not hold).  This module does NOT use the workflow's effect library (the
-package :mod:`omni_sim.discrepancy.effects`: no ``apply``, ``compile_with`` or
+package :mod:`discrepancy.effects`: no ``apply``, ``compile_with`` or
 ``Effect.write``, not even an import, direct or through another module;
 ``tests/test_discrepancy_bank.py`` checks it by reading the syntax tree of this module and of
 the modules that use it, and following their imports through the project), so a fit that

@@ -10,7 +10,7 @@ from typing import Callable
 import mujoco
 import numpy as np
 
-from ... import model as om
+from omni_sim import model as om
 
 
 @dataclass(frozen=True)

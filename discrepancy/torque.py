@@ -68,8 +68,8 @@ from scipy import sparse
 
 from identification.errors import UserError
 
-from .. import model as om
-from ..device import DRIVE_LAWS, Device
+from omni_sim import model as om
+from omni_sim.device import DRIVE_LAWS, Device
 from .runs import ReplayRun
 from .smoothing import BAND_SIGMAS, HANN_CUTOFF, Estimator, Smoothed, hann_taps, row_norms, smooth
 
@@ -282,7 +282,7 @@ def missing_torque(model: mujoco.MjModel, runs: list[ReplayRun], target: om.Targ
     model : MjModel
         The (corrected nominal) model.
     runs : list of ReplayRun
-        Prepared runs (:func:`omni_sim.discrepancy.replay.prepare_runs`).
+        Prepared runs (:func:`discrepancy.replay.prepare_runs`).
     target : Target, optional
         The controlled joint and actuator (default None: the Omni).
     est : Estimator

@@ -10,7 +10,7 @@ Data
 :func:`generate` runs the truth model through :func:`omni_sim.experiments.simulate` (the
 device's closed-loop engine, the reference path) on the compact experiment set
 (:mod:`.experiment_set`) with the encoder's quantisation (15000 counts/rev) and white noise of
-:data:`~omni_sim.discrepancy.experiment_set.NOISE_RAD` that the controller sees, as on the
+:data:`~discrepancy.experiment_set.NOISE_RAD` that the controller sees, as on the
 device; the case ``none_exact`` has neither.  The workflow sees only these runs and the nominal
 model.
 
@@ -36,9 +36,9 @@ import numpy as np
 
 from identification.dataset import Run
 
-from .. import experiments as ex
-from .. import model as om
-from ..device import Device
+from omni_sim import experiments as ex
+from omni_sim import model as om
+from omni_sim.device import Device
 from . import experiment_set, servo_truth
 from .truth_models import OUTSIDE, TRUTH
 

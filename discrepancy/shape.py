@@ -1,7 +1,7 @@
 """Name by shape, cheaply: fit each library effect to the missing torque by equation error.
 
 For effect ``E`` with parameters ``x`` the nominal spec gets ``E(x)`` written in
-(:func:`omni_sim.discrepancy.effects.compile_with`) and compiled; the missing torque of that
+(:func:`discrepancy.effects.compile_with`) and compiled; the missing torque of that
 model along the logged states (:mod:`.torque`: the same smoothed states for every model,
 computed once) is the residual::
 
@@ -37,7 +37,7 @@ from scipy.optimize import least_squares
 
 from identification.errors import UserError
 
-from .. import model as om
+from omni_sim import model as om
 from .effects import LIBRARY, ModelBuilder
 from .runs import ReplayRun
 from .torque import Estimator, InverseModel, smooth

@@ -2,7 +2,7 @@
 depends on the direction of motion: the truth of the hidden-effect bank's geared-servo cases,
 and their "measured" runs as a host logs a real servo.
 
-Written independently of the effect library (:mod:`omni_sim.discrepancy.effects`) and of the
+Written independently of the effect library (:mod:`discrepancy.effects`) and of the
 device's closed-loop engine (:mod:`omni_sim.device`): a plain loop over physics steps with
 ``mujoco.mj_step`` on a private copy of the nominal model
 ``models/servo_pendulum/servo_pendulum.xml`` (joint ``pivot``, actuator ``servo``, control in
@@ -63,7 +63,7 @@ import numpy as np
 
 from identification.dataset import Run
 
-from .. import model as om
+from omni_sim import model as om
 
 #: The nominal model's controlled joint and actuator (the bank case's ``--joint``/``--actuator``;
 #: its ``--model`` is :func:`model_path`).
@@ -381,7 +381,7 @@ def _logged_run(e: Experiment, run, seed: int, exact: bool, law: str) -> Run:
             "encoder_quantized": not exact, "encoder_step_rad": step, "encoder_noise_rad": noise_rad,
             "units": {"r": "rad", "theta": "rad", "v": "V (motor voltage command)", "kp": "V/rad",
                       "command_limit": "V", "enabled": "torque enable (0: 0 V)"},
-            "device": f"pendulum on a geared servo ({law}, omni_sim/discrepancy/servo_truth.py)"}
+            "device": f"pendulum on a geared servo ({law}, discrepancy/servo_truth.py)"}
     return Run(e.name, t_log, r, theta, v, meta, {"enabled": en})
 
 

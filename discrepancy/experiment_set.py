@@ -10,7 +10,7 @@ sees, as on the device.
 
 from __future__ import annotations
 
-from .. import experiments as ex
+from omni_sim import experiments as ex
 
 #: Poses [deg] (set points) of the compact experiment set: a folded and a stretched arm
 #: (yaw inertia and the arm's mass moment differ by ~2x between them).

@@ -12,8 +12,8 @@
    before and after, :mod:`.localise`).
 
 This module joins the MuJoCo side (the model, the effect library, the replay) to the
-statistics, which get the model through an :class:`~omni_sim.discrepancy.effects.ModelBuilder`
-and the simulations through the :class:`~omni_sim.discrepancy.replay.Replayer`.
+statistics, which get the model through an :class:`~discrepancy.effects.ModelBuilder`
+and the simulations through the :class:`~discrepancy.replay.Replayer`.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ import numpy as np
 from identification.dataset import Run, spacing
 from identification.errors import UserError
 
-from .. import model as om
-from ..device import ENCODER_STEP_RAD, Device
+from omni_sim import model as om
+from omni_sim.device import ENCODER_STEP_RAD, Device
 from . import effects as fx
 from . import select as sel
 from . import uncertainty as un
@@ -136,7 +136,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     k : int
         Folds for held-out scoring.
     folds : str
-        The verdict's fold scheme (:data:`omni_sim.discrepancy.select.FOLD_SCHEMES`): ``"blocked"``
+        The verdict's fold scheme (:data:`discrepancy.select.FOLD_SCHEMES`): ``"blocked"``
         (time blocks within every run) or ``"runs"`` (whole runs); the report gives the other
         scheme's held-out gaps beside.
     corrections : str or tuple of str
@@ -282,7 +282,7 @@ class NominalReplay:
     fit_gap : float [rad]
         Its gap on the samples the fits use (where the first round starts).
     noise : float [rad]
-        The measurement noise floor (:func:`omni_sim.discrepancy.select.noise_floor`).
+        The measurement noise floor (:func:`discrepancy.select.noise_floor`).
     """
 
     theta: list
@@ -441,7 +441,7 @@ def select_effects(builder: fx.ModelBuilder, candidates: tuple[str, ...], runs: 
 
 
 def _take_null(state: Selection, scored: list[Scored]) -> None:
-    """The round's :data:`~omni_sim.discrepancy.select.NULL` candidate is the accepted set fitted
+    """The round's :data:`~discrepancy.select.NULL` candidate is the accepted set fitted
     again with the round's effort: it becomes the accepted set (its fit and folds) and its
     held-out gap the round's start, against which the candidates' shares were taken."""
     null = [s for s in scored if s.name == sel.NULL]
@@ -604,7 +604,7 @@ def _backward_step(best: Scored, entry: dict, rnd: int, gap_start: float, builde
 # -- 3. uncertainty and the held-out replay ----------------------------------------------------
 def estimate(builder: fx.ModelBuilder, best: Scored | None, fit_runs: list[ReplayRun],
              runs: list[ReplayRun], rep: Replayer, theta_before: list) -> tuple[dict | None, list]:
-    """The accepted set's uncertainty (:func:`omni_sim.discrepancy.uncertainty.uncertainty`, on
+    """The accepted set's uncertainty (:func:`discrepancy.uncertainty.uncertainty`, on
     the fits' runs) and the held-out replay of the whole runs (each with its fold's
     parameters); with nothing accepted, no uncertainty and the nominal replay."""
     if best is None:
@@ -665,7 +665,7 @@ def assemble_report(builder: fx.ModelBuilder, runs: list[ReplayRun], nominal: No
     """The content of ``report.json`` (the run-time fields ``mujoco_warnings`` and ``timings``
     are added by :func:`run_discrepancy`).  ``actuator_limit``: the actuator's command limit
     (its ``ctrlrange``, inf if unlimited), which with each run's ``command_limit`` says when
-    the command is near its limit (:func:`~omni_sim.discrepancy.localise.command_bins`)."""
+    the command is near its limit (:func:`~discrepancy.localise.command_bins`)."""
     noise = nominal.noise
     gap_before = nominal.gap
     gap_after = gap([th - r.theta for th, r in zip(theta_after, runs)])
@@ -757,8 +757,8 @@ def _none_item(entries: list[dict], gap_before: float, noise: float) -> dict:
 
 def _confidence(margin: float, unexplained: float) -> str:
     """"high" when the effect beats its runner-up clearly (a margin of at least twice
-    :data:`~omni_sim.discrepancy.select.TIE_MARGIN`) and the gap left is at the noise (an
-    unexplained share of at most :data:`~omni_sim.discrepancy.select.UNEXPLAINED_SHARE`); else
+    :data:`~discrepancy.select.TIE_MARGIN`) and the gap left is at the noise (an
+    unexplained share of at most :data:`~discrepancy.select.UNEXPLAINED_SHARE`); else
     "low".  (Every named effect removed at least ``MIN_SHARE`` of its round's gap to be
     accepted, so its share does not enter.)"""
     return "high" if (margin >= 2 * sel.TIE_MARGIN and unexplained <= sel.UNEXPLAINED_SHARE) else "low"
@@ -854,7 +854,7 @@ def _effect_items(builder: fx.ModelBuilder, best: Scored, effect_entries: list[d
                for kind in ("jackknife", "jacobian", "measurement")},
             "measurement_bias": _by_param(eff, bias[part]),
             # numerical terms inside the standard error (GUM Type B half-widths, uniform:
-            # b / sqrt(3) each; omni_sim/discrepancy/uncertainty.py)
+            # b / sqrt(3) each; discrepancy/uncertainty.py)
             **{f"{kind}_half_width": _by_param(eff, unc[kind][part])
                for kind in ("optimiser", "numerical_floor")},
             "units": {p.name: p.unit for p in eff.params},

@@ -42,7 +42,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from ...device import LOAD_FRICTION
+from omni_sim.device import LOAD_FRICTION
 from .base import OMNI, Effect, Param, Target, actuator_of
 
 

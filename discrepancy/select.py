@@ -19,9 +19,9 @@ Acceptance (held-out stopping): the best candidate's held-out gap must fall by a
 measurement noise floor (``noise_factor`` times the noise estimated from the residual's
 sample-to-sample roughness).
 
-The MuJoCo side comes in from the caller: ``builder`` (:class:`~omni_sim.discrepancy.effects.ModelBuilder`:
+The MuJoCo side comes in from the caller: ``builder`` (:class:`~discrepancy.effects.ModelBuilder`:
 effects by name, their nominal values, compiled models) and ``rep``
-(:class:`~omni_sim.discrepancy.replay.Replayer`: simulates models on runs); this module only
+(:class:`~discrepancy.replay.Replayer`: simulates models on runs); this module only
 fits, scores and compares.
 """
 
@@ -331,7 +331,7 @@ def score_round(builder, accepted: list, accepted_x: np.ndarray,
 
     Parameters
     ----------
-    builder : omni_sim.discrepancy.effects.ModelBuilder
+    builder : discrepancy.effects.ModelBuilder
         The nominal model and the library (effects by name, nominal values, compiled models).
     accepted, accepted_x : list of Effect, ndarray
         Effects accepted in earlier rounds and their fitted values (free again in this round).

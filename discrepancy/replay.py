@@ -13,7 +13,7 @@ motor constant: no torque and no back-EMF braking, the joint swings free).
 The control period is the device's own (run metadata ``control_period_s``, default the sample
 period), independent of the log's: a servo logged at 200 Hz that closes its loop at 1 kHz is
 replayed at 1 kHz, the reference held between log samples, and compared at the logged times
-(:class:`~omni_sim.discrepancy.runs.ReplayRun`: the control grid, irregular timestamps).
+(:class:`~discrepancy.runs.ReplayRun`: the control grid, irregular timestamps).
 
 A user's single-joint device (a :class:`~omni_sim.model.Target`: its hinge and actuator) is
 replayed the same way: without the Omni's arm a run needs no pose; its P law saturates at the
@@ -42,8 +42,8 @@ from mujoco import rollout
 from identification.dataset import Run
 from identification.errors import UserError
 
-from .. import model as om
-from ..device import Device, Engine, run_p_loop, substeps_of
+from omni_sim import model as om
+from omni_sim.device import Device, Engine, run_p_loop, substeps_of
 from .runs import ReplayRun
 
 #: Shortest run that can be replayed and localised [s]: one step edge's transient at the
@@ -271,7 +271,7 @@ class Replayer:
             ``y_k = step * round((theta_k + noise_k) / step)`` (no rounding if ``step`` is 0), as
             a device with a noisy, quantised encoder, and ``y`` is returned instead of ``theta``
             (it is what the device would log).  Used to propagate the measurement process
-            through the closed loop (:func:`omni_sim.discrepancy.uncertainty.measurement_effect`).
+            through the closed loop (:func:`discrepancy.uncertainty.measurement_effect`).
 
             Noise arrays are on the control grid (``runs[j].steps`` samples).
 
@@ -385,7 +385,7 @@ class Replayer:
         # unstable (a stiff cable on a light rotor): the warnings are counted
         # (``unstable_warnings``), not printed, and the rows the engine flagged unstable are
         # returned as NaN (``unstable_replays``): a reset trajectory is not physics, and the
-        # statistics exclude it (:func:`omni_sim.discrepancy.fit.gap` is inf) instead of scoring it.
+        # statistics exclude it (:func:`discrepancy.fit.gap` is inf) instead of scoring it.
         prev = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(self._warned)
         try:

@@ -11,7 +11,7 @@
   stretched cable, an elastic coupling; the default scene's sigma0 ~ 3 N*m/rad lumps such a
   low-energy stiffness, models/omni/README.md), with the rotor inertia bounded below by the
   5e-5 kg*m^2 end of the rotor estimate (sqrt(100/5e-5) * 1 ms = 1.4 < 2: stable).  Nominal of
-  a rigid drive: read gives inf, :func:`~omni_sim.discrepancy.effects.nominal_values` the
+  a rigid drive: read gives inf, :func:`~discrepancy.effects.nominal_values` the
   upper bound 100 N*m/rad, no cable damping, the joint's armature as the rotor -- NOT the rigid
   model: near the ~3.4 Hz loop resonance even 100 N*m/rad differs from the rigid drive (30x
   the noise floor of the bank set; k = 20: 160x, k = 5: 600x).  A drive stiffer than
@@ -33,7 +33,7 @@ import math
 import mujoco
 import numpy as np
 
-from ...device import ENCODER_STEP_RAD  # the Omni's encoder count [rad]
+from omni_sim.device import ENCODER_STEP_RAD  # the Omni's encoder count [rad]
 from .base import OMNI, Effect, Param, Target, element_exists, suffixed
 
 #: Mass [kg] and principal inertia [kg*m^2] of the rotor body the two-mass drive adds: numerical

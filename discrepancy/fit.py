@@ -7,7 +7,7 @@ mean-square error [rad].
 
 Fits use :func:`scipy.optimize.least_squares` (trust region, box bounds) with a forward-
 difference Jacobian whose columns are simulated together: the perturbed models form one batch of
-the :class:`~omni_sim.discrepancy.replay.Replayer`.  A coarse grid over the new effect's
+the :class:`~discrepancy.replay.Replayer`.  A coarse grid over the new effect's
 parameters (one batch) picks the starting point, because a local fit cannot find a torque limit
 or a friction level the data never "feels" at the nominal values.
 """
@@ -147,14 +147,14 @@ class Problem:
 
     Parameters
     ----------
-    builder : omni_sim.discrepancy.effects.ModelBuilder
+    builder : discrepancy.effects.ModelBuilder
         Compiles the model the effects are added to (``builder.compile(changes)``).
     fixed : list of (Effect, values)
         Changes already accepted and held fixed.
     free : list of Effect
         Effects whose parameters are fitted.
     runs : list of ReplayRun
-    replayer : omni_sim.discrepancy.replay.Replayer
+    replayer : discrepancy.replay.Replayer
         Simulates models on runs (``replayer.simulate(models, runs, pairs)``).
     """
 
