@@ -1,11 +1,11 @@
 """Suite-wide settings: the tests write temporary files only under pytest's own folder.
 
-A session fixture points ``TMPDIR`` (and :mod:`tempfile`'s cached folder) at a folder of
-``tmp_path_factory`` for the whole session, the test processes and every process they start;
+A fixture of the whole run points ``TMPDIR`` (and :mod:`tempfile`'s cached folder) at a folder
+of ``tmp_path_factory``, in the test processes and every process they start;
 code that writes to :func:`tempfile.gettempdir` (e.g. the bank's nominal models,
 ``omni_sim.discrepancy.hidden``: ``omni_bank_nominals/``; Dask's scratch space) writes there.
 At the end it compares the system's temporary folder with its listing at the start and fails
-the session, naming them, if anything new is there besides pytest's own folder (a path written
+the run (an error after its last test), naming them, if anything new is there besides pytest's own folder (a path written
 without :mod:`tempfile`, or a process started with ``TMPDIR`` removed).  Another program writing
 to the same folder meanwhile also shows there; ``OMNI_TESTS_TMP_CHECK=0`` skips the comparison
 (the redirection stays).
@@ -28,8 +28,8 @@ def _listing(folder: Path) -> set[str]:
 
 @pytest.fixture(scope="session", autouse=True)
 def _temporary_files_under_pytest(tmp_path_factory):
-    """``TMPDIR`` -> a folder of ``tmp_path_factory`` for the session; afterwards, nothing new
-    in the system's temporary folder but pytest's own (else the session fails)."""
+    """``TMPDIR`` -> a folder of ``tmp_path_factory`` for the whole run; afterwards, nothing new
+    in the system's temporary folder but pytest's own (else an error)."""
     system = Path(tempfile.gettempdir())
     base = tmp_path_factory.getbasetemp().resolve()
     ours = {base.relative_to(system.resolve()).parts[0]} if base.is_relative_to(system.resolve()) else set()

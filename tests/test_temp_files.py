@@ -39,10 +39,10 @@ def _run(pytester, monkeypatch, leak: bool):
     return pytester.runpytest_subprocess("-p", "no:cacheprovider", "-p", "no:xdist"), system
 
 
-def test_leak_fails_the_session(pytester, monkeypatch):
+def test_leak_fails_the_run(pytester, monkeypatch):
     result, system = _run(pytester, monkeypatch, leak=True)
     assert result.ret != 0
     result.stdout.fnmatch_lines(["*left 1 new entry*leaked.txt*"])
     assert sorted(p.name for p in system.iterdir()) == ["leaked.txt"]  # tempfile's went elsewhere
-    result.assert_outcomes(passed=2, errors=1)  # the check: an error at the session's end
+    result.assert_outcomes(passed=2, errors=1)  # the check: an error after the last test
 
