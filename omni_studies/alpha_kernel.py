@@ -160,8 +160,10 @@ def _bracket(A, Hs, vj, vd2j, krj, phj, inv_i, kp, breaks, c_inv, b0, a0, a1, b_
     h_last = last - g(last, vj, vd2j, krj, phj, inv_i, kp, breaks, c_inv, b0, a0, a1, b_slope,
                       b_floor, clamp)
     Hs[L - 1] = h_last
-    neg = argmin_masked(A, Hs, last, True)
-    pos = argmin_masked(A, Hs, last, False)
+    # np.bool_(...), not a bare True/False: numba types a bare constant as a literal and would
+    # compile argmin_masked once per value (a cold start's compile time)
+    neg = argmin_masked(A, Hs, last, np.bool_(True))
+    pos = argmin_masked(A, Hs, last, np.bool_(False))
     okj = Hs[neg] <= 0 and Hs[pos] >= 0
     a_n, a_p, h_n, h_p = A[neg], A[pos], Hs[neg], Hs[pos]
     if not okj:
@@ -283,7 +285,7 @@ def loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
     h_lo = np.empty(R)
     for k in range(n):
         m = alive[k]
-        n_pending = 0
+        n_pending = np.int64(0)  # not a literal 0: _bisect_pending is compiled once, not twice
         for j in range(m):
             out_th[k, j] = th[j]
             out_ph[k, j] = ph[j]

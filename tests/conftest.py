@@ -1,0 +1,55 @@
+"""Suite-wide settings: the tests write temporary files only under pytest's own folder.
+
+A fixture of the whole run points ``TMPDIR`` (and :mod:`tempfile`'s cached folder) at a folder
+of ``tmp_path_factory``, in the test processes and every process they start;
+code that writes to :func:`tempfile.gettempdir` (e.g. the bank's nominal models,
+``discrepancy.hidden``: ``omni_bank_nominals/``; Dask's scratch space) writes there.
+At the end it compares the system's temporary folder with its listing at the start and fails
+the run (an error after its last test), naming them, if anything new is there besides pytest's own folder (a path written
+without :mod:`tempfile`, or a process started with ``TMPDIR`` removed).  Another program writing
+to the same folder meanwhile also shows there; ``OMNI_TESTS_TMP_CHECK=0`` skips the comparison
+(the redirection stays).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import pytest
+
+pytest_plugins = ["pytester"]  # tests/test_temp_files.py runs a small suite with this conftest
+
+
+def _listing(folder: Path) -> set[str]:
+    return set(os.listdir(folder))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _temporary_files_under_pytest(tmp_path_factory):
+    """``TMPDIR`` -> a folder of ``tmp_path_factory`` for the whole run; afterwards, nothing new
+    in the system's temporary folder but pytest's own (else an error)."""
+    system = Path(tempfile.gettempdir())
+    base = tmp_path_factory.getbasetemp().resolve()
+    ours = {base.relative_to(system.resolve()).parts[0]} if base.is_relative_to(system.resolve()) else set()
+    before = _listing(system)
+    scratch = tmp_path_factory.mktemp("tempdir")
+    old_env, old_tempdir = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"] = str(scratch)
+    tempfile.tempdir = str(scratch)
+    try:
+        yield scratch
+    finally:
+        tempfile.tempdir = old_tempdir
+        if old_env is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = old_env
+    new = sorted(_listing(system) - before - ours)
+    if new and os.environ.get("OMNI_TESTS_TMP_CHECK", "1") != "0":
+        pytest.fail(f"the tests left {len(new)} new entr{'y' if len(new) == 1 else 'ies'} in the "
+                    f"system's temporary folder {system}: {', '.join(new)} (write under pytest's "
+                    "tmp_path, or through tempfile, which the suite points at pytest's folder; "
+                    "OMNI_TESTS_TMP_CHECK=0 skips this check where other programs write there)",
+                    pytrace=False)
