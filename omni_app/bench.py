@@ -265,7 +265,7 @@ def _source_copy(dest: str) -> None:
     import omni_sim.models
 
     skip = shutil.ignore_patterns("__pycache__")
-    for name in ("identification", "omni_sim", "omni_studies", "omni_app"):
+    for name in ("identification", "omni_sim", "discrepancy", "omni_studies", "omni_app"):
         shutil.copytree(importlib.import_module(name).__path__[0], Path(dest) / name, ignore=skip)
     models = omni_sim.models.__path__[0]
     if not (Path(dest) / "omni_sim" / "models").exists():  # an editable install maps models/ there
