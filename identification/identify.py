@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import UNIFORM_RTOL, Run
+from .dataset import POSE_KEYS, UNIFORM_RTOL, Run
 from .errors import UserError
 from .inertia import MIN_POSES, InertiaFit, fit_inertia_model
 from .linear import PoseLinearModel, fit_pose
@@ -129,6 +129,35 @@ def check_sine_record(run: Run) -> None:
                         f"then {MIN_CYCLES} whole cycles are fitted)") from None
 
 
+def check_pose_runs(runs: list[Run], command: str, source=None) -> None:
+    """Refuse runs without the Omni arm's pose: the paper's method is for the Omni's
+    gravity-free (vertical) yaw axis, whose inertia the pose sets.
+
+    A run without ``gamma1_deg`` and ``gamma2_deg`` (a single-joint device of your own) is
+    refused in one line that says what to run instead (``omni discrepancy``); a run with one of
+    them names the other.  Nothing here can tell a made-up pose from a real one.
+
+    ``command``: the command's name for the message; ``source``: the dataset folder, to name
+    the run's file and the command to run instead (else the run's name).
+
+    Raises
+    ------
+    UserError
+        A run without the pose, or with half of it."""
+    for run in runs:
+        have = [k for k in POSE_KEYS if run.meta.get(k) is not None]
+        where = f"{Path(source) / run.name}.json" if source is not None else f"run {run.name}"
+        if not have:
+            data = source if source is not None else "DATA"
+            raise UserError(
+                f"{where}: no arm pose (gamma1_deg, gamma2_deg): omni {command} is the paper's method "
+                "for the Omni's gravity-free yaw axis, not for a single-joint robot of your own; run "
+                f"omni discrepancy --measured {data} --model FILE --joint J --actuator A")
+        if len(have) < len(POSE_KEYS):
+            missing = [k for k in POSE_KEYS if k not in have]
+            raise UserError(f"{where}: missing required key(s): {', '.join(missing)}")
+
+
 def check_closed_loop_runs(runs: list[Run], command: str, source=None) -> None:
     """Refuse runs the paper's closed loop does not describe (module docstring, "Servo logs").
 
@@ -183,6 +212,7 @@ def identify_runs(runs: list[Run], linear_only: bool = False) -> Identification:
     ignored = [r.name for r in runs if r.kind != "sine"]
     if not sines:
         raise UserError("dataset has no sine runs (kind \"sine\"); identify needs sine sweeps")
+    check_pose_runs(sines, "identify")
     check_closed_loop_runs(sines, "identify")
     for r in sines:
         check_sine_record(r)

@@ -42,7 +42,7 @@ from . import paper, scoring
 from .csvformat import format_rows
 from .dataset import Run
 from .errors import UserError
-from .identify import check_closed_loop_runs, check_sine_record
+from .identify import check_closed_loop_runs, check_pose_runs, check_sine_record
 from .inertia import InertiaParameters
 from .nonlinear import AlphaModel
 from .simulate import simulate_alpha_batch, simulate_linear
@@ -367,6 +367,7 @@ def validate_runs(runs: list[Run], params: Params) -> tuple[dict, dict]:
     scored = [r for r in runs if r.kind in ("sine", "step")]
     if not scored:
         raise UserError("dataset has no sine or step runs to score")
+    check_pose_runs(runs, "validate")
     check_closed_loop_runs(runs, "validate")
     for r in runs:
         if r.kind == "sine":

@@ -11,10 +11,10 @@ import math
 import sys
 from pathlib import Path
 
-from identification.dataset import (POSE_KEYS, atomic_output_dir, atomic_write_text, check_output_dir,
+from identification.dataset import (atomic_output_dir, atomic_write_text, check_output_dir,
                                     check_output_file, read_dataset, read_table, write_dataset)
 from identification.errors import UserError
-from identification.identify import check_closed_loop_runs, fit_inertia_table, identify_runs
+from identification.identify import check_closed_loop_runs, check_pose_runs, fit_inertia_table, identify_runs
 from identification.inertia import InertiaFit
 from identification.validation import read_params, validate_runs, write_predictions
 from .inputs import check_run_poses, omni_pose_check
@@ -151,17 +151,7 @@ def read_omni_runs(data, command: str) -> list:
     method is for the Omni's gravity-free (vertical) yaw axis, and nothing here can tell a
     made-up pose from a real one, so it is not asked for one."""
     runs = read_dataset(data, require_pose=False)
-    for run in runs:
-        have = [k for k in POSE_KEYS if run.meta.get(k) is not None]
-        where = f"{Path(data) / run.name}.json"
-        if not have:
-            raise UserError(
-                f"{where}: no arm pose (gamma1_deg, gamma2_deg): omni {command} is the paper's method "
-                "for the Omni's gravity-free yaw axis, not for a single-joint robot of your own; run "
-                f"omni discrepancy --measured {data} --model FILE --joint J --actuator A")
-        if len(have) < len(POSE_KEYS):
-            missing = [k for k in POSE_KEYS if k not in have]
-            raise UserError(f"{where}: missing required key(s): {', '.join(missing)}")
+    check_pose_runs(runs, command, data)
     return runs
 
 

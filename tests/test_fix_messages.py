@@ -258,3 +258,22 @@ def test_the_report_records_whether_the_period_was_given(tmp_path):
     old = [{k: v for k, v in row.items() if k != "control_period_given"} for row in rows]
     assert "control_period_s`" not in "\n".join(rp._md_sampling({"sampling": old}))
 
+
+
+def test_the_library_refuses_runs_without_a_pose():
+    """From Python as from the command line: identify_runs and validate_runs refuse runs of a
+    robot without the Omni's arm in the same one line (it was a KeyError deep in the fit)."""
+    from identification import identify_runs, validate_runs
+    from identification.dataset import Run
+    from identification.errors import UserError
+
+    t = np.arange(2000) * 1e-3
+    run = Run("a", t, 0.1 * np.sin(2 * np.pi * t), 0.1 * np.sin(2 * np.pi * t), np.zeros_like(t),
+              {"kind": "sine", "kp": 2.0, "frequency_hz": 1.0, "amplitude_rad": 0.1})
+    for call in (lambda: identify_runs([run]), lambda: validate_runs([run], None)):
+        with pytest.raises(UserError, match=r"run a: no arm pose \(gamma1_deg, gamma2_deg\).*"
+                                            r"omni discrepancy --measured DATA"):
+            call()
+    half = Run("a", t, run.r, run.theta, run.v, {**run.meta, "gamma1_deg": 65.0})
+    with pytest.raises(UserError, match="run a: missing required key.*gamma2_deg"):
+        identify_runs([half])
