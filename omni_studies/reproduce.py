@@ -48,9 +48,8 @@ def simulate_campaign(device: Device | None = None, jobs: int | None = None, cam
                       progress=_no_progress) -> dict:
     """The first stage: the campaign's runs on the device (arguments: :func:`run_reproduce`);
     returns the stages' shared state (``device``, ``model``, ``runs``, ``t0``, ``run_meta``)."""
-    from .accel import compile_ahead, install
+    from .accel import install
     install()  # the compiled α loop (loaded at its first use)
-    compile_ahead()  # ... in the background from now (compiled there after an install)
     device = Device.load() if device is None else device
     t0 = time.perf_counter()
     progress(STAGES[0])
