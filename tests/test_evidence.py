@@ -37,8 +37,9 @@ def ev(runs):
 
 
 def test_names_the_hidden_coulomb_friction(ev):
-    """coulomb_friction first, its level within 8 % of 0.06 (measured 0.0567); the summarised
-    map says the model lacks about 30 mN*m against the motion wherever the drive drives."""
+    """coulomb_friction first, its level within 8 % of 0.06 (measured 0.0601); the summarised
+    map says the model lacks about 30 mN*m against the motion where the drive drives (measured
+    -29.2)."""
     assert ev.available and ev.reason == ""
     assert ev.best.name == "coulomb_friction"
     assert ev.best.x[0] == pytest.approx(FC, rel=0.08)
@@ -74,7 +75,7 @@ def test_report_section_renders(ev, tmp_path):
 
 def test_a_law_that_explains_little_is_reported_unexplained(runs):
     """Only armature offered against a missing dry friction: it explains under half (measured
-    under 1 %), and the section says the missing torque is unexplained and points to the maps."""
+    0.8 %), and the section says the missing torque is unexplained and points to the maps."""
     spec = mujoco.MjSpec.from_file(PATH)
     ev = evidence.missing_torque_evidence(spec, spec.copy().compile(), runs, TARGET, ("armature",))
     assert ev.best.explained < evidence.EXPLAINED_ENOUGH and not ev.explained_enough
