@@ -83,7 +83,9 @@ class Evidence:
     fits : tuple of ShapeFit
         Scored candidates by explained share (highest first), then those that need a replay.
     units : dict
-        ``{effect: {parameter: (name, unit)}}`` of every candidate's parameters, in order.
+        ``{effect: {parameter: unit}}`` of every candidate's parameters, in order.
+    bounds : dict
+        ``{effect: (lower, upper)}``: every candidate's parameter bounds (arrays).
     bandwidth_hz, half_window_s : float
         The estimator's bandwidth and window half-width.
     cost : dict
@@ -105,6 +107,7 @@ class Evidence:
     cost: dict = field(default_factory=dict)
     free: tuple = ()
     baseline: float | None = None
+    bounds: dict = field(default_factory=dict)
 
     @property
     def best(self):
@@ -156,7 +159,15 @@ class Evidence:
                 "parameters": {p: _r(v) for p, v in zip(names, f.x)},
                 "nominal": {p: _r(v) for p, v in zip(names, f.nominal)},
                 "units": {p: u for p, u in names.items()},
+                "at_bound": [p for p, v, lo, hi in zip(names, f.x, *self.bounds.get(f.name, ((), ())))
+                             if _on_bound(v, lo, hi)],
                 "disagreements": list(f.disagreements)}
+
+
+def _on_bound(v: float, lo: float, hi: float) -> bool:
+    """``v`` within 1e-6 of its range of a bound (the workflow's test of a fitted value)."""
+    tol = 1e-6 * (hi - lo) if math.isfinite(hi - lo) else 0.0
+    return bool(v <= lo + tol or v >= hi - tol)
 
 
 def _stacked(torques, attr: str) -> np.ndarray:
@@ -269,11 +280,12 @@ def missing_torque_evidence(spec: mujoco.MjSpec, model: mujoco.MjModel, runs: li
     scored = sorted((f for f in fits if f.explained is not None), key=lambda f: -f.explained)
     ranked = scored + [f for f in fits if f.explained is None]
     units = {f.name: {p.name: p.unit for p in builder.effect(f.name).params} for f in ranked}
+    bounds = {f.name: builder.effect(f.name).bounds() for f in ranked}
     spent = fits + ([alone] if alone is not None else [])
     cost = {"wall_s": time.perf_counter() - t0, "compiles": sum(f.compiles for f in spent),
             "inverse_calls": inv.calls + sum(f.inverse_calls for f in spent)}
     return Evidence(True, "", tuple(torques), tuple(ranked), units, est.bandwidth_hz, est.half_window_s, cost,
-                    tuple(free), alone.explained if alone is not None else None)
+                    tuple(free), alone.explained if alone is not None else None, bounds)
 
 
 def of_outcome(builder: fx.ModelBuilder, corrections, runs: list[ReplayRun], names: tuple,

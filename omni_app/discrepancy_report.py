@@ -265,8 +265,12 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
 
 
 def _md_values(f: dict) -> str:
-    """A candidate's fitted values with units and the model's own values."""
-    return ", ".join(f"{p} = {_fmt(v, 4)} {f['units'][p]} (model {_fmt(f['nominal'][p], 4)})"
+    """A candidate's fitted values with units and the model's own values; a value on its
+    parameter's bound is marked (the law wanted more than its range allows)."""
+    def unit(p):
+        return "" if f["units"][p] in ("", "-") else " " + f["units"][p]
+    return ", ".join(f"{p} = {_fmt(v, 4)}{unit(p)} (model {_fmt(f['nominal'][p], 4)}"
+                     + ("; at its bound" if p in f.get("at_bound", ()) else "") + ")"
                      for p, v in f["parameters"].items())
 
 

@@ -45,7 +45,7 @@ def test_names_the_hidden_coulomb_friction(ev):
     assert ev.best.x[0] == pytest.approx(FC, rel=0.08)
     assert ev.explained_enough and ev.best.explained > 0.9
     j = json.loads(json.dumps(ev.to_json()))  # plain JSON: no numpy types
-    assert j["ranking"][0]["name"] == "coulomb_friction"
+    assert j["ranking"][0]["name"] == "coulomb_friction" and j["ranking"][0]["at_bound"] == []
     assert [f["name"] for f in j["needs_replay"]] == ["time_delay"]
     assert j["unexplained"] is False
     # the missing friction, -(0.06 - 0.03) sign(qd), seen along the motion where the drive drives
