@@ -124,16 +124,25 @@ def needs_replay(model: mujoco.MjModel, nominal: mujoco.MjModel) -> str:
 
 
 class _Candidate:
-    """One effect's residual ``x -> tau_miss(x) / band``, counting compiles and inverse calls."""
+    """One effect's residual ``x -> tau_miss(x) / band``, counting compiles and inverse calls;
+    ``x`` holds the values of the effects ``free`` (fitted with it) first, then its own."""
 
-    def __init__(self, builder: ModelBuilder, name: str, states: States):
+    def __init__(self, builder: ModelBuilder, name: str, states: States, free=()):
         self.builder, self.states = builder, states
-        self.effect = builder.effect(name)
+        self.effect = builder.effect(name) if name else None
+        self.free = [builder.effect(n) for n in free]
         self.compiles = 0
         self.calls = 0
 
+    def changes(self, x: np.ndarray) -> list:
+        out, i = [], 0
+        for eff in self.free + ([self.effect] if self.effect is not None else []):
+            out.append((eff, np.asarray(x[i:i + eff.nparam], float)))
+            i += eff.nparam
+        return out
+
     def taus(self, x: np.ndarray) -> list[np.ndarray]:
-        model = self.builder.compile([(self.effect, np.asarray(x, float))])
+        model = self.builder.compile(self.changes(x))
         self.compiles += 1
         inv = InverseModel(model, self.builder.target)
         out = [inv.missing(s)[0] for s in self.states.smoothed]
@@ -144,31 +153,39 @@ class _Candidate:
         return self.states.weighted(self.taus(x))
 
 
-def fit_candidate(builder: ModelBuilder, name: str, states: States, nominal: mujoco.MjModel) -> ShapeFit:
-    """Fit effect ``name`` to the missing torque by equation error (module docstring)."""
+def fit_candidate(builder: ModelBuilder, name: str, states: States, nominal: mujoco.MjModel,
+                  free: tuple = ()) -> ShapeFit:
+    """Fit effect ``name`` to the missing torque by equation error (module docstring), with
+    the library effects ``free`` (the nominal's corrections) refitted jointly from the values
+    the builder's model holds (``x`` and ``nominal`` of the result: ``name``'s own; ``name``
+    "": the ``free`` effects alone, the baseline a candidate must beat)."""
     t0 = time.perf_counter()
-    cand = _Candidate(builder, name, states)
-    eff = cand.effect
-    x0 = builder.nominal_values(eff)
-    why = needs_replay(builder.compile([(eff, x0)]), nominal)
+    cand = _Candidate(builder, name, states, free)
+    effects = cand.free + ([cand.effect] if cand.effect is not None else [])
+    own = cand.effect.nparam if cand.effect is not None else 0
+    x0 = np.concatenate([builder.nominal_values(e) for e in effects])
+    why = needs_replay(builder.compile(cand.changes(x0)), nominal)
     if why:
         return ShapeFit(name, None, None, None, (), why, 1, 0, time.perf_counter() - t0)
     cand.compiles = 1
-    lo, hi = eff.bounds()
-    starts = [x0] + [eff.clip(g) for g in eff.grid(x0)]
+    lo = np.concatenate([e.bounds()[0] for e in effects])
+    hi = np.concatenate([e.bounds()[1] for e in effects])
+    scales = np.concatenate([e.scales() for e in effects])
+    grid = cand.effect.grid(x0[len(x0) - own:]) if cand.effect is not None else []
+    starts = [x0] + [np.concatenate([x0[:len(x0) - own], cand.effect.clip(g)]) for g in grid]
     costs = [float(np.sum(cand.residual(x) ** 2)) for x in starts]
     best = starts[int(np.argmin(costs))]
     # a start on a bound (a friction level 0) can stall the trust region's first step:
     # start a tenth of the parameter's scale inside
-    inset = np.minimum(0.1 * eff.scales(), 0.5 * (hi - lo))
+    inset = np.minimum(0.1 * scales, 0.5 * (hi - lo))
     start = np.clip(best, lo + inset, hi - inset)
-    res = least_squares(cand.residual, start, bounds=(lo, hi), x_scale=eff.scales(), max_nfev=MAX_NFEV)
+    res = least_squares(cand.residual, start, bounds=(lo, hi), x_scale=scales, max_nfev=MAX_NFEV)
     base = float(np.sum(states.weighted(states.tau_nominal) ** 2))
     final = cand.taus(res.x)
     share = 1.0 - float(np.sum(states.weighted(final) ** 2)) / base if base > 0 else 0.0
     notes = disagreements(states, final)
-    return ShapeFit(name, res.x, x0, share, notes, "", cand.compiles, cand.calls,
-                    time.perf_counter() - t0)
+    return ShapeFit(name, res.x[len(x0) - own:], x0[len(x0) - own:], share, notes, "", cand.compiles,
+                    cand.calls, time.perf_counter() - t0)
 
 
 def disagreements(states: States, taus: list[np.ndarray], step_s: float | None = None) -> tuple:

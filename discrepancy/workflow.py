@@ -34,6 +34,7 @@ from omni_sim.device import ENCODER_STEP_RAD, Device
 from . import effects as fx
 from . import select as sel
 from . import uncertainty as un
+from .evidence import of_outcome as evidence_of
 from .fit import gap
 from .localise import describe, localise
 from .replay import Replayer, control_period_of, prepare_runs
@@ -70,6 +71,7 @@ class Outcome:
     theta_before: list
     theta_after: list
     rounds: list = field(default_factory=list)
+    evidence: object = None  # the missing torque under the corrected nominal (evidence.Evidence)
 
 
 #: The nominal's uncertain constants refitted by default (library names): rotor inertia, viscous
@@ -204,6 +206,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
         st = begin("corrections")
         start = refit_nominal(builder, fixed, fit_runs, rep, nominal.fit_gap, k, folds, log)
         end(st)
+        evidence = evidence_of(builder, start, fit_runs, candidates, log)
         st = begin("naming")
         selection = select_effects(builder, candidates, fit_runs, rep, nominal.fit_gap, nominal.noise,
                                    k=k, max_effects=max_effects, log=log, scheme=folds, start=start)
@@ -232,8 +235,9 @@ def run_discrepancy(runs: list[Run], model_path=None, *, jobs: int | None = None
     timings["total_s"] = time.perf_counter() - t_start
     report["timings"] = {**timings, "physics_steps": steps, "physics_steps_per_stage": stage_steps,
                          "steps_per_s": steps / max(timings["total_s"], 1e-9)}
+    report["timings"]["evidence"], report["evidence"] = evidence.cost, evidence.to_json()
     return Outcome(report, _patched_spec(builder, selection.best), replay_runs, nominal.theta, theta_after,
-                   selection.rounds)
+                   selection.rounds, evidence)
 
 
 # -- inputs ------------------------------------------------------------------------------------

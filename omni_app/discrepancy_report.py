@@ -10,6 +10,7 @@ import numpy as np
 
 from omni_sim import runtime
 from discrepancy import effects as fx
+from discrepancy.evidence import EXPLAINED_ENOUGH
 from discrepancy.localise import command_note, lag_text
 
 
@@ -44,8 +45,23 @@ def figures(outcome, folder: Path) -> list[str]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    return [_figure_runs(plt, outcome, folder), _figure_localisation(plt, outcome.report, folder),
-            _figure_candidates(plt, outcome.report, folder)]
+    ev = [_figure_evidence(outcome, folder)] if getattr(outcome, "evidence", None) is not None \
+        and outcome.evidence.available else []
+    return ev + [_figure_runs(plt, outcome, folder), _figure_localisation(plt, outcome.report, folder),
+                 _figure_candidates(plt, outcome.report, folder)]
+
+
+#: The missing torque's maps (omni_app/torque_maps.py), shown in the report's first section.
+EVIDENCE_FIG = "fig_missing_torque.png"
+
+
+def _figure_evidence(outcome, folder: Path) -> str:
+    """The missing torque's four maps under the corrected nominal (:mod:`.torque_maps`)."""
+    from . import torque_maps
+
+    torque_maps.draw(list(outcome.evidence.torques), folder / EVIDENCE_FIG,
+                     title="missing torque of the corrected nominal (noise band shaded)")
+    return EVIDENCE_FIG
 
 
 def _figure_runs(plt, outcome, folder: Path) -> str:
@@ -172,10 +188,11 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
     L = [f"# {title}", ""]
     if intro:
         L += [intro, ""]
-    L += (_md_named(rep) + _md_corrections(rep) + _md_gaps(rep) + _md_where(rep) + _md_candidates(rep)
+    L += (_md_evidence(rep, figs) + _md_named(rep) + _md_corrections(rep) + _md_gaps(rep) + _md_where(rep) + _md_candidates(rep)
           + _md_worst(rep) + _md_sampling(rep))
     for f in figs:
-        L += [f"![{f}]({f})", ""]
+        if f != EVIDENCE_FIG:  # shown in its section
+            L += [f"![{f}]({f})", ""]
     t = rep["timings"]
     per = t.get("physics_steps_per_stage", {})
     L += ["## Timings", "", f"total {t['total_s']:.1f} s; naming {t['naming_s']:.1f} s; "
@@ -188,6 +205,85 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
     L += [f"The patched model is `model.xml` ({patched_contents(rep)}). "
           + _md_runtime(outcome) + "`report.json` holds every number of this page.", ""]
     return "\n".join(L)
+
+
+def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
+    """The first section: the torque the corrected nominal lacks (maps, noise band), the
+    library's laws fitted to it by equation error, what the verdict's named law explains of
+    it; one line when it could not be computed."""
+    ev = rep.get("evidence")
+    if ev is None:
+        return []
+    L = ["## Where the model lacks torque", ""]
+    if not ev["available"]:
+        return L + [f"Not available for this model: {ev['reason']}.", ""]
+    under = "the nominal with its refitted corrections" if rep.get("corrections") else "the nominal"
+    est = ev["estimator"]
+    drive = ev["by_drive"]
+    along = "; ".join(f"{_fmt(d['median_along_motion_mnm'], 3)} mN*m {label}"
+                      for key, label in (("driving", "where the drive drives the load"),
+                                         ("back_driven", "where it is back-driven or at rest"))
+                      if (d := drive[key])["n"])
+    L += [f"The torque the model ({under}) lacks along the runs, by inverse dynamics on the log "
+          f"smoothed to {_fmt(est['bandwidth_hz'])} Hz (a Hann window of half-width "
+          f"{_fmt(est['half_window_s'] * 1e3)} ms): tau_miss = qfrc_inverse - qfrc_actuator, less the "
+          "model's own friction; > 0 means the robot needed more torque in +q than the model gives. "
+          f"Noise band (3 sigma of the estimator's noise): median {_fmt(ev['band_median_mnm'])} mN*m. "
+          f"Median along the motion (tau_miss sign(qd)): {along}.", ""]
+    if EVIDENCE_FIG in figs:
+        L += [f"![{EVIDENCE_FIG}]({EVIDENCE_FIG})", ""]
+    L += ["| candidate | explains (% of the missing torque) | fitted values | where it disagrees |",
+          "|---|---|---|---|"]
+    for f in ev["ranking"]:
+        L.append(f"| {f['name']} | {100 * f['explained']:.1f} % | {_md_values(f)} | {_md_disagrees(f)} |")
+    L.append("")
+    if ev["needs_replay"]:
+        L += ["Not judged here (their torque depends on state the logged angle does not fix; only a "
+              "replay can judge them): " + ", ".join(f["name"] for f in ev["needs_replay"]) + ".", ""]
+    L += ["*This ranking is by equation error: each law fitted to the missing torque at the logged "
+          "states, no replays. The closed-loop verdict below (held-out replays) is what names the "
+          "effect.*", ""]
+    named = [e["name"] for e in rep["effects"] if e["name"] != "none"]
+    fits = {f["name"]: f for f in ev["ranking"]}
+    replay = {f["name"]: f["reason"] for f in ev["needs_replay"]}
+    for name in named:
+        if name in fits:
+            L += [f"The verdict names **{name}**: its law explains {100 * fits[name]['explained']:.1f} % of "
+                  f"the missing torque here ({_md_values(fits[name])}); it disagrees: "
+                  f"{_md_disagrees(fits[name], 3, table=False)}.", ""]
+        elif name in replay:
+            L += [f"The verdict names **{name}**, which equation error cannot judge ({replay[name]}).", ""]
+        else:
+            L += [f"The verdict names **{name}**, which is not among the {len(fits)} best laws here "
+                  "(report.json's `evidence` lists them).", ""]
+    if ev["unexplained"]:
+        best = (f" (best {ev['best']}: {100 * ev['best_explained']:.1f} %)" if ev["best"] else "")
+        L += [f"**Unexplained, and here is its shape:** no library law explains "
+              f"{EXPLAINED_ENOUGH:.0%} of the missing torque{best}; the maps above show how large it "
+              "is and where (against velocity, drive torque, position, time).", ""]
+    return L
+
+
+def _md_values(f: dict) -> str:
+    """A candidate's fitted values with units and the model's own values; a value on its
+    parameter's bound is marked (the law wanted more than its range allows)."""
+    def unit(p):
+        return "" if f["units"][p] in ("", "-") else " " + f["units"][p]
+    return ", ".join(f"{p} = {_fmt(v, 4)}{unit(p)} (model {_fmt(f['nominal'][p], 4)}"
+                     + ("; at its bound" if p in f.get("at_bound", ()) else "") + ")"
+                     for p, v in f["parameters"].items())
+
+
+def _md_disagrees(f: dict, most: int = 2, table: bool = True) -> str:
+    """The ``most`` largest disagreements of a candidate (:func:`discrepancy.shape.disagreements`
+    lines, which start with the bin's mean in mN*m), or that none exceeds the noise; ``|``
+    escaped for a table cell."""
+    lines = sorted(f["disagreements"], key=lambda s: -abs(float(s.split()[0])))
+    if not lines:
+        return "nowhere beyond the noise"
+    more = len(lines) - most
+    text = "; ".join(lines[:most]) + (f" (and {more} smaller)" if more > 0 else "")
+    return text.replace("|", "\\|") if table else text
 
 
 def patched_contents(rep: dict) -> str:

@@ -300,7 +300,7 @@ DISCREPANCY_LAYERS = {
     "runs": ("runs",),  # a run prepared for replay: plain data
     "statistics": ("localise", "fit", "select", "uncertainty"),
     # MuJoCo: the replay, the effect library, the missing torque and its equation-error naming
-    "simulation": ("replay", "effects", "smoothing", "torque", "shape"),
+    "simulation": ("replay", "effects", "smoothing", "torque", "shape", "evidence"),
     "workflow": ("workflow",),  # joins statistics and simulation
     "truth": ("truth_models", "servo_truth", "hidden", "experiment_set", "bank"),  # hidden effects, the bank
 }

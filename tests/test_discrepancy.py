@@ -135,6 +135,10 @@ def test_fast_unexplained_gap_is_flagged(tmp_path):
     md = (tmp_path / "report.md").read_text()
     assert "The gap is unexplained" in md
     assert json.loads((tmp_path / "report.json").read_text())["unexplained"] is True
+    # the missing-torque evidence: the Omni's LuGre dcmotor is refused, said in one line, costed
+    assert rep["evidence"]["available"] is False and "activation states" in rep["evidence"]["reason"]
+    assert set(rep["timings"]["evidence"]) == {"wall_s", "compiles", "inverse_calls"}
+    assert md.count("Not available for this model:") == 1
 
 
 # --- command line and bad input ------------------------------------------------------------
