@@ -7,7 +7,7 @@ extra parameters fit nothing real scores within chance of its parent, now a litt
 a little worse.  The rule keeps the simplest variant the held-out data cannot tell from the
 best one.
 
-The rule (:func:`choose_variant`), written down with issue 41 (item 3) before any variant was
+The rule (:func:`choose_variant`), written down with the family, before any variant was
 scored on any data, and not to be tuned on results:
 
 1. ``best`` = the variant with the lowest mean held-out gap over the held-out runs.

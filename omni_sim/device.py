@@ -492,7 +492,8 @@ class Device:
         beta_bar): gear x gain of a ``motor``, gear x K/R of a ``dcmotor`` at rest.
     drive_friction : DriveFriction or None
         Friction laws the engine applies at every control period (the model's ``<custom>``
-        numerics :data:`LOAD_FRICTION`, :data:`FRICTION_ASYMMETRY`).
+        numerics :data:`LOAD_FRICTION`, :data:`FRICTION_ASYMMETRY`, :data:`FRICTION_FAMILY`)
+        and the current limit it moves with the back-EMF (:data:`CURRENT_LIMIT`).
     joint_id : int
         The encoder joint (``yaw`` or the target's hinge).
     target : Target or None

@@ -1,4 +1,4 @@
-"""Issue 41 item 3: the friction family (one law, nested variants), the rule that chooses among
+"""The friction family (one law, nested variants), the rule that chooses among
 the variants, and the current limit whose torque bound moves with the back-EMF.
 
 Truths: closed-form steady sliding of a damped hinge (tau - F(tau, w) - b w = 0, solved here

