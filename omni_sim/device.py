@@ -77,6 +77,29 @@ LOAD_FRICTION_BLEND_RAD_S = 0.05
 #: ``<custom><numeric name="friction_asymmetry" data="a"/>`` [N*m]: the joint's Coulomb level is
 #: ``frictionloss + a`` moving positive, ``frictionloss - a`` moving negative.
 FRICTION_ASYMMETRY = "friction_asymmetry"
+#: ``<custom><numeric name="friction_family" data="k_drive k_back rise_nm omega_s delta"/>``:
+#: the load- and velocity-dependent dry friction of a geared drive, after Hamon, Gautier and
+#: Garrec (2010, "Dynamic identification of robots with a dry friction model depending on load
+#: and velocity", IEEE/RSJ IROS): the Coulomb level ``Fc0 + k |tau|`` (``k_drive`` while the
+#: motor drives the load, ``k_back`` while the load back-drives it, blended as
+#: :data:`LOAD_FRICTION`'s coefficients) plus a Stribeck rise
+#: ``rise_nm exp(-(|w| / omega_s)^delta)`` (``rise_nm`` = Fs - Fc0, the static level's excess).
+#: ``Fc0`` is the joint's own ``frictionloss`` and the law's viscous term ``Fv w`` the joint's
+#: own ``damping`` (both native MJCF, integrated by MuJoCo); the numeric holds the rest.  The
+#: nested variants the discrepancy library fits are in :mod:`discrepancy.effects.family`.
+FRICTION_FAMILY = "friction_family"
+#: ``<custom><numeric name="current_limit" data="torque_limit_nm back_emf_nms_per_rad"/>``: a
+#: servo firmware's current limit ``|i| <= i_max`` on a motor driven by its voltage, whose
+#: back-EMF the model writes as joint damping.  With ``tau_i = kt i_max`` and ``b = kt ke / R``
+#: (the electrical part of the damping) the motor's net torque ``gear * force - b w`` stays in
+#: ``[-tau_i, tau_i]``: the engine sets the actuator's ``forcerange`` to
+#: ``[(b w - tau_i) / gear, (b w + tau_i) / gear]`` at every control period.  With the voltage
+#: clip (``ctrlrange`` +-V_s, ``gear`` = kt / R) the torque the motor can give in the direction
+#: of motion is ``kt min(i_max, (V_s - ke |w|) / R)``, a servo datasheet's stall current and
+#: supply voltage.  ``b = 0``: a fixed torque saturation (``torque_saturation``).  For a
+#: ``dcmotor`` actuator (back-EMF inside its force) MuJoCo 4 has this natively:
+#: ``saturation="0 i_max V_s"`` (``forcerange`` = K i_max, the voltage clamp in ``dynprm[1]``).
+CURRENT_LIMIT = "current_limit"
 
 
 def _numeric(model: mujoco.MjModel, name: str) -> np.ndarray | None:
@@ -140,6 +163,32 @@ def _load_check(v: np.ndarray) -> str | None:
     return None if ok else "must hold two coefficients >= 0 (mu_drive mu_back)"
 
 
+def _family_term(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    # the load-dependent part is load_friction's law (the same blend), the Stribeck rise
+    # rise * exp(-(|w| / omega_s)^delta) is 1 x rise at rest and vanishes for |w| >> omega_s
+    load = _load_term(v[:, :2], w, tau)
+    rise, ws, delta = v[:, 2], v[:, 3], v[:, 4]
+    on = (rise > 0) & (ws > 0)
+    x = np.abs(w) / np.where(on, ws, 1.0)
+    return load + np.where(on, rise * np.exp(-np.power(x, np.where(on, delta, 1.0))), 0.0)
+
+
+def _family_check(v: np.ndarray) -> str | None:
+    ok = (len(v) == 5 and np.all(np.isfinite(v)) and not np.any(v < 0)
+          and (v[2] == 0 or (v[3] > 0 and v[4] > 0)))
+    return None if ok else ("must hold five values >= 0 (k_drive k_back rise_nm omega_s delta), "
+                            "omega_s and delta > 0 when rise_nm > 0")
+
+
+def _limit_check(v: np.ndarray) -> str | None:
+    ok = len(v) == 2 and np.all(np.isfinite(v)) and v[0] > 0 and v[1] >= 0
+    return None if ok else "must hold a torque limit > 0 [N*m] and a back-EMF damping >= 0 [N*m*s/rad]"
+
+
+#: The parameters of :data:`CURRENT_LIMIT`'s numeric, in order.
+CURRENT_LIMIT_PARAMS = ("torque_limit_nm", "back_emf_nms_per_rad")
+
+
 #: The drive laws the engine knows, by name, in the order their terms are added (the Coulomb
 #: level is ``max(0, frictionloss + term_1 + term_2 + ...)``).  A new law is a
 #: :class:`DriveLaw` added here (:func:`register_drive_law`).
@@ -147,6 +196,8 @@ DRIVE_LAWS: dict[str, DriveLaw] = {
     FRICTION_ASYMMETRY: DriveLaw(FRICTION_ASYMMETRY, ("a",), _asymmetry_term, _asymmetry_check),
     LOAD_FRICTION: DriveLaw(LOAD_FRICTION, ("mu_drive", "mu_back"), _load_term, _load_check,
                             needs_torque=True),
+    FRICTION_FAMILY: DriveLaw(FRICTION_FAMILY, ("k_drive", "k_back", "rise_nm", "omega_s", "delta"),
+                              _family_term, _family_check, needs_torque=True),
 }
 
 
@@ -193,6 +244,12 @@ class DriveFriction:
     sensor_adr : int
         ``sensordata`` address of the transmitted-torque sensor, -1 if none.
     gear : float
+    limit : tuple of float or None
+        :data:`CURRENT_LIMIT`'s ``(torque_limit_nm, back_emf_nms_per_rad)`` when the model
+        declares it: the engine then also sets the actuator's ``forcerange`` at every control
+        period (:meth:`_DriveLaws.force_ranges`).
+    act : int
+        The actuator (-1 for a row without laws).
     """
 
     dof: int
@@ -200,6 +257,8 @@ class DriveFriction:
     values: dict
     sensor_adr: int
     gear: float
+    limit: tuple | None = None
+    act: int = -1
 
     @classmethod
     def of(cls, model: mujoco.MjModel, act: int, dof: int, source: str) -> "DriveFriction | None":
@@ -212,7 +271,13 @@ class DriveFriction:
             if why:
                 raise UserError(f"{source}: custom numeric {name!r} {why}, got {v.tolist()}")
             values[name] = tuple(float(x) for x in v)
-        if not values:
+        limit = _numeric(model, CURRENT_LIMIT)
+        if limit is not None:
+            why = _limit_check(limit)
+            if why:
+                raise UserError(f"{source}: custom numeric {CURRENT_LIMIT!r} {why}, got {limit.tolist()}")
+            limit = tuple(float(x) for x in limit)
+        if not values and limit is None:
             return None
         adr = -1
         if any(DRIVE_LAWS[n].needs_torque for n in values):
@@ -226,12 +291,13 @@ class DriveFriction:
                 needs = ", ".join(repr(n) for n in values if DRIVE_LAWS[n].needs_torque)
                 raise UserError(f"{source}: {needs} needs the transmitted torque: add "
                                 f'<sensor><actuatorfrc actuator="{name}"/></sensor>')
-        return cls(dof, float(model.dof_frictionloss[dof]), values, adr, float(model.actuator_gear[act, 0]))
+        return cls(dof, float(model.dof_frictionloss[dof]), values, adr, float(model.actuator_gear[act, 0]),
+                   limit, act)
 
     @classmethod
-    def none(cls, dof: int, base_nm: float) -> "DriveFriction":
+    def none(cls, dof: int, base_nm: float, act: int = -1) -> "DriveFriction":
         """A row without laws (batched with rows that have some): its own level, always."""
-        return cls(dof, float(base_nm), {}, -1, 1.0)
+        return cls(dof, float(base_nm), {}, -1, 1.0, None, act)
 
 
 class _DriveLaws:
@@ -246,6 +312,10 @@ class _DriveLaws:
         self.gear = np.array([f.gear for f in laws])
         self.terms = [(law, np.array([f.values.get(name, (0.0,) * len(law.params)) for f in laws], float))
                       for name, law in DRIVE_LAWS.items() if any(name in f.values for f in laws)]
+        #: rows with a current limit, its values (zeros elsewhere) and the actuator it bounds
+        self.limited = np.array([f.limit is not None for f in laws])
+        self.limit = np.array([f.limit if f.limit is not None else (0.0, 0.0) for f in laws], float)
+        self.act = max(f.act for f in laws)
 
     def levels(self, w: np.ndarray, force: np.ndarray) -> np.ndarray:
         """The Coulomb levels [N*m] of the rows: velocities ``w`` and actuator forces ``force``."""
@@ -254,6 +324,29 @@ class _DriveLaws:
         for law, values in self.terms:
             level = level + law.term(values, w, tau)
         return np.maximum(0.0, level)
+
+    def force_ranges(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:data:`CURRENT_LIMIT`'s actuator force range ``(lower, upper)`` of the rows at joint
+        velocities ``w``: the net motor torque ``gear * force - b w`` within ``+-tau_i``, i.e.
+        ``force`` in ``[(b w - tau_i) / gear, (b w + tau_i) / gear]`` (meaningful for the
+        :attr:`limited` rows only)."""
+        tau_i, b = self.limit[:, 0], self.limit[:, 1]
+        return (b * w - tau_i) / self.gear, (b * w + tau_i) / self.gear
+
+    def write(self, models, w: np.ndarray, force: np.ndarray) -> None:
+        """Write the rows' Coulomb levels (joint ``frictionloss``) and, for the rows with a
+        current limit, their actuator ``forcerange`` (forcelimited on) into ``models`` (one per
+        row): what the engine and the runtime (:mod:`omni_sim.runtime`) do at every control
+        period."""
+        levels = self.levels(w, force)
+        for m, f in zip(models, levels):
+            m.dof_frictionloss[self.dof] = f
+        if self.limited.any():
+            lo, hi = self.force_ranges(w)
+            for m, on, a, b in zip(models, self.limited, lo, hi):
+                if on:
+                    m.actuator_forcelimited[self.act] = 1
+                    m.actuator_forcerange[self.act] = (a, b)
 
 
 @dataclass(frozen=True)
@@ -399,7 +492,8 @@ class Device:
         beta_bar): gear x gain of a ``motor``, gear x K/R of a ``dcmotor`` at rest.
     drive_friction : DriveFriction or None
         Friction laws the engine applies at every control period (the model's ``<custom>``
-        numerics :data:`LOAD_FRICTION`, :data:`FRICTION_ASYMMETRY`).
+        numerics :data:`LOAD_FRICTION`, :data:`FRICTION_ASYMMETRY`, :data:`FRICTION_FAMILY`)
+        and the current limit it moves with the back-EMF (:data:`CURRENT_LIMIT`).
     joint_id : int
         The encoder joint (``yaw`` or the target's hinge).
     target : Target or None
@@ -849,7 +943,8 @@ class Engine:
             # a row without laws (a candidate model without them, batched with ones that have
             # them) keeps its own frictionloss: the null law
             self._laws = _DriveLaws([f if f is not None else
-                                     DriveFriction.none(d.ix.yaw_dof, d.model.dof_frictionloss[d.ix.yaw_dof])
+                                     DriveFriction.none(d.ix.yaw_dof, d.model.dof_frictionloss[d.ix.yaw_dof],
+                                                        d.ix.yaw_act)
                                      for f, d in zip(laws, devices)])
             self._force = np.zeros(self.B)  # each row's actuator force of its last step
             self._law_models = [copy.deepcopy(d.model) for d in devices]
@@ -1030,11 +1125,11 @@ class Engine:
     def _set_friction(self) -> None:
         """Every row's :class:`DriveFriction` level for the coming control period, written into
         the row's own model."""
-        levels = self._laws.levels(self.yaw_velocity(), self._force)
-        dof = self._laws.dof
-        for m, f in zip(self._law_models, levels):  # the one row's model is _law_models[0]
-            m.dof_frictionloss[dof] = f
-        if self._off_models is not None:
+        w = self.yaw_velocity()
+        self._laws.write(self._law_models, w, self._force)  # the one row's model is _law_models[0]
+        if self._off_models is not None:  # the drive off: no force, only the friction level
+            levels = self._laws.levels(w, self._force)
+            dof = self._laws.dof
             for m, f in zip(self._off_models, levels):
                 m.dof_frictionloss[dof] = f
 

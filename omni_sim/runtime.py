@@ -1,7 +1,8 @@
 """The drive laws MuJoCo cannot express, for a user's own ``mujoco.mj_step`` loop.
 
 A model may declare drive friction laws (:data:`omni_sim.device.DRIVE_LAWS`: ``load_friction``,
-``friction_asymmetry``) as ``<custom><numeric>`` data.  MuJoCo ignores custom numerics: stepped
+``friction_asymmetry``, ``friction_family``) and a current limit whose torque bound moves with the
+back-EMF (:data:`omni_sim.device.CURRENT_LIMIT`) as ``<custom><numeric>`` data.  MuJoCo ignores custom numerics: stepped
 with ``mujoco.mj_step`` alone, such a model is the model WITHOUT the law (the joint keeps its
 own ``frictionloss``).  Our engine (:class:`omni_sim.device.Engine`) applies them; this module
 applies them in plain MuJoCo, with the same arithmetic (it calls the engine's law terms,
@@ -23,7 +24,8 @@ steps where ``data.time`` is a whole multiple of the period, so ``data.time`` mu
 at the start of a run, as ``mj_resetData`` leaves it) it sets the joint's
 ``model.dof_frictionloss`` to ``max(0, Fc + terms)`` from the joint velocity ``data.qvel`` and
 the transmitted torque of the LAST physics step (the ``actuatorfrc`` sensor's
-``data.sensordata``, 0 at time 0); at the other steps it does nothing.  So: call it before
+``data.sensordata``, 0 at time 0), and with a current limit the actuator's
+``model.actuator_forcerange`` from the joint velocity; at the other steps it does nothing.  So: call it before
 every ``mj_step`` (not only at the period starts), and call no ``mj_forward`` between steps
 (it would recompute the sensor at the new state, which the engine never reads).  ``Fc`` is the
 joint's ``frictionloss`` when :func:`drive_laws` is called: call it once per model, before
@@ -50,8 +52,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .device import (DRIVE_LAWS, FRICTION_ASYMMETRY, LOAD_FRICTION, DriveFriction, _DriveLaws, _numeric,
-                     substeps_of)
+from .device import (CURRENT_LIMIT, CURRENT_LIMIT_PARAMS, DRIVE_LAWS, FRICTION_ASYMMETRY, FRICTION_FAMILY,
+                     LOAD_FRICTION, DriveFriction, _DriveLaws, _numeric, substeps_of)
 
 #: ``MODULE:FUNCTION`` of the runtime, as the header of an exported model names it.
 RUNTIME = "omni_sim.runtime:drive_laws"
@@ -62,7 +64,7 @@ PERIOD_NUMERIC = "drive_laws_control_period_s"
 TARGET_TEXT = "drive_laws_target"
 #: The laws this package defines (a law a user registers with
 #: :func:`omni_sim.device.register_drive_law` exists only in the process that registers it).
-BUILTIN_LAWS = (FRICTION_ASYMMETRY, LOAD_FRICTION)
+BUILTIN_LAWS = (FRICTION_ASYMMETRY, LOAD_FRICTION, FRICTION_FAMILY, CURRENT_LIMIT)
 
 
 class DriveLawsCallback:
@@ -94,8 +96,7 @@ class DriveLawsCallback:
             return  # within a control period: the level stays as set at its start
         adr = self._friction.sensor_adr
         force = 0.0 if k == 0 or adr < 0 else float(data.sensordata[adr])
-        level = self._levels.levels(np.array([data.qvel[self.dof]]), np.array([force]))
-        model.dof_frictionloss[self.dof] = level[0]
+        self._levels.write([model], np.array([data.qvel[self.dof]]), np.array([force]))
 
 
 def _target(model: mujoco.MjModel) -> tuple[str, str] | None:
@@ -187,7 +188,13 @@ def needed_laws(model) -> dict:
     own ``frictionloss``.)"""
     if isinstance(model, mujoco.MjSpec):
         model = model.copy().compile()
-    return {name: v for name in DRIVE_LAWS if (v := _numeric(model, name)) is not None and np.any(v != 0)}
+    return {name: v for name in (*DRIVE_LAWS, CURRENT_LIMIT)
+            if (v := _numeric(model, name)) is not None and np.any(v != 0)}
+
+
+def _params(name: str) -> tuple:
+    """The parameter names of a law's numeric (a drive law's, or the current limit's)."""
+    return CURRENT_LIMIT_PARAMS if name == CURRENT_LIMIT else DRIVE_LAWS[name].params
 
 
 def runtime_note(model) -> tuple[bool, list[str]]:
@@ -209,7 +216,7 @@ def runtime_note(model) -> tuple[bool, list[str]]:
     laws = needed_laws(model)
     if not laws:
         return False, ["runs in plain MuJoCo, no runtime"]
-    params = "; ".join(f"{name} (" + ", ".join(f"{p}={x:.6g}" for p, x in zip(DRIVE_LAWS[name].params, v))
+    params = "; ".join(f"{name} (" + ", ".join(f"{p}={x:.6g}" for p, x in zip(_params(name), v))
                        + ")" for name, v in laws.items())
     target = _target(model)
     where = f" on joint {target[0]!r} (actuator {target[1]!r})" if target else ""
@@ -219,8 +226,11 @@ def runtime_note(model) -> tuple[bool, list[str]]:
     period = _numeric(model, PERIOD_NUMERIC)
     lines = [f"NEEDS THE RUNTIME: drive law(s) {params}{where}, written as <custom><numeric> data "
              "that MuJoCo ignores.",
-             f"Stepped with mujoco.mj_step alone this file is NOT the named model: the joint keeps "
-             f"a constant friction{fc}."]
+             "Stepped with mujoco.mj_step alone this file is NOT the named model: "
+             + " and ".join(([f"the joint keeps a constant friction{fc}"] if set(laws) - {CURRENT_LIMIT} else [])
+                            + (["the actuator keeps its force range at rest (the current limit's "
+                                "bound does not move with the back-EMF)"] if CURRENT_LIMIT in laws else []))
+             + "."]
     foreign = [name for name in laws if name not in BUILTIN_LAWS]
     if foreign:
         lines.append(", ".join(foreign) + ": a law registered outside omni_sim "

@@ -126,7 +126,7 @@ def test_a_law_a_user_writes(monkeypatch):
                       lambda v: None if len(v) == 1 and v[0] >= 0 else "must hold one c >= 0 [N*m*s/rad]")
     monkeypatch.setattr(dv, "DRIVE_LAWS", dict(dv.DRIVE_LAWS))
     dv.register_drive_law(law)
-    assert list(dv.DRIVE_LAWS) == [dv.FRICTION_ASYMMETRY, dv.LOAD_FRICTION, "speed_friction"]
+    assert list(dv.DRIVE_LAWS) == [dv.FRICTION_ASYMMETRY, dv.LOAD_FRICTION, dv.FRICTION_FAMILY, "speed_friction"]
     with pytest.raises(ValueError, match="exists already"):
         dv.register_drive_law(law)
 

@@ -24,13 +24,17 @@ HINGE = om.Target("hinge", "drive")
 SERVO = om.Target("pivot", "servo")
 
 
-def _hinge(load=None, asym=None):
+def _hinge(load=None, asym=None, family=None, limit=None):
     """A damped hinge under gravity-free motor drive (as tests/test_drive_friction.py's)."""
     custom = ""
     if load is not None:
         custom += f'<numeric name="load_friction" data="{load[0]} {load[1]}"/>'
     if asym is not None:
         custom += f'<numeric name="friction_asymmetry" data="{asym}"/>'
+    if family is not None:
+        custom += f'<numeric name="friction_family" data="{" ".join(map(str, family))}"/>'
+    if limit is not None:
+        custom += f'<numeric name="current_limit" data="{limit[0]} {limit[1]}"/>'
     return mujoco.MjModel.from_xml_string(f"""<mujoco><option timestep="0.001" gravity="0 0 0"/>
     <worldbody><body><joint name="hinge" axis="0 0 1" damping="0.02" frictionloss="0.05"/>
     <inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/></body></worldbody>
@@ -99,7 +103,9 @@ def _copy(model: mujoco.MjModel) -> mujoco.MjModel:
     return copy.deepcopy(model)
 
 
-@pytest.mark.parametrize("laws", [dict(load=(0.25, 0.6), asym=0.01), dict(asym=0.02), dict(load=(0.1, 1.5))])
+@pytest.mark.parametrize("laws", [dict(load=(0.25, 0.6), asym=0.01), dict(asym=0.02), dict(load=(0.1, 1.5)),
+                                  dict(family=(0.2, 0.8, 0.04, 0.3, 1.5)), dict(limit=(0.6, 0.02)),
+                                  dict(family=(0.1, 0.5, 0.03, 0.1, 2.0), limit=(0.8, 0.01))])
 def test_the_runtime_replays_like_the_engine(laws):
     """Two physics steps per period (the level is set at the period's start only): the plain
     loop with the runtime equals the one-row engine bit for bit (the same mj_step arithmetic
@@ -255,3 +261,30 @@ def test_a_control_callback_would_not_be_the_engine():
     finally:
         mujoco.set_mjcb_control(None)
     assert np.max(np.abs(late - want[0])) > 1e-4
+
+
+@pytest.mark.parametrize("name", [e.name for e in fx.STAGED])
+def test_every_staged_effect_is_native_mjcf_or_a_runtime_law(name):
+    """As the library's (above), for the staged effects (the friction family's variants, the
+    current limit) at values where they act: written into the servo pendulum, read back from
+    the MJCF text with the runtime's declarations, plain MuJoCo (with the runtime when the
+    header says so) replays like the engine on the spec (1e-6 rad).  Only the Coulomb-only
+    variant runs without the runtime."""
+    values = {"friction_family_coulomb": [0.05], "friction_family_load": [0.04, 0.2, 0.6],
+              "friction_family_stribeck": [0.04, 0.2, 0.6, 0.03, 0.2, 1.5],
+              "friction_family_viscous": [0.04, 0.2, 0.6, 0.03, 0.2, 1.5, 0.4],
+              "current_limit": [0.8, 0.36]}
+    spec = _servo_spec()
+    e = fx.for_model(fx.get(name), spec, SERVO)
+    patched = fx.apply(spec, [(e, np.array(values[name]))], SERVO)
+    needs = runtime.runtime_note(patched)[0]
+    assert needs == (name != "friction_family_coulomb")
+    xml = runtime.declare(patched, SERVO.joint, SERVO.actuator, 1e-3).to_xml()
+    numerics = {n.name for n in mujoco.MjSpec.from_string(xml).numerics}
+    assert numerics <= set(DRIVE_LAWS) | {runtime.PERIOD_NUMERIC, "current_limit"}
+    t = np.arange(600) * 1e-3
+    runs = [(0.0, np.where(t % 0.3 < 0.15, 0.3, -0.1), 40.0)]
+    want = _engine(patched.compile(), SERVO, runs, 1e-3, batch=False)
+    assert np.max(np.abs(_plain(xml, SERVO, runs, 1e-3, with_runtime=needs) - want)) < 1e-6
+    if needs:  # the law matters on these runs: plain MuJoCo alone is another model
+        assert np.max(np.abs(_plain(xml, SERVO, runs, 1e-3, with_runtime=False) - want)) > 1e-4

@@ -37,6 +37,15 @@ load_friction      ``<custom>`` numeric ``load_friction`` (the  ``mu_drive``, ``
                    engine's law) + ``actuatorfrc`` sensor
 =================  ==========================================  ===================================
 
+Staged (:data:`STAGED`, :mod:`.family`: written, read and tested like the library's, found by
+:func:`get`, not yet among the search's candidates :data:`LIBRARY`/:data:`NAMES`): the nested
+variants of one friction law, ``friction_family_coulomb`` (joint ``frictionloss``),
+``friction_family_load``, ``friction_family_stribeck`` (+ ``<custom>`` numeric
+``friction_family``, the engine's law, and an ``actuatorfrc`` sensor),
+``friction_family_viscous`` (+ joint ``damping``), and ``current_limit`` (``<custom>`` numeric
+``current_limit``, the engine moves the actuator's ``forcerange`` with the back-EMF; the
+bound at rest as ``forcerange``).
+
 (``yaw``/``yaw_motor`` stand for the :class:`Target`'s joint and actuator; added elements are
 named after the joint, with a suffix ``_2``... if the model already uses the name.  Passive
 actuators are appended after every actuator, so controlled ones keep control index = id.)
@@ -63,13 +72,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import actuator, body, drive, friction, joint, two_mass
+from . import actuator, body, drive, family, friction, joint, two_mass
 from .base import OMNI, Effect, Param, Target
 from .body import ARM_BODIES
 from .friction import COGGING_PERIODS
 from .separation import DEFAULT_SEPARATION, SEPARATING_EXPERIMENTS, separating_experiment
 
-__all__ = ["LIBRARY", "NAMES", "Effect", "Param", "Target", "OMNI", "ARM_BODIES", "COGGING_PERIODS",
+__all__ = ["LIBRARY", "NAMES", "STAGED", "Effect", "Param", "Target", "OMNI", "ARM_BODIES", "COGGING_PERIODS",
            "SEPARATING_EXPERIMENTS", "DEFAULT_SEPARATION", "separating_experiment", "applicable", "get",
            "nominal_values", "apply", "compile_with", "ModelBuilder"]
 
@@ -96,6 +105,12 @@ LIBRARY: tuple[Effect, ...] = (
 
 NAMES = tuple(e.name for e in LIBRARY)
 
+#: Effects written and tested like the library's but not yet among the search's candidates
+#: (:mod:`.family`: the friction family's nested variants and the current limit; the search
+#: takes them up with :func:`discrepancy.nesting.choose_variant`, and the bank then needs a
+#: case for each, tests/test_discrepancy_bank.py::test_bank_covers_the_library).
+STAGED: tuple[Effect, ...] = family.STAGED
+
 
 def applicable(spec: mujoco.MjSpec, target: Target = OMNI) -> tuple[str, ...]:
     """Names of the library effects that can be written into ``spec`` for ``target``."""
@@ -103,8 +118,8 @@ def applicable(spec: mujoco.MjSpec, target: Target = OMNI) -> tuple[str, ...]:
 
 
 def get(name: str) -> Effect:
-    """The library effect called ``name`` (KeyError if unknown)."""
-    for e in LIBRARY:
+    """The library (or staged, :data:`STAGED`) effect called ``name`` (KeyError if unknown)."""
+    for e in LIBRARY + STAGED:
         if e.name == name:
             return e
     raise KeyError(name)
