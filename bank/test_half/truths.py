@@ -274,7 +274,7 @@ class Stribeck(Truth):
     equation = "F(w) = [Fc + (Fs - Fc) exp(-|w/ws|^delta)] sign(w) + Fv w; |F| <= Fs at rest"
 
     def defaults(self):
-        return {"Fc": 0.05, "Fs": 0.12, "ws": 0.1, "delta": 2.0, "Fv": 0.03}
+        return {"Fc": 0.05, "Fs": 0.12, "ws": 0.2, "delta": 2.0, "Fv": 0.03}
 
     def level(self, w: float) -> float:
         q = self.params
