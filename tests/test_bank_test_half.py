@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from bank.test_half import make
+from bank.test_half import make, score
 from bank.test_half import truths as tr
 
 PLANT = tr.nominal_plant()
@@ -291,3 +291,47 @@ def test_expectations_use_known_families():
     for name, cls in tr.CASES:
         e = cls(PLANT).expected()
         assert e["family"] in tr.FAMILIES and set(e["accept"]) <= set(tr.FAMILIES), name
+
+
+# --- score.py on the one pre-freeze report (the null case, seed 41, commit db86d6b) ---------
+
+NULL_REPORT = tr.ROOT / "bank" / "test_half" / "null_report.json"
+
+
+def _case(name):
+    return {"name": name, "expected": dict(tr.CASES)[name](PLANT).expected()}
+
+
+def test_score_reads_the_null_report():
+    """The null case's real report names nothing and its ``unexplained`` key is false: every
+    point is earned; its reason text nevertheless says UNEXPLAINED, which the score records."""
+    import json
+    report = json.loads(NULL_REPORT.read_text())
+    row = score.score_case(_case("j_null"), report)
+    assert row["named"] == [] and row["points"] == {"family": True, "no_spurious": True,
+                                                    "direction": True, "unexplained": True}
+    assert row["flag_and_text_disagree"] is True
+    # the same report for a case whose law the library lacks (no end-stop candidate among
+    # its 12 + 4 names): the right answer is a flag with maps, which this report lacks
+    stop = score.score_case(_case("d_end_stop"), report)
+    assert stop["library_can_express"] is False
+    assert stop["points"]["family"] is False and stop["points"]["unexplained"] is False
+
+
+def test_score_directions_of_a_load_friction():
+    """A report naming load_friction with mu_drive < mu_back passes case c's direction and
+    fails case b's; an equal pair passes the user's case."""
+    import json
+    report = json.loads(NULL_REPORT.read_text())
+    report["unexplained"] = False
+    report["effects"] = [{"name": "load_friction", "parameters": {"mu_drive": 0.1, "mu_back": 0.3},
+                          "reason": ""}]
+    c = score.score_case(_case("c_gear_efficiency"), report)
+    b = score.score_case(_case("b_load_quadrant"), report)
+    assert c["points"]["family"] and c["points"]["direction"] is True
+    assert b["points"]["family"] and b["points"]["direction"] is False
+    report["effects"][0]["parameters"] = {"mu_drive": 0.2, "mu_back": 0.21}
+    assert score.score_case(_case("i_users_pendulum"), report)["points"]["direction"] is True
+    report["effects"].append({"name": "backlash", "parameters": {}, "reason": ""})
+    assert score.score_case(_case("c_gear_efficiency"), report)["points"]["no_spurious"] is False
+    assert score.family_of("cogging") == "other"

@@ -570,8 +570,8 @@ class CurrentLimit(Truth):
 
     name = "current_limit"
     title = "firmware current limit 1.0 A (torque bound kt min(i_max, (Vs - ke w)/R))"
-    source = "DC motor speed-torque range with a current limit (Maxon catalogue; Dynamixel X "
-    "current limit register)"
+    source = ("DC motor speed-torque range with a current limit (Maxon catalogue; Dynamixel X "
+              "current limit register)")
     equation = "tau_m = kt clip((u - ke w)/R, -i_max, i_max), |u| <= Vs"
 
     def defaults(self):
