@@ -19,7 +19,9 @@ Acceptance (held-out stopping): the best candidate's held-out gap must fall by a
 measurement noise floor (``noise_factor`` times the noise estimated from the residual's
 sample-to-sample roughness).
 
-The MuJoCo side comes in from the caller: ``builder`` (:class:`~discrepancy.effects.ModelBuilder`:
+The scores share one bundle, held by a :class:`Scorer` (its rounds, pairs, given sets,
+removals and rescoring as methods; :class:`discrepancy.search.Search` holds one).  The MuJoCo
+side comes in from the caller: ``builder`` (:class:`~discrepancy.effects.ModelBuilder`:
 effects by name, their nominal values, compiled models) and ``rep``
 (:class:`~discrepancy.replay.Replayer`: simulates models on runs); this module only
 fits, scores and compares.
