@@ -10,8 +10,10 @@ Modules:
   :class:`~.effects.ModelBuilder` and simulations from a :class:`~.replay.Replayer`):
   :mod:`.runs` (a run prepared for replay), :mod:`.localise` (maps of the gap, and where it
   lives in words), :mod:`.fit` (simulation-error fits), :mod:`.select` (prescreen, held-out
-  scoring, pairs, acceptance), :mod:`.uncertainty` (standard errors and the 95 % interval);
-* :mod:`.workflow`: all of it, step by step;
+  scoring, pairs, acceptance), :mod:`.uncertainty` (standard errors and the 95 % interval),
+  :mod:`.report` (the content of ``report.json``, from what the search found);
+* :mod:`.search` (the search: one :class:`~.search.Search` through all its stages) and
+  :mod:`.workflow` (all of it, step by step: load, prepare, search, report);
 * hidden effects, written independently of the library: :mod:`.truth_models` (the truth
   writers), :mod:`.hidden` (the cases, their data, the pass criteria; used by the demo,
   ``omni bench`` and ``omni sweep``), :mod:`.experiment_set` (the compact experiment set and

@@ -125,12 +125,13 @@ class Evidence:
 
     def to_json(self) -> dict:
         """Plain JSON: the band, summarised maps (binned medians, mN*m), the ranking (the top
-        :data:`TOP` scored candidates, those that need a replay by name) and the cost."""
+        :data:`TOP` scored candidates, those that need a replay by name); its cost (a wall time)
+        is the report's ``timings.evidence``, so that the rest of the report is the same bytes
+        on every run."""
         out = {"available": self.available, "reason": self.reason,
                "equation": "tau_miss = qfrc_inverse - qfrc_actuator - (the model's own friction)",
                "estimator": {"bandwidth_hz": _r(self.bandwidth_hz), "half_window_s": _r(self.half_window_s)},
-               "explained_enough": EXPLAINED_ENOUGH, "cost": {k: _r(v) if isinstance(v, float) else v
-                                                               for k, v in self.cost.items()}}
+               "explained_enough": EXPLAINED_ENOUGH}
         if not self.available:
             return out
         scored = [f for f in self.fits if f.explained is not None]

@@ -142,6 +142,16 @@ class FitResult:
         return out
 
 
+def split_values(effects: list, x) -> list[tuple]:
+    """``[(effect, its values in x), ...]`` of effects whose values are concatenated in ``x``
+    (each a float array of its own)."""
+    out, i = [], 0
+    for e in effects:
+        out.append((e, np.asarray(x[i:i + e.nparam], float)))
+        i += e.nparam
+    return out
+
+
 class Problem:
     """Simulation-error least squares of some effects' parameters on some runs.
 

@@ -19,7 +19,9 @@ Acceptance (held-out stopping): the best candidate's held-out gap must fall by a
 measurement noise floor (``noise_factor`` times the noise estimated from the residual's
 sample-to-sample roughness).
 
-The MuJoCo side comes in from the caller: ``builder`` (:class:`~discrepancy.effects.ModelBuilder`:
+The scores share one bundle, held by a :class:`Scorer` (its rounds, pairs, given sets,
+removals and rescoring as methods; :class:`discrepancy.search.Search` holds one).  The MuJoCo
+side comes in from the caller: ``builder`` (:class:`~discrepancy.effects.ModelBuilder`:
 effects by name, their nominal values, compiled models) and ``rep``
 (:class:`~discrepancy.replay.Replayer`: simulates models on runs); this module only
 fits, scores and compares.
@@ -27,6 +29,8 @@ fits, scores and compares.
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -316,88 +320,6 @@ def _polish_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray]) 
     return out
 
 
-def score_round(builder, accepted: list, accepted_x: np.ndarray,
-                runs: list[ReplayRun], rep, gap_start: float, k: int = 5,
-                n_confirm: int = N_CONFIRM, candidates: tuple[str, ...] | None = None,
-                screen_nfev: int = 4, log=None,
-                n_screen: int | None = None, prescreen_s: float | None = None,
-                bases: list | None = None, scheme: str = "runs") -> list[Scored]:
-    """Fit and score every candidate not yet accepted; best first.
-
-    With ``bases`` (a beam: several sets of effects with their fitted values, e.g. the pairs
-    the pair search confirmed), every candidate is added to every base it is not in, all of
-    them prescreened in one lockstep; the scored sets are named ``"a+b+c"`` (base, then the
-    candidate) and the best set wins, whichever base it grew from.
-
-    Parameters
-    ----------
-    builder : discrepancy.effects.ModelBuilder
-        The nominal model and the library (effects by name, nominal values, compiled models).
-    accepted, accepted_x : list of Effect, ndarray
-        Effects accepted in earlier rounds and their fitted values (free again in this round).
-    runs : list of ReplayRun
-    gap_start : float [rad]
-        Held-out gap of the model the round starts from.
-    k : int
-        Folds (:func:`make_folds`).
-    scheme : str
-        Fold scheme, ``"runs"`` or ``"blocked"`` (:data:`FOLD_SCHEMES`).
-    n_confirm : int
-        Candidates refitted exactly per fold after screening.
-    screen_nfev : int
-        Least-squares evaluations of the screening fit (the confirmed candidates are then
-        fitted to convergence).
-    candidates : tuple of str, optional
-        Library names to try (default: all).
-    n_screen : int
-        Candidates, best on the short records (:func:`prescreen`), that are fitted on all runs
-        and scored on held-out runs (default :data:`N_SCREEN`); the others keep their prescreen.
-    prescreen_s : float [s]
-        Length of the prescreen's short records (default :data:`PRESCREEN_S`).
-    """
-    names = [n for n in (candidates or builder.names) if n not in [e.name for e in accepted]]
-    n_screen = N_SCREEN if n_screen is None else n_screen
-    prescreen_s = PRESCREEN_S if prescreen_s is None else prescreen_s
-    folds = make_folds(runs, k, scheme)
-    jobs = None
-    if bases:
-        jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or builder.names)
-                if n not in [e.name for e in b]]
-    if accepted and not bases:  # the set so far, fitted and scored exactly as every candidate
-        jobs = [(list(accepted), accepted_x, n) for n in names] + [(list(accepted), accepted_x, None)]
-    pre = prescreen(builder, accepted, accepted_x, names, runs, rep,
-                    seconds=prescreen_s, log=log, jobs=jobs)
-    keep = {c.name for c in [c for c in pre if c.name != NULL][:n_screen]} | {NULL}
-    scored: list[Scored] = []
-    for c in pre:
-        if c.name not in keep:
-            # not among the n_screen best on the short records: scored there only
-            scored.append(Scored(c.name, c.effects, FitResult(c.effects, c.x, c.x_start, c.gap), math.inf,
-                                 -math.inf, "prescreen", prescreen_gap=c.gap, unstable=c.unstable))
-            continue
-        t0 = time.perf_counter()
-        prob = Problem(builder, [], c.effects, runs, rep)
-        # a screening fit only ranks the candidates (the best are confirmed with full fits):
-        # the start's Jacobian serves its few steps
-        fit = prob.fit(c.x, None, max_nfev=screen_nfev, chord=True)
-        sc = _screened(c.name, c.effects, prob, fit, folds, gap_start, t0, log,
-                       width=36 if bases else 18)
-        sc.prescreen_gap = c.gap
-        sc.unstable += c.unstable
-        scored.append(sc)
-    null = [sc for sc in scored if sc.name == NULL]
-    if not null:
-        return _confirm_best(scored, n_confirm, builder, runs, rep, folds, gap_start, log)
-    # the set so far is always confirmed, and each share is against its held-out gap: a candidate
-    # must beat the set re-fitted with the same effort, not the set as the last round left it
-    _confirm(builder, null[0], runs, rep, folds, gap_start, log)
-    out = _confirm_best([sc for sc in scored if sc.name != NULL], n_confirm, builder, runs, rep, folds,
-                        gap_start, log)
-    for sc in out + null:
-        sc.share = share_of(sc.heldout_gap, null[0].heldout_gap)
-    return sorted(out + null, key=lambda sc: sc.heldout_gap)
-
-
 #: The candidate of a round that adds no effect: the set accepted so far, fitted and scored like
 #: every candidate, the reference of the round's shares (:func:`score_round`).
 NULL = "(no new effect)"
@@ -575,58 +497,6 @@ def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], 
     return best_x, best_gap
 
 
-def _screened(name: str, effects, prob, fit, folds, gap_start: float, t0: float, log=None,
-              width: int = 18) -> Scored:
-    """Score an all-runs fit on held-out runs with one Gauss-Newton step per fold."""
-    fold_x = _onestep_folds(prob, fit, folds)
-    raw = _heldout(prob, fold_x, folds)
-    g = gap(raw)
-    s = Scored(name, effects, fit, g, share_of(g, gap_start), "one-step", raw, fold_x, folds,
-               time.perf_counter() - t0, unstable=prob.unstable)
-    if log:
-        log(f"  {name:{width}s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
-            f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
-    return s
-
-
-def _confirm_best(scored: list[Scored], n_confirm: int, builder, runs, rep, folds, gap_start: float,
-                  log=None) -> list[Scored]:
-    """Confirm the ``n_confirm`` best screened candidates with exact refits; best first."""
-    scored.sort(key=lambda s: s.heldout_gap)
-    for s in scored[:n_confirm]:
-        _confirm(builder, s, runs, rep, folds, gap_start, log)
-    confirmed = sorted(scored[:n_confirm], key=lambda s: s.heldout_gap)
-    return confirmed + scored[n_confirm:]
-
-
-def _confirm(builder, s: Scored, runs, rep, folds, gap_start: float, log=None,
-             nfev: int | None = None) -> None:
-    """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
-    t0 = time.perf_counter()
-    prob = Problem(builder, [], s.effects, runs, rep)
-    # the screening fit already simulated its end point (same model, runs and effects): the
-    # converging fit starts there without simulating it again
-    prob.seed(s.fit)
-    s.fit = prob.fit(s.fit.x, None, max_nfev=nfev or CONFIRM_NFEV)  # converge the all-runs fit
-    # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
-    # minimum wherever it started; the basin search moves it to the basin's centre
-    s.fit = prob.polish(s.fit)
-    s.fold_x = _onestep_folds(prob, s.fit, folds)
-    if rough(s.effects):
-        # the folds are estimated the same way (so the jackknife sees the estimator's spread)
-        s.fold_x = _polish_folds(prob, folds, s.fold_x)
-    else:
-        s.fold_x = _refit_folds(prob, folds, s.fold_x)
-    s.heldout_raw = _heldout(prob, s.fold_x, folds)
-    s.heldout_gap = gap(s.heldout_raw)
-    s.share = share_of(s.heldout_gap, gap_start)
-    s.method = "refit"
-    s.unstable += prob.unstable
-    s.seconds += time.perf_counter() - t0
-    if log:
-        log(f"  {s.name:18s} refit  held-out gap {s.heldout_gap:.3e} rad (share {s.share:+.2f})")
-
-
 #: Length [s] of the records on which the pairs' starting grids are evaluated (a coarse start
 #: only; 0.7 s, 700 samples of the Omni's 1 kHz log).
 PAIR_GRID_S = 0.7
@@ -643,54 +513,6 @@ def _thin(grid: np.ndarray, m: int) -> np.ndarray:
     if len(grid) <= m:
         return grid
     return grid[np.unique(np.round(np.linspace(0, len(grid) - 1, m)).astype(int))]
-
-
-def score_pairs(builder, runs: list[ReplayRun], rep, gap_start: float,
-                k: int = 5, n_confirm: int = N_CONFIRM, n_fit: int = PAIR_FITS,
-                grid_s: float = PAIR_GRID_S, candidates: tuple[str, ...] | None = None,
-                screen_nfev: int = 8, log=None,
-                grid_points: int = PAIR_GRID_POINTS, scheme: str = "runs") -> list[Scored]:
-    """Fit and score *pairs* of candidates jointly; best first.
-
-    Two effects can mask each other: a loop delay takes damping away, dry friction adds it, so
-    neither alone explains the data (fitted alone, the delay even stays at zero) while together
-    they explain it down to the noise.  One effect at a time, as :func:`score_round` adds them,
-    cannot find such a pair.  Here every pair starts from the best point of the product of the
-    two effects' grids (each thinned to ``grid_points``), all pairs' grid points simulated
-    together on the first ``grid_s`` seconds of each run; the ``n_fit`` best
-    pairs are fitted on all runs and screened on held-out runs like the single candidates, and
-    the best ``n_confirm`` are confirmed with exact per-fold refits.
-    """
-    import itertools
-    names = candidates or builder.names
-    folds = make_folds(runs, k, scheme)
-    grid_runs = [r.first_seconds(grid_s) for r in runs]
-    t0 = time.perf_counter()
-    combos = list(itertools.combinations(names, 2))
-    probs, grids = [], []
-    for a, b in combos:
-        effects = [builder.effect(a), builder.effect(b)]
-        prob = Problem(builder, [], effects, grid_runs, rep)
-        ga = _thin(effects[0].grid(builder.nominal_values(effects[0])), grid_points)
-        gb = _thin(effects[1].grid(builder.nominal_values(effects[1])), grid_points)
-        x0 = np.concatenate([builder.nominal_values(e) for e in effects])
-        grids.append([np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
-                                              effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
-                      for u in ga for v in gb] + [np.clip(x0, prob.lower, prob.upper)])
-        probs.append(prob)
-    starts = [(g, a, b, x) for (a, b), (g, x) in zip(combos, _grid_minima(rep, probs, grids, grid_runs))]
-    starts.sort(key=lambda t: t[0])
-    if log:
-        log(f"  pair grids: {len(starts)} pairs in {time.perf_counter() - t0:.1f} s; best "
-            + ", ".join(f"{a}+{b} ({g:.2e})" for g, a, b, _ in starts[:n_fit]))
-    scored = []
-    for _, a, b, x0 in starts[:n_fit]:
-        t0 = time.perf_counter()
-        effects = [builder.effect(a), builder.effect(b)]
-        prob = Problem(builder, [], effects, runs, rep)
-        fit = prob.fit(x0, None, max_nfev=screen_nfev)
-        scored.append(_screened(f"{a}+{b}", effects, prob, fit, folds, gap_start, t0, log, width=36))
-    return _confirm_best(scored, n_confirm, builder, runs, rep, folds, gap_start, log)
 
 
 def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> list[tuple[str | None, float]]:
@@ -736,58 +558,269 @@ def member_runner_up(best: Scored, scored: list[Scored]) -> list[tuple[str | Non
     return out
 
 
-def score_set(builder, name: str, effects: list, x0: np.ndarray, runs: list[ReplayRun], rep,
-              gap_start: float, folds: list[Fold], log=None) -> Scored:
-    """Fit a given set of effects from ``x0`` on all runs and score it held out like a
-    confirmed candidate (exact per-fold refits on ``folds``): e.g. the nominal's corrections
-    alone, the start every named effect must beat."""
-    t0 = time.perf_counter()
-    prob = Problem(builder, [], effects, runs, rep)
-    fit = prob.fit(np.asarray(x0, float), None, max_nfev=8)
-    sc = _screened(name, effects, prob, fit, folds, gap_start, t0, log, width=18)
-    _confirm(builder, sc, runs, rep, folds, gap_start, log)
-    return sc
+@dataclass
+class Scorer:
+    """Scores sets of effects on held-out samples: what every score of the search shares.
 
+    One round's candidates (:meth:`score_round`: prescreen, screening fits, held-out scoring,
+    confirmation of the best), pairs fitted jointly (:meth:`score_pairs`), a given set
+    (:meth:`score_set`), a set without each of its members (:meth:`score_removals`) and a
+    set's fit on other folds (:meth:`rescore`).
 
-def rescore(builder, s: Scored, runs: list[ReplayRun], rep, folds: list[Fold], gap_start: float) -> Scored:
-    """``s``'s all-runs fit scored held out on other ``folds`` (exact per-fold refits from
-    one-step starts; the all-runs fit is kept): e.g. the named set under the fold scheme the
-    verdict did not use."""
-    prob = Problem(builder, [], s.effects, runs, rep)
-    prob.seed(s.fit)
-    fold_x = _onestep_folds(prob, s.fit, folds)
-    fold_x = (_polish_folds(prob, folds, fold_x) if rough(s.effects)
-              else _refit_folds(prob, folds, fold_x))
-    raw = _heldout(prob, fold_x, folds)
-    g = gap(raw)
-    return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, folds,
-                  unstable=prob.unstable)
+    Attributes
+    ----------
+    builder : discrepancy.effects.ModelBuilder
+        The nominal model and the library (effects by name, nominal values, compiled models).
+    runs : list of ReplayRun
+        The runs the fits use.
+    rep : discrepancy.replay.Replayer
+        Simulates models on runs.
+    folds : list of Fold
+        The held-out folds of ``runs`` (:func:`make_folds`).
+    log : callable, optional
+        ``log(line)``: each candidate's scores as they come.
+    """
 
+    builder: object
+    runs: list
+    rep: object
+    folds: list
+    log: object = None
 
-def score_removals(builder, best: Scored, runs: list[ReplayRun], rep,
-                   gap_start: float, log=None, keep: tuple[str, ...] = ()) -> list[Scored]:
-    """The backward step of floating selection: ``best`` without each of its members, refitted
-    jointly from ``best``'s values and scored like a confirmed candidate (exact per-fold refits
-    on the same folds); best first.
+    def on(self, folds: list[Fold]) -> "Scorer":
+        """This scorer on other ``folds`` (the same runs)."""
+        return dataclasses.replace(self, folds=folds)
 
-    A member whose removal leaves a held-out gap that the full set lowers by less than
-    :data:`MIN_SHARE` removes no clear share of the gap: a stand-in accepted early (a spring
-    fitted with Coulomb friction to part of a backlash's gap) that a later member made
-    redundant.  The caller drops it.  Members named in ``keep`` (the nominal's corrections)
-    are never removed."""
-    folds = best.folds
-    out = []
-    for m in range(len(best.effects)):
-        if best.effects[m].name in keep:
-            continue
-        effects = [e for i, e in enumerate(best.effects) if i != m]
-        x0 = np.concatenate([x for i, (_, x) in enumerate(best.fit.split()) if i != m])
+    def problem(self, effects: list, runs: list[ReplayRun] | None = None) -> Problem:
+        """The least-squares problem of ``effects`` free on ``runs`` (default: all the runs)."""
+        return Problem(self.builder, [], effects, self.runs if runs is None else runs, self.rep)
+
+    # -- one round ---------------------------------------------------------------------------------
+    def score_round(self, accepted: list, accepted_x: np.ndarray, gap_start: float, *,
+                    candidates: tuple[str, ...] | None = None, bases: list | None = None,
+                    n_confirm: int = N_CONFIRM, screen_nfev: int = 4, n_screen: int | None = None,
+                    prescreen_s: float | None = None) -> list[Scored]:
+        """Fit and score every candidate not yet accepted; best first.
+
+        With ``bases`` (a beam: several sets of effects with their fitted values, e.g. the pairs
+        the pair search confirmed), every candidate is added to every base it is not in, all of
+        them prescreened in one lockstep; the scored sets are named ``"a+b+c"`` (base, then the
+        candidate) and the best set wins, whichever base it grew from.
+
+        Parameters
+        ----------
+        accepted, accepted_x : list of Effect, ndarray
+            Effects accepted in earlier rounds and their fitted values (free again in this round).
+        gap_start : float [rad]
+            Held-out gap of the model the round starts from.
+        candidates : tuple of str, optional
+            Library names to try (default: all).
+        n_confirm : int
+            Candidates refitted exactly per fold after screening.
+        screen_nfev : int
+            Least-squares evaluations of the screening fit (the confirmed candidates are then
+            fitted to convergence).
+        n_screen : int
+            Candidates, best on the short records (:func:`prescreen`), that are fitted on all runs
+            and scored on held-out runs (default :data:`N_SCREEN`); the others keep their prescreen.
+        prescreen_s : float [s]
+            Length of the prescreen's short records (default :data:`PRESCREEN_S`).
+        """
+        names = [n for n in (candidates or self.builder.names) if n not in [e.name for e in accepted]]
+        jobs = None
+        if bases:
+            jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or self.builder.names)
+                    if n not in [e.name for e in b]]
+        if accepted and not bases:  # the set so far, fitted and scored exactly as every candidate
+            jobs = [(list(accepted), accepted_x, n) for n in names] + [(list(accepted), accepted_x, None)]
+        pre = prescreen(self.builder, accepted, accepted_x, names, self.runs, self.rep,
+                        seconds=PRESCREEN_S if prescreen_s is None else prescreen_s, log=self.log, jobs=jobs)
+        scored = self._screen_all(pre, gap_start, N_SCREEN if n_screen is None else n_screen,
+                                  screen_nfev=screen_nfev, width=36 if bases else 18)
+        null = [sc for sc in scored if sc.name == NULL]
+        if not null:
+            return self._confirm_best(scored, gap_start, n_confirm)
+        # the set so far is always confirmed, and each share is against its held-out gap: a
+        # candidate must beat the set re-fitted with the same effort, not the set as the last
+        # round left it
+        self._confirm(null[0], gap_start)
+        out = self._confirm_best([sc for sc in scored if sc.name != NULL], gap_start, n_confirm)
+        for sc in out + null:
+            sc.share = share_of(sc.heldout_gap, null[0].heldout_gap)
+        return sorted(out + null, key=lambda sc: sc.heldout_gap)
+
+    def _screen_all(self, pre: list[Prescreened], gap_start: float, n_screen: int, *,
+                    screen_nfev: int, width: int) -> list[Scored]:
+        """The prescreened candidates scored: the ``n_screen`` best (and :data:`NULL`) fitted on
+        all runs and screened on held-out samples, the others with their prescreen only."""
+        keep = {c.name for c in [c for c in pre if c.name != NULL][:n_screen]} | {NULL}
+        scored: list[Scored] = []
+        for c in pre:
+            if c.name not in keep:
+                # not among the n_screen best on the short records: scored there only
+                scored.append(Scored(c.name, c.effects, FitResult(c.effects, c.x, c.x_start, c.gap), math.inf,
+                                     -math.inf, "prescreen", prescreen_gap=c.gap, unstable=c.unstable))
+                continue
+            t0 = time.perf_counter()
+            prob = self.problem(c.effects)
+            # a screening fit only ranks the candidates (the best are confirmed with full fits):
+            # the start's Jacobian serves its few steps
+            fit = prob.fit(c.x, None, max_nfev=screen_nfev, chord=True)
+            sc = self._screened(c.name, c.effects, prob, fit, gap_start, t0, width=width)
+            sc.prescreen_gap = c.gap
+            sc.unstable += c.unstable
+            scored.append(sc)
+        return scored
+
+    # -- screening and confirmation --------------------------------------------------------------
+    def _screened(self, name: str, effects: list, prob: Problem, fit: FitResult, gap_start: float,
+                  t0: float, *, width: int = 18) -> Scored:
+        """Score an all-runs fit on held-out samples with one Gauss-Newton step per fold."""
+        fold_x = _onestep_folds(prob, fit, self.folds)
+        raw = _heldout(prob, fold_x, self.folds)
+        g = gap(raw)
+        s = Scored(name, effects, fit, g, share_of(g, gap_start), "one-step", raw, fold_x, self.folds,
+                   time.perf_counter() - t0, unstable=prob.unstable)
+        if self.log:
+            self.log(f"  {name:{width}s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
+                     f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
+        return s
+
+    def _confirm_best(self, scored: list[Scored], gap_start: float, n_confirm: int) -> list[Scored]:
+        """Confirm the ``n_confirm`` best screened candidates with exact refits; best first."""
+        scored.sort(key=lambda s: s.heldout_gap)
+        for s in scored[:n_confirm]:
+            self._confirm(s, gap_start)
+        confirmed = sorted(scored[:n_confirm], key=lambda s: s.heldout_gap)
+        return confirmed + scored[n_confirm:]
+
+    def _confirm(self, s: Scored, gap_start: float, nfev: int | None = None) -> None:
+        """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
         t0 = time.perf_counter()
-        prob = Problem(builder, [], effects, runs, rep)
-        fit = prob.fit(x0, None, max_nfev=8)
-        sc = _screened("+".join(e.name for e in effects), effects, prob, fit, folds, gap_start, t0, log,
-                       width=36)
-        _confirm(builder, sc, runs, rep, folds, gap_start, log)
-        out.append(sc)
-    out.sort(key=lambda s: s.heldout_gap)
-    return out
+        prob = self.problem(s.effects)
+        # the screening fit already simulated its end point (same model, runs and effects): the
+        # converging fit starts there without simulating it again
+        prob.seed(s.fit)
+        s.fit = prob.fit(s.fit.x, None, max_nfev=nfev or CONFIRM_NFEV)  # converge the all-runs fit
+        # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
+        # minimum wherever it started; the basin search moves it to the basin's centre
+        s.fit = prob.polish(s.fit)
+        s.fold_x = _onestep_folds(prob, s.fit, self.folds)
+        if rough(s.effects):
+            # the folds are estimated the same way (so the jackknife sees the estimator's spread)
+            s.fold_x = _polish_folds(prob, self.folds, s.fold_x)
+        else:
+            s.fold_x = _refit_folds(prob, self.folds, s.fold_x)
+        s.heldout_raw = _heldout(prob, s.fold_x, self.folds)
+        s.heldout_gap = gap(s.heldout_raw)
+        s.share = share_of(s.heldout_gap, gap_start)
+        s.method = "refit"
+        s.unstable += prob.unstable
+        s.seconds += time.perf_counter() - t0
+        if self.log:
+            self.log(f"  {s.name:18s} refit  held-out gap {s.heldout_gap:.3e} rad (share {s.share:+.2f})")
+
+    # -- pairs -----------------------------------------------------------------------------------
+    def score_pairs(self, gap_start: float, *, candidates: tuple[str, ...] | None = None,
+                    n_confirm: int = N_CONFIRM, n_fit: int = PAIR_FITS, grid_s: float = PAIR_GRID_S,
+                    screen_nfev: int = 8, grid_points: int = PAIR_GRID_POINTS) -> list[Scored]:
+        """Fit and score *pairs* of candidates jointly; best first.
+
+        Two effects can mask each other: a loop delay takes damping away, dry friction adds it,
+        so neither alone explains the data (fitted alone, the delay even stays at zero) while
+        together they explain it down to the noise.  One effect at a time, as
+        :meth:`score_round` adds them, cannot find such a pair.  Here every pair starts from the
+        best point of the product of the two effects' grids (each thinned to ``grid_points``),
+        all pairs' grid points simulated together on the first ``grid_s`` seconds of each run;
+        the ``n_fit`` best pairs are fitted on all runs and screened on held-out samples like the
+        single candidates, and the best ``n_confirm`` are confirmed with exact per-fold refits.
+        """
+        starts = self._pair_starts(candidates or self.builder.names, grid_s, grid_points, n_fit)
+        scored = []
+        for _, a, b, x0 in starts[:n_fit]:
+            t0 = time.perf_counter()
+            effects = [self.builder.effect(a), self.builder.effect(b)]
+            prob = self.problem(effects)
+            fit = prob.fit(x0, None, max_nfev=screen_nfev)
+            scored.append(self._screened(f"{a}+{b}", effects, prob, fit, gap_start, t0, width=36))
+        return self._confirm_best(scored, gap_start, n_confirm)
+
+    def _pair_starts(self, names, grid_s: float, grid_points: int, n_fit: int) -> list[tuple]:
+        """Every pair of ``names`` at the best point of its grid on the first ``grid_s`` seconds
+        of each run: ``(gap, a, b, point)``, best first (the ``n_fit`` best logged)."""
+        builder = self.builder
+        grid_runs = [r.first_seconds(grid_s) for r in self.runs]
+        t0 = time.perf_counter()
+        combos = list(itertools.combinations(names, 2))
+        probs, grids = [], []
+        for a, b in combos:
+            effects = [builder.effect(a), builder.effect(b)]
+            prob = self.problem(effects, grid_runs)
+            ga = _thin(effects[0].grid(builder.nominal_values(effects[0])), grid_points)
+            gb = _thin(effects[1].grid(builder.nominal_values(effects[1])), grid_points)
+            x0 = np.concatenate([builder.nominal_values(e) for e in effects])
+            grids.append([np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
+                                                  effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
+                          for u in ga for v in gb] + [np.clip(x0, prob.lower, prob.upper)])
+            probs.append(prob)
+        minima = _grid_minima(self.rep, probs, grids, grid_runs)
+        starts = [(g, a, b, x) for (a, b), (g, x) in zip(combos, minima)]
+        starts.sort(key=lambda t: t[0])
+        if self.log:
+            self.log(f"  pair grids: {len(starts)} pairs in {time.perf_counter() - t0:.1f} s; best "
+                     + ", ".join(f"{a}+{b} ({g:.2e})" for g, a, b, _ in starts[:n_fit]))
+        return starts
+
+    # -- given sets ------------------------------------------------------------------------------
+    def score_set(self, name: str, effects: list, x0: np.ndarray, gap_start: float) -> Scored:
+        """Fit a given set of effects from ``x0`` on all runs and score it held out like a
+        confirmed candidate (exact per-fold refits): e.g. the nominal's corrections alone, the
+        start every named effect must beat."""
+        t0 = time.perf_counter()
+        prob = self.problem(effects)
+        fit = prob.fit(np.asarray(x0, float), None, max_nfev=8)
+        sc = self._screened(name, effects, prob, fit, gap_start, t0, width=18)
+        self._confirm(sc, gap_start)
+        return sc
+
+    def rescore(self, s: Scored, gap_start: float) -> Scored:
+        """``s``'s all-runs fit scored held out on this scorer's folds (exact per-fold refits
+        from one-step starts; the all-runs fit is kept): e.g. the named set under the fold
+        scheme the verdict did not use (:meth:`on`)."""
+        prob = self.problem(s.effects)
+        prob.seed(s.fit)
+        fold_x = _onestep_folds(prob, s.fit, self.folds)
+        fold_x = (_polish_folds(prob, self.folds, fold_x) if rough(s.effects)
+                  else _refit_folds(prob, self.folds, fold_x))
+        raw = _heldout(prob, fold_x, self.folds)
+        g = gap(raw)
+        return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, self.folds,
+                      unstable=prob.unstable)
+
+    def score_removals(self, best: Scored, gap_start: float, keep: tuple[str, ...] = ()) -> list[Scored]:
+        """The backward step of floating selection: ``best`` without each of its members,
+        refitted jointly from ``best``'s values and scored like a confirmed candidate (exact
+        per-fold refits on ``best``'s folds); best first.
+
+        A member whose removal leaves a held-out gap that the full set lowers by less than
+        :data:`MIN_SHARE` removes no clear share of the gap: a stand-in accepted early (a spring
+        fitted with Coulomb friction to part of a backlash's gap) that a later member made
+        redundant.  The caller drops it.  Members named in ``keep`` (the nominal's corrections)
+        are never removed."""
+        scorer = self.on(best.folds)
+        out = []
+        for m in range(len(best.effects)):
+            if best.effects[m].name in keep:
+                continue
+            effects = [e for i, e in enumerate(best.effects) if i != m]
+            x0 = np.concatenate([x for i, (_, x) in enumerate(best.fit.split()) if i != m])
+            t0 = time.perf_counter()
+            prob = scorer.problem(effects)
+            fit = prob.fit(x0, None, max_nfev=8)
+            sc = scorer._screened("+".join(e.name for e in effects), effects, prob, fit, gap_start, t0,
+                                  width=36)
+            scorer._confirm(sc, gap_start)
+            out.append(sc)
+        out.sort(key=lambda s: s.heldout_gap)
+        return out
+

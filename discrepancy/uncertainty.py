@@ -145,7 +145,7 @@ def measurement_effect(s: Scored, runs: list[ReplayRun], rep, builder, encoder_s
     prob = Problem(builder, [], s.effects, runs, rep)
     steps = [encoder_step(r, encoder_step_rad) for r in runs]
     sigma = _measurement_noise(s, runs, steps)
-    synth = _synthetic_records(prob, s, runs, rep, sigma, steps, draws, np.random.default_rng(seed))
+    synth = _synthetic_records(prob, s, (sigma, steps), draws, np.random.default_rng(seed))
     xs = _refit_draws(prob, s, synth, rep, draws, iterations)
     dx = np.array(xs) - s.fit.x
     return (dx.std(axis=0, ddof=1) if draws > 1 else np.zeros(p)), dx.mean(axis=0)
@@ -165,10 +165,13 @@ def _measurement_noise(s: Scored, runs: list[ReplayRun], steps: list[float]) -> 
     return math.sqrt(max(ms - q2, 0.0))
 
 
-def _synthetic_records(prob: Problem, s: Scored, runs: list[ReplayRun], rep, sigma: float,
-                       steps: list[float], draws: int, rng: np.random.Generator) -> list[ReplayRun]:
-    """``draws`` copies of every run as the fitted model, measured through the process
-    (noise ``sigma``, quantisation ``steps``) in its loop, would log them; draw-major."""
+def _synthetic_records(prob: Problem, s: Scored, process: tuple[float, list[float]], draws: int,
+                       rng: np.random.Generator) -> list[ReplayRun]:
+    """``draws`` copies of every run of ``prob`` as the fitted model, measured through the
+    process (``process``: the noise std ``sigma`` [rad] and each run's quantisation ``steps``)
+    in its loop, would log them; draw-major."""
+    runs, rep = prob.runs, prob.rep
+    sigma, steps = process
     nr = len(runs)
     pairs = [(0, j) for _ in range(draws) for j in range(nr)]
     noise = [rng.normal(0.0, sigma, runs[j].steps) for _, j in pairs]  # on the control grid

@@ -22,7 +22,7 @@ Methods:
 
 * ``ours``: :class:`discrepancy.fit.Problem` (closed-loop replay, trust-region fit) from
   the common start, intervals 1.96 x :func:`discrepancy.fit.jacobian_se`;
-  ``ours_workflow``: the interval the workflow reports (:func:`discrepancy.select.score_set`
+  ``ours_workflow``: the interval the workflow reports (:meth:`discrepancy.select.Scorer.score_set`
   + :func:`discrepancy.uncertainty.uncertainty`: jackknife over 5 blocked folds, Jacobian,
   measurement bootstrap, numerical terms);
 * ``sysid_open``: ``mujoco.sysid``'s own pipeline (``ModelSequences``, its residual, its default
@@ -216,7 +216,7 @@ def run_ours(case: Case, rep: Replayer) -> tuple[dict, dict]:
     s0, t0 = rep.steps, time.perf_counter()
     g0 = closed_gap(case, rep, case.nominal)
     folds = sel.make_folds(case.runs, FOLDS, "blocked")
-    sc = sel.score_set(case.builder, "set", case.effects, fit.x, case.runs, rep, g0, folds)
+    sc = sel.Scorer(case.builder, case.runs, rep, folds).score_set("set", case.effects, fit.x, g0)
     # the encoder's step counts only for runs whose metadata says encoder_quantized (the bank's)
     unc = un.uncertainty(case.builder, sc, case.runs, rep, servo_truth.ENCODER_STEP_RAD)
     cover = un.coverage_factor(len(sc.folds))

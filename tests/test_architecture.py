@@ -298,10 +298,10 @@ DISCREPANCY = "discrepancy"
 #: Its layers (module names inside the package; ``effects`` stands for the package and its modules).
 DISCREPANCY_LAYERS = {
     "runs": ("runs",),  # a run prepared for replay: plain data
-    "statistics": ("localise", "fit", "select", "uncertainty", "nesting"),
+    "statistics": ("localise", "fit", "select", "uncertainty", "nesting", "report"),
     # MuJoCo: the replay, the effect library, the missing torque and its equation-error naming
     "simulation": ("replay", "effects", "smoothing", "torque", "shape", "evidence"),
-    "workflow": ("workflow",),  # joins statistics and simulation
+    "workflow": ("workflow", "search"),  # joins statistics and simulation
     "truth": ("truth_models", "servo_truth", "hidden", "experiment_set", "bank"),  # hidden effects, the bank
 }
 #: The layers each layer may import inside the package (the package's ``__init__`` is exempt).

@@ -22,8 +22,9 @@ from discrepancy import select as sel
 from discrepancy.fit import UNSTABLE_PENALTY_RAD, Problem, gap
 from discrepancy.replay import Replayer
 from discrepancy.runs import ReplayRun
-from discrepancy.workflow import (DEFAULT_CORRECTIONS, _bound_flags, correction_names,
-                                           whole_run_folds)
+from discrepancy.report import _bound_flags
+from discrepancy.search import whole_run_folds
+from discrepancy.workflow import DEFAULT_CORRECTIONS, correction_names
 
 PENDULUM = om.Target("pivot", "servo")
 

@@ -239,7 +239,7 @@ def test_the_report_records_whether_the_period_was_given(tmp_path):
     from identification.dataset import Run
     from omni_app import discrepancy_report as rp
     from discrepancy.replay import prepare_runs
-    from discrepancy.workflow import sampling
+    from discrepancy.report import sampling
     from omni_sim.device import Device
 
     t = np.arange(200) * 0.005
