@@ -78,7 +78,7 @@ def assemble_report(builder, runs: list[ReplayRun], findings: Findings, settings
     # "high" confidence needs the gap left at the noise: above it, as if nothing was explained
     left = unexplained if gap_after <= sel.REMAINDER_FACTOR * noise else 1.0
     if not named:
-        effects = [_none_item(selection.entries, gap_before, noise)]
+        effects = [_none_item(selection.entries, gap_before, gap_after, noise)]
         if fixed:
             effects[0]["reason"] += " (after the nominal's corrections, which are reported apart)"
     else:
@@ -139,16 +139,18 @@ def _candidate_row(s: Scored) -> dict:
                            for p, v in zip(e.params, x)}}
 
 
-def _none_item(entries: list[dict], gap_before: float, noise: float) -> dict:
-    """The report's effect ``none``: nothing named, the best candidate and why."""
+def _none_item(entries: list[dict], gap_before: float, gap_left: float, noise: float) -> dict:
+    """The report's effect ``none``: nothing named, the best candidate and why.  ``gap_left``:
+    the held-out gap nothing named explains (after the nominal's corrections, if any), judged
+    against the noise floor as the report's ``unexplained`` flag judges it."""
     first = entries[0] if entries else {"best": None, "share": None, "runner_up": None, "margin": None}
     if gap_before <= 0:
         reason = "the model's replay equals the measured data exactly (gap 0): nothing is missing"
-    elif gap_before >= sel.REMAINDER_FACTOR * noise:
+    elif gap_left > sel.REMAINDER_FACTOR * noise:
         reason = (f"no library candidate removes a clear share of the held-out gap, which stands at "
-                  f"{gap_before / max(noise, 1e-300):.0f} x the noise floor: the gap is UNEXPLAINED (an "
+                  f"{gap_left / max(noise, 1e-300):.1f} x the noise floor: the gap is UNEXPLAINED (an "
                   "effect outside the library, or several), the model is not confirmed")
-    elif gap_before >= sel.NOISE_FACTOR * noise:
+    elif gap_left >= sel.NOISE_FACTOR * noise:
         reason = "no candidate removes a clear share of the held-out gap"
     else:
         reason = "the gap is at the measurement noise floor"

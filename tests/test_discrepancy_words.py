@@ -96,3 +96,21 @@ def test_worst_section_names_the_lag_search_edge(at_edge):
     line = "Residual vs command: best correlation +0.43 at lag +100 ms (at zero lag +0.20)"
     assert line in md
     assert ("at the edge of the search (±100 ms): the true lag may be larger." in md) == at_edge
+
+
+def test_nothing_named_reason_judges_the_gap_left_as_the_flag_does():
+    """With nothing named, the reason judges the held-out gap left after the corrections (not
+    the nominal's gap before them) against the noise floor, by the rule of report.json's
+    ``unexplained`` flag: a null case whose corrections explain a gap of 21x the noise floor
+    down to 1.6x is not called UNEXPLAINED (it was), and the real servo's 17.8x is."""
+    from discrepancy import select as sel
+    from discrepancy.report import _none_item
+
+    noise = 1e-3
+    for left in (0.5, 1.6, 2.5, 2.99, 3.01, 17.8):
+        reason = _none_item([], 21 * noise, left * noise, noise)["reason"]
+        flagged = left * noise > sel.REMAINDER_FACTOR * noise  # report.json's rule for the gap left
+        assert ("UNEXPLAINED" in reason) == flagged, (left, reason)
+        if flagged:
+            assert f"{left:.1f} x the noise floor" in reason
+    assert "noise floor" in _none_item([], 21 * noise, 0.5 * noise, noise)["reason"]
