@@ -53,7 +53,8 @@ import mujoco
 import numpy as np
 
 from .device import (CURRENT_LIMIT, CURRENT_LIMIT_PARAMS, DRIVE_LAWS, FRICTION_ASYMMETRY, FRICTION_FAMILY,
-                     LOAD_FRICTION, DriveFriction, _DriveLaws, _numeric, substeps_of)
+                     LOAD_FRICTION, DriveFriction, substeps_of)
+from .device.laws import _DriveLaws, _numeric
 
 #: ``MODULE:FUNCTION`` of the runtime, as the header of an exported model names it.
 RUNTIME = "omni_sim.runtime:drive_laws"

@@ -2,7 +2,7 @@
 model's own values: the objective of the joint fit (the nominal's corrections +
 ``load_friction``) on the ``load_friction_nominal_off`` case's runs, with the law as the
 library holds it (``blend``: the coefficient passes from mu_back to mu_drive over
-``omni_sim.device.LOAD_FRICTION_BLEND_RAD_S``) and as a switch (``switch``: on the sign of
+``omni_sim.device.laws.LOAD_FRICTION_BLEND_RAD_S``) and as a switch (``switch``: on the sign of
 tau*w, mu_back at rest: the blend speed set to 0, in the engine and in the case's truth alike,
 so the truth's runs change with it).
 
@@ -23,7 +23,7 @@ parameters at those corrections and at the nominal's own values, and where the p
 
 The training gap is :func:`discrepancy.fit.gap` on all runs.  Deterministic (the
 case's seed); a few minutes on 2 cores.  The scan sets the blend speed of
-:mod:`omni_sim.device` and :mod:`discrepancy.servo_truth` for the switch and restores
+:mod:`omni_sim.device.laws` and :mod:`discrepancy.servo_truth` for the switch and restores
 it before it returns.
 """
 
@@ -32,7 +32,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from omni_sim import device
+from omni_sim.device import laws as drive_laws
 from omni_sim import model as om
 from omni_sim.device import Device
 from discrepancy import effects as fx
@@ -51,7 +51,7 @@ SWITCH_SPEED = 0.0
 
 
 def _scan(case, blend: float) -> dict:
-    device.LOAD_FRICTION_BLEND_RAD_S = blend
+    drive_laws.LOAD_FRICTION_BLEND_RAD_S = blend
     servo_truth.BLEND_SPEED_RAD_S = blend
     path, target = hidden.nominal(case)
     runs = hidden.generate(case)
@@ -113,12 +113,12 @@ def record() -> dict:
     """The record: the case, the blend and switch speeds, the starts, and :func:`_scan` per law
     (the switch first, then the blend)."""
     case = hidden.case(CASE)
-    blend = device.LOAD_FRICTION_BLEND_RAD_S
+    blend = drive_laws.LOAD_FRICTION_BLEND_RAD_S
     out = {"case": CASE, "blend_rad_s": blend, "switch_rad_s": SWITCH_SPEED, "ci_point": CI_POINT,
            "far_start": FAR_START}
     try:
         out["switch"] = _scan(case, SWITCH_SPEED)
     finally:
-        device.LOAD_FRICTION_BLEND_RAD_S = servo_truth.BLEND_SPEED_RAD_S = blend
+        drive_laws.LOAD_FRICTION_BLEND_RAD_S = servo_truth.BLEND_SPEED_RAD_S = blend
     out["blend"] = _scan(case, blend)
     return out

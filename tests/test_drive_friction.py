@@ -124,7 +124,9 @@ def test_a_law_a_user_writes(monkeypatch):
 
     law = dv.DriveLaw("speed_friction", ("c",), lambda v, w, tau: v[:, 0] * np.abs(w),
                       lambda v: None if len(v) == 1 and v[0] >= 0 else "must hold one c >= 0 [N*m*s/rad]")
-    monkeypatch.setattr(dv, "DRIVE_LAWS", dict(dv.DRIVE_LAWS))
+    registry = dict(dv.DRIVE_LAWS)  # the registry's room (device.laws) and its name in the package
+    monkeypatch.setattr(dv.laws, "DRIVE_LAWS", registry)
+    monkeypatch.setattr(dv, "DRIVE_LAWS", registry)
     dv.register_drive_law(law)
     assert list(dv.DRIVE_LAWS) == [dv.FRICTION_ASYMMETRY, dv.LOAD_FRICTION, dv.FRICTION_FAMILY, "speed_friction"]
     with pytest.raises(ValueError, match="exists already"):

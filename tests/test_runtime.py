@@ -191,8 +191,9 @@ def test_a_named_effect_model_xml_cannot_hold_is_said_so():
 def test_a_law_only_this_process_knows_is_said_so(monkeypatch):
     """A law registered by user code (register_drive_law) travels as values only."""
     from omni_sim import device as dv
-    monkeypatch.setattr(dv, "DRIVE_LAWS", dict(dv.DRIVE_LAWS))
-    monkeypatch.setattr(runtime, "DRIVE_LAWS", dv.DRIVE_LAWS)
+    registry = dict(dv.DRIVE_LAWS)  # the registry's room (device.laws), its names elsewhere
+    for module in (dv.laws, dv, runtime):
+        monkeypatch.setattr(module, "DRIVE_LAWS", registry)
     dv.register_drive_law(dv.DriveLaw("speed_friction", ("c",), lambda v, w, tau: v[:, 0] * np.abs(w),
                                       lambda v: None))
     spec = _servo_spec()

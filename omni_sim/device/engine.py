@@ -1,0 +1,411 @@
+"""The one closed loop: :class:`Engine` (B devices advanced one control period at a time),
+the paper's clipped P law (:func:`p_law`) closed around the encoder (:func:`run_p_loop`), and
+the loop's timing (:data:`CONTROL_PERIOD_S`, :func:`substeps_of`, :data:`STATE_SPEC`).
+
+Time convention (the whole project): sample ``k`` is at ``t_k = k dt`` with ``dt`` the control
+period; ``y_k`` is the yaw *measured* at ``t_k`` (before the controller acts), the command
+``v_k`` is held (zero-order hold) over ``[t_k, t_k + dt)``, i.e. for ``substeps`` physics steps.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from identification.errors import UserError
+
+from .encoder import encoder_reader
+from .laws import DriveFriction, _DriveLaws
+
+#: The Omni's servo period [s] (1 kHz, models/omni/README.md).
+CONTROL_PERIOD_S = 1e-3
+#: The physics state the engine carries between control periods.
+STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+def p_law(kp, r, y, vmax):
+    """The paper's P controller, clipped to the drive: ``clip(kp (r - y), -vmax, vmax)`` [V]."""
+    return np.clip(kp * (r - y), -vmax, vmax)
+
+
+def substeps_of(model: mujoco.MjModel, control_period_s: float) -> int:
+    """Physics steps per control period (UserError unless it divides exactly)."""
+    n = control_period_s / model.opt.timestep
+    if not (n >= 1 - 1e-9 and abs(n - round(n)) < 1e-9):
+        raise UserError(f"control period {control_period_s} s is not a whole multiple of the "
+                        f"physics timestep {model.opt.timestep} s")
+    return int(round(n))
+
+
+def _pose(gamma_set_deg):
+    """A run's set points as a tuple (None stays None: a device without the Omni's arm)."""
+    return None if gamma_set_deg is None else tuple(gamma_set_deg)
+
+
+#: MuJoCo's warnings of an unstable state (it resets the data when it issues one).
+_INSTABILITY = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
+                mujoco.mjtWarning.mjWARN_BADQPOS)
+
+
+def _instability_warnings(datas) -> int:
+    """How many instability warnings these ``MjData`` have issued so far."""
+    return sum(int(d.warning[w].number) for d in datas for w in _INSTABILITY)
+
+
+def _warns(model: mujoco.MjModel, state: np.ndarray, ctrl: np.ndarray) -> bool:
+    """Whether one control period from ``state`` under ``ctrl`` (substeps x nu) makes MuJoCo
+    reset the data (a fresh ``MjData``; the same steps as the rollout's)."""
+    d = mujoco.MjData(model)
+    mujoco.mj_setState(model, d, state, STATE_SPEC)
+    for u in ctrl:
+        d.ctrl[:] = u
+        mujoco.mj_step(model, d)
+    return _instability_warnings([d]) > 0
+
+
+class Engine:
+    """The closed loop of B virtual devices, advanced one control period at a time.
+
+    Row ``b`` is a run on ``devices[b]`` (devices may wrap different models of one size
+    signature, e.g. the candidates of a parameter fit) started by :meth:`Device.start_state`.
+    Each :meth:`apply` clips the commands to each drive's limit, holds them for one control
+    period (``substeps`` physics steps) and advances every row.  One row is stepped with
+    ``mj_step`` on its own ``MjData``; a batch with :func:`mujoco.rollout` on ``pool``'s
+    threads.  Both give the same trajectory bit for bit (``tests/test_device.py``).
+
+    Parameters
+    ----------
+    devices : list of Device
+    theta0_rad : sequence of float [rad]
+    gamma_set_deg : sequence of (float, float) [deg]
+        One pair per row (None, or an empty tuple, per row for a device without the arm).
+    nthread : int, optional
+        Threads for a batch (default: all cores).
+    pool : mujoco.rollout.Rollout, optional
+        A thread pool of ``nthread`` threads to share between engines (default: the engine
+        makes its own, stopped by :meth:`close`).
+    data : MjData, optional
+        For one row: the ``MjData`` to start and step (e.g. one a viewer shows).
+    """
+
+    def __init__(self, devices: list, theta0_rad, gamma_set_deg,
+                 nthread: int | None = None, pool=None, data: mujoco.MjData | None = None):
+        if not devices:
+            raise ValueError("an engine needs at least one run")
+        d0 = devices[0]
+        if any(d.substeps != d0.substeps or d.nstate != d0.nstate for d in devices):
+            raise ValueError("the devices of one engine need the same substeps and state size")
+        if any(d.ix != d0.ix for d in devices):
+            raise ValueError("the devices of one engine need the same joint and actuator addresses")
+        self.devices = devices
+        self.B = len(devices)
+        self.substeps = d0.substeps
+        self.vmax = np.array([d.voltage_limit for d in devices])
+        self._yaw_act = d0.ix.yaw_act
+        #: the rows' models have the Omni's arm (else :meth:`qpos` gives NaN arm angles)
+        self.has_arm = d0.ix.has_arm
+        self._q = ((d0.ix.yaw_qpos, d0.ix.shoulder_qpos, d0.ix.elbow_qpos) if self.has_arm
+                   else (d0.ix.yaw_qpos,))
+        self._qadr = 1 + np.array(self._q)  # FULLPHYSICS state = [time, qpos, qvel, act, ...]
+        # the drive's friction laws (DriveFriction): each row steps its own copy of its model,
+        # whose frictionloss the engine sets at every control period
+        laws = [d.drive_friction for d in devices]
+        self._laws = None
+        if any(f is not None for f in laws):
+            # a row without laws (a candidate model without them, batched with ones that have
+            # them) keeps its own frictionloss: the null law
+            self._laws = _DriveLaws([f if f is not None else
+                                     DriveFriction.none(d.ix.yaw_dof, d.model.dof_frictionloss[d.ix.yaw_dof],
+                                                        d.ix.yaw_act)
+                                     for f, d in zip(laws, devices)])
+            self._force = np.zeros(self.B)  # each row's actuator force of its last step
+            self._law_models = [copy.deepcopy(d.model) for d in devices]
+        # torque-off periods (run_p_loop's ``enabled``) step each row's off model
+        self._on_models = self._law_models if self._laws else [d.model for d in devices]
+        self._off_models = None  # made at the first torque-off period
+        if self.B == 1:
+            m1 = self._law_models[0] if self._laws else d0.model
+            self._data = d0.start_data(float(theta0_rad[0]), _pose(gamma_set_deg[0]), data)
+            self._m1 = m1
+            self._vmax1 = float(self.vmax[0])
+            self.unstable = np.zeros(1, bool)  # see the batch's below
+            self._own_pool = False
+            self.pool = None
+            return
+        self._data = None
+        self.x = np.empty((self.B, d0.nstate))
+        self._ctrl = np.empty((self.B, self.substeps, d0.model.nu))
+        for b, (dev, th0, gs) in enumerate(zip(devices, theta0_rad, gamma_set_deg)):
+            self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
+        self._models = list(self._on_models)
+        nthread = max(1, nthread or os.cpu_count() or 1)
+        self._own_pool = pool is None
+        # one thread: the calling thread steps the batch (no hand-off to a pool thread at
+        # every control period); same trajectories either way
+        self.pool = rollout.Rollout(nthread=nthread if nthread > 1 else 0) if pool is None else pool
+        self._datas = [mujoco.MjData(d0.model) for _ in range(nthread)]
+        # a row's simulated time advances by one control period per apply; MuJoCo resets an
+        # unstable row's data (time back to 0) and warns without saying which row: a row whose
+        # time fell behind is flagged in ``unstable`` for good (its trajectory is not physics)
+        self._period = np.array([d.model.opt.timestep * self.substeps for d in devices])
+        self.unstable = np.zeros(self.B, bool)
+        self._state = np.empty((self.B, self.substeps, d0.nstate))
+        self._sens = np.empty((self.B, self.substeps, d0.model.nsensordata))
+        self._chunk = max(1, -(-self.B // len(self._datas)))  # one task per thread
+
+    def close(self) -> None:
+        """Stop the engine's own thread pool (if it made one)."""
+        if self._own_pool and self.pool is not None:
+            self.pool.close()
+            self.pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    @property
+    def data(self) -> mujoco.MjData | None:
+        """The ``MjData`` of a one-row engine (None for a batch)."""
+        return self._data
+
+    def qpos(self) -> np.ndarray:
+        """True ``(yaw, shoulder, elbow)`` angles [rad] of every row, shape ``(B, 3)``; yaw is
+        the controlled joint.  Without the Omni's arm (:attr:`has_arm` False) the shoulder and
+        elbow columns are NaN (the shape stays ``(B, 3)``)."""
+        if not self.has_arm:
+            out = np.full((self.B, 3), np.nan)
+            out[:, 0] = self.yaw()
+            return out
+        if self._data is not None:
+            return self._data.qpos[list(self._q)][None, :].copy()
+        return self.x[:, self._qadr].copy()
+
+    def yaw(self) -> np.ndarray:
+        """True yaw angle [rad] of every row, shape ``(B,)``."""
+        if self._data is not None:
+            return np.array([self._data.qpos[self._q[0]]])
+        return self.x[:, self._qadr[0]].copy()
+
+    def yaw_velocity(self) -> np.ndarray:
+        """True yaw velocity [rad/s] of every row, shape ``(B,)``."""
+        dof = self.devices[0].ix.yaw_dof
+        if self._data is not None:
+            return np.array([self._data.qvel[dof]])
+        return self.x[:, 1 + self.devices[0].model.nq + dof].copy()
+
+    def time(self) -> np.ndarray:
+        """Simulated time [s] of every row since its start, shape ``(B,)``."""
+        if self._data is not None:
+            return np.array([self._data.time])
+        return self.x[:, 0].copy()
+
+    def reset_rows(self, rows, theta0_rad, gamma_set_deg) -> None:
+        """Start rows ``rows`` again from :meth:`Device.start_state` (the others go on)."""
+        for b, th0, gs in zip(rows, theta0_rad, gamma_set_deg):
+            dev = self.devices[b]
+            self.unstable[b] = False
+            if self._laws:
+                self._force[b] = 0.0
+            if self._data is not None:
+                dev.start_data(float(th0), _pose(gs), self._data)
+            else:
+                self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
+
+    def _off(self) -> list:
+        if self._off_models is None:
+            self._off_models = [copy.deepcopy(d.off_model()) if self._laws else d.off_model()
+                                for d in self.devices]
+        return self._off_models
+
+    def apply(self, v, on=None) -> np.ndarray:
+        """Hold the commands ``v`` [V] (one per row, clipped to each drive) for one control
+        period and advance the physics; returns the applied (clipped) commands.  ``on`` (B
+        bools, default all True): rows switched off step with the drive off
+        (:meth:`Device.off_model`; their command is 0)."""
+        if self._data is not None:  # one row: plain floats and mj_step (the env's hot path)
+            vk = float(v[0]) if np.ndim(v) else float(v)
+            vk = min(max(vk, -self._vmax1), self._vmax1)
+            m, d = self._m1, self._data
+            if on is not None and not bool(np.ravel(on)[0]):
+                m, vk = self._off()[0], 0.0
+            if self._laws:
+                self._set_friction()
+            d.ctrl[self._yaw_act] = vk
+            warned = _instability_warnings([d])
+            for _ in range(self.substeps):
+                mujoco.mj_step(m, d)
+            if _instability_warnings([d]) > warned:
+                self.unstable[0] = True
+            if self._laws and self._laws.sensor[0] >= 0:
+                self._force[0] = d.sensordata[self._laws.sensor[0]]
+            return np.array([vk])
+        v = np.clip(np.asarray(v, dtype=float).reshape(self.B), -self.vmax, self.vmax)
+        if on is not None:
+            v = np.where(on, v, 0.0)
+        self._advance(v, on)
+        return v
+
+    def apply_per_step(self, v) -> np.ndarray:
+        """As :meth:`apply` for a batch, with a command for every physics step of the control
+        period: ``v`` (B, substeps) [V], clipped to each drive.  Returns the yaw velocity
+        [rad/s] after each physics step, shape (B, substeps) (e.g. to integrate the power of
+        a force held over each step)."""
+        if self._data is not None:
+            raise ValueError("apply_per_step steps a batch engine (two rows or more)")
+        v = np.asarray(v, dtype=float).reshape(self.B, self.substeps)
+        self._advance(np.clip(v, -self.vmax[:, None], self.vmax[:, None]))
+        d0 = self.devices[0]
+        return self._state[:, :, 1 + d0.model.nq + d0.ix.yaw_dof].copy()
+
+    def _advance(self, v: np.ndarray, on=None) -> None:
+        """A batch's :meth:`apply` after the clip: ``v`` (B,) or (B, substeps) already within
+        each drive's limit (one command for the period, or one per physics step); ``on``: see
+        :meth:`apply`."""
+        self._ctrl[:, :, self._yaw_act] = v[:, None] if v.ndim == 1 else v
+        if on is not None or self._off_models is not None:
+            off = self._off()
+            self._models = [mo if (on is None or on[b]) else off[b] for b, mo in enumerate(self._on_models)]
+        if self._laws:
+            self._set_friction()
+        x_before = self.x
+        first = x_before[:, 0] < 0.5 * self._period
+        warnings = []
+        if first.any():  # count MuJoCo's warnings of this period (the handler chains to the caller's)
+            prev = mujoco.get_mju_user_warning()
+            mujoco.set_mju_user_warning(lambda msg: (warnings.append(msg), prev and prev(msg)))
+        try:
+            self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
+                              skip_checks=True, state=self._state, sensordata=self._sens,
+                              chunk_size=self._chunk)
+        finally:
+            if first.any():
+                mujoco.set_mju_user_warning(prev)
+        self.x = self._state[:, -1, :].copy()
+        self.unstable |= self.x[:, 0] < x_before[:, 0] + 0.5 * self._period
+        if warnings:
+            # a reset at a row's very first physics step leaves its time as expected: the rows
+            # in their first period are stepped again one by one, each on its own MjData, to see
+            # which of them warned
+            self.unstable[first] |= [_warns(self._models[b], x_before[b], self._ctrl[b])
+                                     for b in np.flatnonzero(first)]
+        if self._laws and np.any(self._laws.sensor >= 0):
+            adr = self._laws.sensor
+            self._force = np.where(adr >= 0, self._sens[np.arange(self.B), -1, np.maximum(adr, 0)], 0.0)
+
+    def _set_friction(self) -> None:
+        """Every row's :class:`DriveFriction` level for the coming control period, written into
+        the row's own model."""
+        w = self.yaw_velocity()
+        self._laws.write(self._law_models, w, self._force)  # the one row's model is _law_models[0]
+        if self._off_models is not None:  # the drive off: no force, only the friction level
+            levels = self._laws.levels(w, self._force)
+            dof = self._laws.dof
+            for m, f in zip(self._off_models, levels):
+                m.dof_frictionloss[dof] = f
+
+
+def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,
+               quantum_rad=0.0, record_arm: bool = False, command_limit=None,
+               enabled: np.ndarray | None = None) -> dict:
+    """The paper's experiment: the clipped P law closed around the encoder, for every row.
+
+    Parameters
+    ----------
+    engine : Engine
+        B rows at their start states.
+    r : ndarray, shape (B, n) [rad]
+        References, one sample per control period.
+    kp : float or ndarray (B,) [V/rad]
+    noise : ndarray, shape (B, n), optional [rad]
+        Measurement noise of each sample (:meth:`Encoder.noise`).
+    quantum_rad : float or ndarray (B,) [rad]
+        Encoder rounding step (0: none).
+    record_arm : bool
+        Also return the true shoulder/elbow angles (NaN without the Omni's arm).
+    command_limit : float or ndarray (B,), optional [V]
+        The P law's own saturation (a run's metadata ``command_limit``); default: each drive's
+        limit (``ctrlrange``).  The drive still clips what it receives to its ``ctrlrange``, so
+        the applied command is clipped at the smaller of the two.
+    enabled : ndarray of bool, shape (B, n), optional
+        Whether the actuator is on at each period: while False the command is 0 and the drive
+        exerts no force (torque off, :meth:`Device.off_model`: the joint swings free).
+        Default: always on.
+
+    Returns
+    -------
+    dict
+        ``theta`` (measured, what the controller saw) and ``v`` (applied) of shape ``(B, n)``;
+        ``unstable`` (B,) bool: rows MuJoCo found unstable and reset (:attr:`Engine.unstable`;
+        their trajectories are not physics); with ``record_arm`` also ``q1``, ``q2`` [rad].
+    """
+    B, n = r.shape
+    kp = np.broadcast_to(np.asarray(kp, dtype=float), (B,))
+    exact = noise is None and not np.any(np.asarray(quantum_rad) > 0)
+    theta = np.empty((B, n))
+    v = np.empty((B, n))
+    if record_arm:
+        q1 = np.empty((B, n))
+        q2 = np.empty((B, n))
+    vmax = engine.vmax
+    if command_limit is not None:
+        vmax = np.minimum(vmax, np.broadcast_to(np.asarray(command_limit, dtype=float), (B,)))
+    on = None if enabled is None else np.broadcast_to(np.asarray(enabled, dtype=bool), (B, n))
+    if engine.data is None:  # a batch: the same steps as below, without the per-call overheads
+        _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v,
+                      (q1, q2) if record_arm else None, vmax, on)
+    else:
+        _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v,
+                        (q1, q2) if record_arm else None, vmax, on)
+    if not np.all(np.isfinite(theta[~engine.unstable])):
+        raise RuntimeError("simulation diverged (non-finite yaw angle)")
+    out = {"theta": theta, "v": v, "unstable": engine.unstable.copy()}
+    if record_arm:
+        out.update(q1=q1, q2=q2)
+    return out
+
+
+def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm, vmax, on) -> None:
+    n = r.shape[1]
+    read = encoder_reader(quantum_rad)
+    for k in range(n):
+        if arm is not None:
+            q = engine.qpos()
+            th, arm[0][:, k], arm[1][:, k] = q[:, 0], q[:, 1], q[:, 2]
+        else:
+            th = engine.yaw()
+        y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
+        theta[:, k] = y
+        v[:, k] = engine.apply(p_law(kp, r[:, k], y, vmax), None if on is None else on[:, k])
+
+
+def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm, vmax, on) -> None:
+    """:func:`run_p_loop` on a batch engine: the same encoder and P law, reading the state and
+    advancing the batch directly (no per-period copies; :meth:`Engine.apply`'s second clip
+    would leave the clipped command as it is)."""
+    n = r.shape[1]
+    qa = engine._qadr
+    if arm is not None and not engine.has_arm:
+        arm[0][:] = np.nan
+        arm[1][:] = np.nan
+        arm = None
+    exact = noise is None and not np.any(np.asarray(quantum_rad) > 0)
+    read = encoder_reader(quantum_rad)
+    for k in range(n):
+        x = engine.x
+        th = x[:, qa[0]]
+        if arm is not None:
+            arm[0][:, k] = x[:, qa[1]]
+            arm[1][:, k] = x[:, qa[2]]
+        y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
+        theta[:, k] = y
+        u = p_law(kp, r[:, k], y, vmax)
+        if on is not None:
+            u = np.where(on[:, k], u, 0.0)
+        v[:, k] = u
+        engine._advance(u, None if on is None else on[:, k])
