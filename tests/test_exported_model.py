@@ -6,6 +6,7 @@ it to 1e-6 rad, on the geared-servo pendulum with a hidden law the engine applie
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -21,6 +22,7 @@ from discrepancy.workflow import EXPORTED_NOTE, run_discrepancy
 
 from tests.plain_mujoco import plain_gap, runtime_of
 
+ROOT = Path(__file__).resolve().parents[1]
 SERVO = om.Target("pivot", "servo")
 N = 500  # samples per run (1 ms): short runs, few candidates, so each workflow takes seconds
 
@@ -55,7 +57,7 @@ def _report(tmp_path, runs, candidates):
 def test_exported_model_with_the_runtime_reproduces_its_gap(tmp_path):
     """A hidden load_friction (mu_drive 0.2, mu_back 1.2): named, so model.xml needs the
     runtime.  Its plain replay with the header's runtime gives report.json's
-    ``exported_model.gap_rad`` to 1e-6 rad (measured 5e-12); without the runtime it is the
+    ``exported_model.gap_rad`` to 1e-6 rad (measured 3.6e-12); without the runtime it is the
     nominal (its gap_before, to 1e-6 rad; 0.039 rad against 0.001 with it)."""
     rep, xml = _report(tmp_path, _runs("load_friction", (0.2, 1.2)), ("load_friction",))
     assert [e["name"] for e in rep["effects"]] == ["load_friction"], rep["rounds"]
@@ -69,12 +71,16 @@ def test_exported_model_with_the_runtime_reproduces_its_gap(tmp_path):
     assert abs(bare - rep["gap_before"]) < 1e-6, (bare, rep["gap_before"])
     assert bare - with_rt > 10 * 1e-6, (bare, with_rt)
     assert "model.xml` has a gap of" in (tmp_path / "report.md").read_text()
+    # docs/method/discrepancy.md states these two figures (2 digits)
+    page = " ".join((ROOT / "docs" / "method" / "discrepancy.md").read_text().split())
+    fig = lambda x: f"{x:.1e}".replace("e-0", "e-")  # noqa: E731  (9.8e-4, as the page writes it)
+    assert f"`gap_rad` ({fig(ex['gap_rad'])} rad)" in page and f"the nominal's gap ({fig(bare)} rad)" in page
 
 
 def test_exported_model_without_runtime_reproduces_its_gap(tmp_path):
     """A hidden Coulomb level (0.08 N*m for the nominal's 0.03), named coulomb_friction: native
     MJCF, no runtime; model.xml in plain mj_step gives ``exported_model.gap_rad`` to 1e-6 rad
-    (measured 6e-13)."""
+    (measured 4.3e-13)."""
     runs = _runs("coulomb_friction", (0.08,))
     rep, xml = _report(tmp_path, runs, ("coulomb_friction",))
     assert [e["name"] for e in rep["effects"]] == ["coulomb_friction"], rep["rounds"]
