@@ -183,10 +183,9 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
         evidence = evidence_of(inp.builder, start, inp.fit_runs, inp.candidates, log)
         with clock.stage("naming"):
             selection = search.select(inp.candidates, max_effects)
-        patched = _patched_spec(inp.builder, selection.best)
         with clock.stage("uncertainty_and_evaluation"):
             unc, theta_after = search.estimate(inp.runs, nominal.theta)
-            exported = replay_exported(patched, inp.runs, rep)
+            exported = replay_exported(patched := _patched_spec(inp.builder, selection.best), inp.runs, rep)
         with clock.stage("other_fold_scheme"):
             gaps = search.both_schemes()
         clock.done()
@@ -195,8 +194,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
     settings = _settings(inp, k=k, scheme=folds, max_effects=max_effects)
     report = assemble_report(inp.builder, inp.runs, Findings(nominal, selection, unc, theta_after, gaps),
                              settings, fixed=inp.fixed, actuator_limit=inp.device.voltage_limit)
-    report["exported_model"] = exported
-    report["mujoco_warnings"] = warnings
+    report["exported_model"], report["mujoco_warnings"] = exported, warnings
     report["timings"] = clock.timings(time.perf_counter() - t_start)
     report["timings"]["evidence"], report["evidence"] = evidence.cost, evidence.to_json()
     return Outcome(report, patched, inp.runs, nominal.theta, theta_after, selection.rounds, evidence)
@@ -378,7 +376,7 @@ def replay_exported(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer) -
     """The exported model's own gap: ``spec`` (the patched model ``model.xml`` is written
     from: the accepted effects at their all-runs fit) replayed on every whole run, its gap at
     the logged times as :func:`replay_nominal`'s.  In-sample (each run is among those the
-    fit saw), so it is at most about the held-out ``gap_after``; it is what a replay of
+    fit saw), so usually a little below the held-out ``gap_after``; it is what a replay of
     ``model.xml`` reproduces (in plain MuJoCo with ``runtime`` when that is not None,
     :mod:`omni_sim.runtime`).
 
