@@ -8,7 +8,8 @@
    selection, one round per effect (every candidate screened and scored on held-out samples,
    :mod:`.select`), with the pair search of the first round and the backward step of floating
    selection; the named effects' uncertainty (:mod:`.uncertainty`) and the held-out replay of
-   the patched model; the held-out gaps under the other fold scheme;
+   the patched model; the exported model's own replay, in-sample (:func:`replay_exported`);
+   the held-out gaps under the other fold scheme;
 3. :func:`~discrepancy.report.assemble_report`: the content of ``report.json`` (with the
    localisation of the gap before and after, :mod:`.localise`).
 
@@ -31,6 +32,7 @@ from identification.dataset import Run
 from identification.errors import UserError
 
 from omni_sim import model as om
+from omni_sim import runtime
 from omni_sim.device import Device
 from . import effects as fx
 from . import select as sel
@@ -183,6 +185,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
             selection = search.select(inp.candidates, max_effects)
         with clock.stage("uncertainty_and_evaluation"):
             unc, theta_after = search.estimate(inp.runs, nominal.theta)
+            exported = replay_exported(patched := _patched_spec(inp.builder, selection.best), inp.runs, rep)
         with clock.stage("other_fold_scheme"):
             gaps = search.both_schemes()
         clock.done()
@@ -191,11 +194,10 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
     settings = _settings(inp, k=k, scheme=folds, max_effects=max_effects)
     report = assemble_report(inp.builder, inp.runs, Findings(nominal, selection, unc, theta_after, gaps),
                              settings, fixed=inp.fixed, actuator_limit=inp.device.voltage_limit)
-    report["mujoco_warnings"] = warnings
+    report["exported_model"], report["mujoco_warnings"] = exported, warnings
     report["timings"] = clock.timings(time.perf_counter() - t_start)
     report["timings"]["evidence"], report["evidence"] = evidence.cost, evidence.to_json()
-    return Outcome(report, _patched_spec(inp.builder, selection.best), inp.runs, nominal.theta, theta_after,
-                   selection.rounds, evidence)
+    return Outcome(report, patched, inp.runs, nominal.theta, theta_after, selection.rounds, evidence)
 
 
 class _Stages:
@@ -364,6 +366,30 @@ def replay_nominal(model: mujoco.MjModel, runs: list[ReplayRun], fit_runs: list[
     residuals = [th - r.theta for th, r in zip(theta, runs)]
     fit_gap = gap([res[: r.n] for res, r in zip(residuals, fit_runs)])
     return NominalReplay(theta, gap(residuals), fit_gap, sel.noise_floor(residuals))
+
+
+#: The report's note on the exported model's gap (``report.json``'s ``exported_model``).
+EXPORTED_NOTE = "in-sample: the all-runs fit replayed on every run; the held-out gap_after is the verdict"
+
+
+def replay_exported(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer) -> dict:
+    """The exported model's own gap: ``spec`` (the patched model ``model.xml`` is written
+    from: the accepted effects at their all-runs fit) replayed on every whole run, its gap at
+    the logged times as :func:`replay_nominal`'s.  In-sample (each run is among those the
+    fit saw), so usually a little below the held-out ``gap_after``; it is what a replay of
+    ``model.xml`` reproduces (in plain MuJoCo with ``runtime`` when that is not None,
+    :mod:`omni_sim.runtime`).
+
+    Returns
+    -------
+    dict
+        ``gap_rad`` [rad], ``runtime`` (``"MODULE:FUNCTION"`` or None) and ``note``: the
+        report's ``exported_model``.
+    """
+    theta = rep.simulate([spec.copy().compile()], runs)
+    needs = bool(runtime.needed_laws(spec))
+    return {"gap_rad": gap([th - r.theta for th, r in zip(theta, runs)]),
+            "runtime": runtime.RUNTIME if needs else None, "note": EXPORTED_NOTE}
 
 
 def _settings(inp: _Prepared, *, k: int, scheme: str, max_effects: int) -> dict:

@@ -203,7 +203,7 @@ def markdown(outcome, figs: list[str], title: str = "Model discrepancy report", 
         L += [f"| {k.replace('_', ' ')} | {t.get(k + '_s', 0.0):.1f} | {v:,} |" for k, v in per.items()]
         L.append("")
     L += [f"The patched model is `model.xml` ({patched_contents(rep)}). "
-          + _md_runtime(outcome) + "`report.json` holds every number of this page.", ""]
+          + _md_runtime(outcome) + _md_exported(rep) + "`report.json` holds every number of this page.", ""]
     return "\n".join(L)
 
 
@@ -557,6 +557,18 @@ def _md_runtime(outcome) -> str:
     if lost:
         text += ", ".join(lost) + " is not carried by model.xml (report.json holds its values). "
     return text
+
+
+def _md_exported(rep: dict) -> str:
+    """report.md's sentence on the exported model's own gap (``report.json``'s
+    ``exported_model``; nothing when the report has none)."""
+    ex = rep.get("exported_model")
+    if not ex:
+        return ""
+    how = f"plain MuJoCo with `{ex['runtime']}`" if ex["runtime"] else "plain MuJoCo"
+    return (f"Replayed on every run ({how} reproduces it), `model.xml` has a gap of "
+            f"{_fmt(ex['gap_rad'])} rad: in-sample, the all-runs fit on the runs it was fitted to "
+            f"(the held-out {_fmt(rep['gap_after'])} rad is the verdict). ")
 
 
 def write(outcome, folder: Path, title: str = "Model discrepancy report", intro: str = "") -> None:
