@@ -239,16 +239,22 @@ def simulate_linear(C_linear, beta_tilde_linear, r, dt, kp, theta0=0.0, phi0=0.0
     return _finish(single, theta=theta, phi=phi, v=v, C=Cs, beta_tilde=bs)
 
 
-#: A compiled implementation of :func:`_batch_loop_numpy` (same arguments, the same numbers to
+#: A compiled implementation of :func:`batch_loop_numpy` (same arguments, the same numbers to
 #: a few ulps per step), registered by an application with :func:`set_kernel`; None: the numpy
 #: loop.  This package never imports a compiler itself (numpy/scipy only).
 _KERNEL = None
 
 
+def current_kernel():
+    """The compiled time loop registered with :func:`set_kernel`, or ``None`` (the numpy loop,
+    :func:`batch_loop_numpy`, runs)."""
+    return _KERNEL
+
+
 def set_kernel(kernel):
     """Register ``kernel``, a compiled implementation of the time loop of
     :func:`simulate_alpha_batch` (and so of :func:`simulate_alpha`) with the arguments of
-    :func:`_batch_loop_numpy`, giving the same numbers to a few ulps per step (e.g.
+    :func:`batch_loop_numpy`, giving the same numbers to a few ulps per step (e.g.
     ``omni_studies.alpha_kernel``); ``None`` restores the numpy loop.  Returns the previous one."""
     global _KERNEL
     previous, _KERNEL = _KERNEL, kernel
@@ -377,7 +383,7 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
     not_conv = np.zeros(R, dtype=np.int64)
     bracketed = np.zeros(R, dtype=np.int64)
     alive = np.searchsorted(-lens_s, -np.arange(n), side="left")  # runs with length > k
-    loop = _batch_loop_numpy if _KERNEL is None else _KERNEL
+    loop = batch_loop_numpy if _KERNEL is None else _KERNEL
     loop(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th.copy(), ph.copy(), grp, breaks, c_inv,
          float(b0), float(b1), float(a0), float(a1), float(b_slope), float(b_floor), clamp,
          float(dt), int(max_iter), out_th, out_ph, out_v, out_a, out_C, out_b, out_it, not_conv,
@@ -410,7 +416,7 @@ def _model_constants(model: AlphaModel) -> tuple:
             bool(model.options.get("beta_clamp", False)))
 
 
-def _batch_loop_numpy(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
+def batch_loop_numpy(Rt, RDt, RDDt, alive, kp_, invI_, Cl_, bl_, th, ph, grp, breaks, c_inv,
                       b0, b1, a0, a1, b_slope, b_floor, clamp, dt, max_iter, out_th, out_ph,
                       out_v, out_a, out_C, out_b, out_it, not_conv, bracketed):
     """The time loop of :func:`simulate_alpha_batch` (numpy, vectorised over runs): the

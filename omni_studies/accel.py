@@ -28,7 +28,7 @@ def _first_call(*args):
         warnings.warn(f"numba α loop unavailable ({type(exc).__name__}: {exc}); using the numpy "
                       "loop", RuntimeWarning, stacklevel=2)
         simulate.set_kernel(None)
-        simulate._batch_loop_numpy(*args)
+        simulate.batch_loop_numpy(*args)
         return
     simulate.set_kernel(loop)
 
@@ -38,5 +38,5 @@ def install() -> None:
     :func:`identification.simulate.simulate_alpha_batch`, unless a loop is registered."""
     from identification import simulate
 
-    if simulate._KERNEL is None:
+    if simulate.current_kernel() is None:
         simulate.set_kernel(_first_call)

@@ -4,7 +4,7 @@
 quasilinear iteration (44)–(46) and its bisection fallback, then an exact ZOH step) that numpy
 can only vectorise over runs: ~200 k sequential steps of a few small-array calls each.  This
 module is the same loop, operation for operation, in compiled code: the arguments and the
-numbers (to a few ulps per step, see below) of ``identification.simulate._batch_loop_numpy``,
+numbers (to a few ulps per step, see below) of ``identification.simulate.batch_loop_numpy``,
 which is its reference.  The method layer stays numpy/scipy only: the application registers the kernel
 (:func:`omni_studies.accel.install`), and the numpy loop is used wherever it is not registered or
 numba cannot compile.

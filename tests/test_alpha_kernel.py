@@ -1,5 +1,5 @@
 """The compiled α-simulation loop (omni_studies.alpha_kernel, numba) against the numpy loop
-(identification.simulate._batch_loop_numpy, its reference): the same numbers to the stated
+(identification.simulate.batch_loop_numpy, its reference): the same numbers to the stated
 tolerance of two code paths (test_simulate_fast.ULP_PER_STEP: LLVM's exp against numpy's SIMD
 exp) and the same decisions of the iteration (bisection fallback, batches of ragged runs and
 the paper campaign included), and its registration (omni_studies.accel)."""
@@ -124,14 +124,14 @@ def test_install_registers_lazily_and_falls_back(monkeypatch):
     previous = sim.set_kernel(None)
     try:
         accel.install()
-        assert sim._KERNEL is accel._first_call                      # not loaded yet
+        assert sim.current_kernel() is accel._first_call                      # not loaded yet
         model = paper_alpha_model()
         r = np.sin(np.arange(300) * 0.02) * 0.05
         kw = dict(C_linear=5.0, beta_tilde_linear=200.0)
         a = simulate_alpha(model, 0.005, r, DT, KP, **kw)
-        assert sim._KERNEL is loop                                    # loaded, in its place
+        assert sim.current_kernel() is loop                                   # loaded, in its place
         accel.install()                                               # one is registered
-        assert sim._KERNEL is loop
+        assert sim.current_kernel() is loop
         # numba unavailable: a warning, and the numpy loop (the same numbers, to the tolerance
         # of two code paths)
         sim.set_kernel(None)
@@ -139,7 +139,7 @@ def test_install_registers_lazily_and_falls_back(monkeypatch):
         accel.install()
         with pytest.warns(RuntimeWarning, match="unavailable"):
             b = simulate_alpha(model, 0.005, r, DT, KP, **kw)
-        assert sim._KERNEL is None
+        assert sim.current_kernel() is None
         _assert_paths_agree(a, b)
     finally:
         sim.set_kernel(previous)

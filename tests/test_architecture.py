@@ -196,6 +196,80 @@ def test_no_import_runs_up_a_floor(module):
     assert not bad, f"{module} imports a floor above its own: {bad}"
 
 
+# -- no private name crosses a package ------------------------------------------------------------
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def _dotted(node: ast.AST) -> list[str] | None:
+    """``a.b.c`` as ``["a", "b", "c"]``; None if the chain does not start at a name."""
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    return [node.id] + parts[::-1] if isinstance(node, ast.Name) else None
+
+
+def private_uses(source: str, package: str) -> list[str]:
+    """Uses in ``source`` (a module of ``package``) of a private name of another of our packages:
+    ``from pkg.mod import _x``, an import from or of a private module (``pkg._mod``), and
+    ``alias._x`` (or ``alias.sub._x``) where ``alias`` is bound to another package's module."""
+    others = set(PACKAGES) - {package}
+    bound = {}  # local name -> the other package's dotted name it is bound to
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.split(".")[0] in others:
+                    if any(_private(p) for p in a.name.split(".")):
+                        out.append(f"line {node.lineno}: imports {a.name}")
+                    bound[a.asname or a.name.split(".")[0]] = a.name if a.asname else a.name.split(".")[0]
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            if node.module.split(".")[0] in others:
+                if any(_private(p) for p in node.module.split(".")):
+                    out.append(f"line {node.lineno}: imports from {node.module}")
+                for a in node.names:
+                    if _private(a.name):
+                        out.append(f"line {node.lineno}: imports the private {node.module}.{a.name}")
+                    bound[a.asname or a.name] = f"{node.module}.{a.name}"
+    for node in ast.walk(ast.parse(source)):
+        parts = _dotted(node) if isinstance(node, ast.Attribute) else None
+        if parts and parts[0] in bound and _private(parts[-1]):
+            out.append(f"line {node.lineno}: uses the private {'.'.join([bound[parts[0]]] + parts[1:])}")
+    return out
+
+
+def test_private_use_finder_finds_them():
+    """The finder flags each way of reaching into another package, and nothing public or within
+    the package itself."""
+    bad = ("from identification.simulate import _batch\n"
+           "from identification import simulate as sim, paper\n"
+           "import identification.simulate\n"
+           "from omni_sim._resources import models_dir\n"
+           "sim._KERNEL\n"
+           "paper._table\n"
+           "identification.simulate._loop(1)\n")
+    assert private_uses(bad, "omni_studies") == [
+        "line 1: imports the private identification.simulate._batch",
+        "line 4: imports from omni_sim._resources",
+        "line 5: uses the private identification.simulate._KERNEL",
+        "line 6: uses the private identification.paper._table",
+        "line 7: uses the private identification.simulate._loop"]
+    good = ("from identification import simulate as sim\nfrom omni_studies import _own\n"
+            "from . import _sibling\nsim.current_kernel()\nsim.__name__\n_sibling._x\n")
+    assert private_uses(good, "omni_studies") == []
+    # a package's own private names are its own
+    assert private_uses(bad, "identification") == ["line 4: imports from omni_sim._resources"]
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_no_private_name_crosses_a_package(module):
+    """No module uses a private name (``_x``) of another of the five packages: what one package
+    needs of another is public there."""
+    bad = private_uses(MODULES[module].read_text(), module.split(".")[0])
+    assert not bad, f"{module}: {bad}"
+
+
 # -- the scripts: thin mains ---------------------------------------------------------------------
 SCRIPTS = sorted((ROOT / "scripts").glob("*.py"))
 

@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def dt():
-    from omni_app import docs_tables
+    from tools import docs_tables
     return docs_tables
 
 

@@ -83,7 +83,7 @@ def test_table11_residuals_are_the_log_ratios(evaluation):
 #: target (identification.nonlinear.fit_alpha_model runs in every evaluation).
 ALPHA_CODE = {
     "identification/simulate.py": ("simulate_alpha", "simulate_alpha_batch", "_model_constants",
-                                   "_batch_loop_numpy", "_tolerance", "_bisect_fallback",
+                                   "batch_loop_numpy", "_tolerance", "_bisect_fallback",
                                    "bench_simulation"),
     "identification/validation.py": ("simulate_runs", "_reference_derivatives", "score",
                                      "validate_runs", "write_predictions", "read_params"),

@@ -25,7 +25,8 @@ without a record is reported too (:func:`unchecked_figures`).
     python scripts/docs_tables.py            # check: list what drifted, exit status 1 if any
     python scripts/docs_tables.py --write    # rewrite the generated tables in docs/**/*.md
 
-(``scripts/docs_tables.py`` calls :func:`main`.)  It reads the checkout's files: it runs from one.
+(``scripts/docs_tables.py`` runs this file, which calls :func:`main`.)  It reads the checkout's
+files: it runs from one, and is not installed (``tools/`` is no package of the install).
 
 ``--write`` replaces only the text between the markers; the quoted figures are checked, never
 written (the prose around them is the author's).  ``tests/test_docs_claims.py`` runs the check.
@@ -494,53 +495,56 @@ def tables(src: dict | None = None) -> dict[str, str]:
 
 
 # -- figures quoted in the prose and in the hand-written tables ----------------------------------
-def claims(src: dict | None = None) -> dict[str, list[str]]:
-    """Phrases of the pages that carry a figure from the sources, rendered from them: page
-    (a key of :data:`PAGES`) -> its phrases.  (Long on purpose: a flat list, one entry per
-    quoted figure, read beside the page it checks.)"""
+# One function per page (two for docs/method/friction-families.md): each returns the page's
+# phrases, a flat list, one entry per quoted figure, read beside the page it checks.
+def _values(rec: dict) -> dict:
+    """A calibration record's parameter values by name."""
+    return {k: p["value"] for k, p in rec["parameters"].items()}
+
+
+def _lugre_values(cal: dict) -> tuple[dict, float, float]:
+    """A calibration record's parameter values by name, and its LuGre Fc and Fs (N m)."""
+    v = _values(cal)
+    return v, v["lugre_friction"], v["lugre_friction"] * v["stribeck_ratio"]
+
+
+def _resonance_by_frequency(cal: dict) -> tuple[dict, dict]:
+    """The calibration's resonance detail, and frequency (Hz) -> (α, C_data, β̃_data)."""
+    d = _cal_detail(cal)
+    return d, dict(zip(d["frequency_hz"], zip(d["alpha"], d["C_data"], d["beta_tilde_data"])))
+
+
+def _matched_figures(src: dict) -> dict:
+    """The matched calibration's step figures against the real Omni's (Table 11's linear column),
+    and the spread of Table 3's worst coefficient over the search's close lugre candidates."""
     from omni_studies.calibration import STEP_BAND_REL
 
-    src = src or load_sources()
-    s, comp, bench = src["summary"], src["comparison"], src["bench"]
-    st = s["step"]
-    whole, after = st["windows"]["whole_record"], st["windows"]["after_edges"]
-    p11 = st["paper_table11"]
-    errs = [r["rel_error"] for r in s["inertia"]["poses"]]
-    cal, cc = src["cal"], src["cal_coulomb"]
-    v = {k: p["value"] for k, p in cal["parameters"].items()}
-    vc = {k: p["value"] for k, p in cc["parameters"].items()}
-    hs, wt = src["cal_hard_stick"]["achieved"], src["cal_weighted"]["achieved"]
-    af = src["cal_coulomb_all_free"]
-    afa = af["achieved"]
-    afv = {k: p["value"] for k, p in af["parameters"].items()}
-    fc, fs = v["lugre_friction"], v["lugre_friction"] * v["stribeck_ratio"]
-    d = _cal_detail(cal)
-    fd = dict(zip(d["frequency_hz"], zip(d["alpha"], d["C_data"], d["beta_tilde_data"])))
-    lug, cou = comp["families"]["lugre"], comp["families"]["coulomb"]
-    mat = comp["families"]["matched"]
+    lug = src["comparison"]["families"]["lugre"]
     mst = src["matched_summary"]["step"]
     cm = src["cal_matched"]["achieved"]
     paper_med = lug["step_linear_vs_table11"]["paper_median_over_poses_rad"]
     close = [max(abs(r["figures"]["table3_C_worst_rel"]), abs(r["figures"]["table3_beta_tilde_worst_rel"]))
              for r in src["search"]["candidates"] if r.get("ok") and r["family"] == "lugre"
              and abs(r["figures"]["step_median_rad"] / paper_med - 1) <= CLOSE_STEP_REL]
-    mt = {"paper_step_rad": paper_med, "step_mrad": 1e3 * cm["step_median_rad"],
-          "step_p90_rad": cm["step_p90_median_rad"], "poses": cm["poses_within_40pct"],
-          "C": 100 * cm["table3_C_worst_rel"], "beta": 100 * cm["table3_beta_tilde_worst_rel"],
-          "angle": cm["angle_worst_deg"], "n_close": len(close), "close_lo": 100 * min(close),
-          "close_hi": 100 * max(close), "n_poses": mst["n_poses"], "band": 100 * STEP_BAND_REL,
-          "ratio": paper_med / lug["step_linear_vs_table11"]["median_over_poses_rad"]}
+    return {"paper_step_rad": paper_med, "step_mrad": 1e3 * cm["step_median_rad"],
+            "step_p90_rad": cm["step_p90_median_rad"], "poses": cm["poses_within_40pct"],
+            "C": 100 * cm["table3_C_worst_rel"], "beta": 100 * cm["table3_beta_tilde_worst_rel"],
+            "angle": cm["angle_worst_deg"], "n_close": len(close), "close_lo": 100 * min(close),
+            "close_hi": 100 * max(close), "n_poses": mst["n_poses"], "band": 100 * STEP_BAND_REL,
+            "ratio": paper_med / lug["step_linear_vs_table11"]["median_over_poses_rad"]}
+
+
+def results_claims(src: dict) -> list[str]:
+    """docs/studies/reproduce/results.md's quoted figures (``omni reproduce``)."""
+    s, comp = src["summary"], src["comparison"]
+    st = s["step"]
+    whole, after = st["windows"]["whole_record"], st["windows"]["after_edges"]
+    p11 = st["paper_table11"]
+    errs = [r["rel_error"] for r in s["inertia"]["poses"]]
+    lug, cou = comp["families"]["lugre"], comp["families"]["coulomb"]
+    _, fd = _resonance_by_frequency(src["cal"])
     bt = _beta_tilde_65_90(src["lugre_params"])
-    beta_bar = cal["fixed"]["beta_bar_N_m_per_V"]
-    kp = paper.kp()
-    study = src["study"]["families"]
-    sl = {L["scale"]: L for L in study["lugre"]["levels"]}
-    sc = {L["scale"]: L for L in study["coulomb"]["levels"]}
-    c_ok = [L for L in sc.values() if L["ok"]]
-    l_fail = [L for L in sl.values() if not L["ok"]]
-    n_nonphys = [int(re.search(r"\((\d+) sine run", L["reason"]).group(1)) for L in l_fail]
-    b_vec = bench["vector_env"]
-    out = {"results": [
+    return [
         f"the same fit is off by {_m(100 * min(errs))} to {_s(100 * max(errs))} %",
         f"(the coulomb family's worst error is {_s(100 * cou['inertia']['worst_signed_rel_error'])} %)",
         f"ratio of means {whole['ratio_of_means']:.2f} (the paper's {p11['ratio_of_means']:.2f}, its "
@@ -559,7 +563,15 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
         f"(C_data = {fd[2.0][1]:.0f} 1/s, β̃_data = {fd[2.0][2]:.0f} at 2 Hz, 65/90)",
         f"breakpoints ({', '.join(f'{a:.3g}' for a in lug['alpha_breaks'])} V²/s²)",
         f"cycles or creeps on {100 * s['alpha_simulation']['steps_solved_by_bisection'] / s['alpha_simulation']['steps']:.1f} % of the steps",
-    ], "readme": [
+    ]
+
+
+def readme_claims(src: dict) -> list[str]:
+    """README.md's quoted figures (the calibrated virtual Omni against the paper)."""
+    comp = src["comparison"]
+    lug, mat = comp["families"]["lugre"], comp["families"]["matched"]
+    mt = _matched_figures(src)
+    return [
         f"{mt['ratio']:.1f}× better than the real Omni's (Table 11's linear column: "
         f"{_mrad(lug['step_linear_vs_table11']['median_over_poses_rad'], 2)} against "
         f"{_mrad(mt['paper_step_rad'])} mrad)",
@@ -569,7 +581,19 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
         f"Table 3's C_linear {abs(mt['C']):.1f} % off",
         f"(ratio of medians linear/α {mat['step']['ratio_of_medians_whole_record']:.2f}, the paper's "
         f"{comp['paper']['step']['ratio_of_medians']:.2f})",
-    ], "calibration": [
+    ]
+
+
+def calibration_claims(src: dict) -> list[str]:
+    """docs/studies/calibration/calibration.md's quoted figures (``scripts/calibrate.py``)."""
+    comp, cal = src["comparison"], src["cal"]
+    lug, mat = comp["families"]["lugre"], comp["families"]["matched"]
+    mst = src["matched_summary"]["step"]
+    hs, wt = src["cal_hard_stick"]["achieved"], src["cal_weighted"]["achieved"]
+    v, fc, fs = _lugre_values(cal)
+    d, fd = _resonance_by_frequency(cal)
+    mt = _matched_figures(src)
+    return [
         f"each of the {mt['n_close']} lugre-footed candidates whose step error comes within "
         f"{100 * CLOSE_STEP_REL:.0f} % of the "
         f"real Omni's misses Table 3, its worst coefficient {mt['close_lo']:.1f}–{mt['close_hi']:.1f} % off",
@@ -603,15 +627,45 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
         f"{hs['C_alpha_fall_65_90']:.1f}×",
         f"reaches only a fall of {wt['C_alpha_fall_65_90']:.2f}× and loses Table 3 (C_linear "
         f"{100 * wt['max_rel_error_C_linear']:.0f} %, β̃_linear {100 * wt['max_rel_error_beta_tilde_linear']:.0f} % off",
-    ], "model": [
+    ]
+
+
+def model_claims(src: dict) -> list[str]:
+    """docs/reference/model.md's quoted figures (the calibrated model's parameters)."""
+    v, fc, fs = _lugre_values(src["cal"])
+    return [
         f"Fc {1e3 * fc:.1f} mN m, Fs {1e3 * fs:.1f} mN m, vs {v['stribeck_speed']:.2f} rad/s, σ0 "
         f"{v['lugre_stiffness']:.2f} N m/rad",
         f"| yaw viscous damping | {_sci(v['yaw_damping'])} N m s/rad |",
         f"elastic up to Fs/σ0 ≈ {1e3 * fs / v['lugre_stiffness']:.0f} mrad",
-    ], "errata": [
+    ]
+
+
+def errata_claims(src: dict) -> list[str]:
+    """docs/method/paper-errata.md's quoted figures (the paper's Table 11)."""
+    p11 = src["summary"]["step"]["paper_table11"]
+    return [
         f"the paper's \"{paper.PAPER_STEP_RATIO}×\" is a ratio of means ({p11['ratio_of_means']:.2f}); its "
         f"ratio of medians is {p11['ratio_of_medians']:.2f}",
-    ], "friction": [
+    ]
+
+
+def friction_calibration_claims(src: dict) -> list[str]:
+    """docs/method/friction-families.md's quoted figures of the calibrated families (the first
+    part of the page's phrases; :func:`friction_study_claims` the rest)."""
+    comp = src["comparison"]
+    lug, cou = comp["families"]["lugre"], comp["families"]["coulomb"]
+    mat = comp["families"]["matched"]
+    mst = src["matched_summary"]["step"]
+    paper_med = lug["step_linear_vs_table11"]["paper_median_over_poses_rad"]
+    v, fc, fs = _lugre_values(src["cal"])
+    vc = _values(src["cal_coulomb"])
+    hs = src["cal_hard_stick"]["achieved"]
+    af = src["cal_coulomb_all_free"]
+    afa, afv = af["achieved"], _values(af)
+    beta_bar = src["cal"]["fixed"]["beta_bar_N_m_per_V"]
+    kp = paper.kp()
+    return [
         f"({_mrad(mat['step_linear_vs_table11']['median_over_poses_rad'], 2)} mrad against {_mrad(paper_med)})",
         f"steps linear → α {_mrad(mst['median_abs_error_linear_rad'], 2)} → "
         f"{_mrad(mst['median_abs_error_alpha_rad'], 2)} mrad by the medians (ratio "
@@ -644,6 +698,19 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
         f"{comp['paper']['step']['ratio_of_means']:.2f}, ratio of medians "
         f"{lug['step']['ratio_of_medians_whole_record']:.2f} against its "
         f"{comp['paper']['step']['ratio_of_medians']:.2f})",
+    ]
+
+
+def friction_study_claims(src: dict) -> list[str]:
+    """docs/method/friction-families.md's quoted figures of the friction study's levels
+    (``scripts/friction_study.py``)."""
+    study = src["study"]["families"]
+    sl = {L["scale"]: L for L in study["lugre"]["levels"]}
+    sc = {L["scale"]: L for L in study["coulomb"]["levels"]}
+    c_ok = [L for L in sc.values() if L["ok"]]
+    l_fail = [L for L in sl.values() if not L["ok"]]
+    n_nonphys = [int(re.search(r"\((\d+) sine run", L["reason"]).group(1)) for L in l_fail]
+    return [
         f"tie (step ratio {sc[0.0]['step_ratio_of_medians_whole_record']:.2f} and "
         f"{sl[0.0]['step_ratio_of_medians_whole_record']:.2f}) and the inertia model is within "
         f"{math.ceil(100 * max(sc[0.0]['inertia_max_rel_error'], sl[0.0]['inertia_max_rel_error'])):.0f} % of MuJoCo",
@@ -659,15 +726,42 @@ def claims(src: dict | None = None) -> dict[str, list[str]]:
         f"the inertia bias goes {_m(100 * sl[0.5]['inertia_worst_signed_rel_error'])} %, "
         f"{_m(100 * sl[1.0]['inertia_worst_signed_rel_error'])} %",
         f"({min(n_nonphys)} to {max(n_nonphys)} of 81)",
-    ], "performance": [
+    ]
+
+
+def performance_claims(src: dict) -> list[str]:
+    """docs/reference/performance.md's quoted figures (``omni bench``)."""
+    bench = src["bench"]
+    return [
         f"{bench['reproduce']['ratio_to_raw_rollout']:.1f} ({bench['reproduce']['wall_s']:.2f} s vs "
         f"{bench['reproduce']['raw_rollout_s']:.2f} s, the run in `docs/reference/bench.json`)",
-    ], "gymnasium": [
+    ]
+
+
+def gymnasium_claims(src: dict) -> list[str]:
+    """docs/usage/gymnasium.md's quoted figures (``omni bench``'s vector environment)."""
+    bench = src["bench"]
+    b_vec = bench["vector_env"]
+    return [
         f"{b_vec['num_envs']} Omnis at {b_vec['env_steps_per_s'] / 1e3:.0f} k steps/s against "
         f"{b_vec['rollout_ceiling_steps_per_s'] / 1e3:.0f} k steps/s of a raw `mujoco.rollout` of the "
         f"same model on {bench['cores']} threads ({b_vec['ratio_to_raw_rollout']:.2f}×; `omni bench`, "
         f"`docs/reference/bench.json`)",
-    ]}
+    ]
+
+
+#: The functions that render each page's phrases, by page (a key of :data:`PAGES`), in order.
+CLAIMS = {"results": (results_claims,), "readme": (readme_claims,),
+          "calibration": (calibration_claims,), "model": (model_claims,),
+          "errata": (errata_claims,), "friction": (friction_calibration_claims, friction_study_claims),
+          "performance": (performance_claims,), "gymnasium": (gymnasium_claims,)}
+
+
+def claims(src: dict | None = None) -> dict[str, list[str]]:
+    """Phrases of the pages that carry a figure from the sources, rendered from them: page
+    (a key of :data:`PAGES`) -> its phrases (:data:`CLAIMS`, then :func:`record_claims`)."""
+    src = src or load_sources()
+    out = {page: [phrase for fn in fns for phrase in fn(src)] for page, fns in CLAIMS.items()}
     for page, found in record_claims(src).items():
         out[page] = out.get(page, []) + found
     return out
@@ -936,3 +1030,7 @@ def main(argv=None) -> int:
         print(p)
     return 1 if problems else 0
 
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
