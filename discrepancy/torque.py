@@ -260,9 +260,10 @@ def friction_rate(model: mujoco.MjModel, dof: int) -> float:
 def check_supported(model: mujoco.MjModel, device: Device) -> None:
     """Raise UserError if the model has state that the logged angle does not fix."""
     if model.na > 0:
-        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or str(a)
-                 for a in range(model.nu) if model.actuator_actnum[a] > 0]
-        raise UserError(f"the model's actuators {names} have activation states (LuGre, inductance, "
+        # every actuator, passive ones too (a LuGre dcmotor with input="none" is not in nu)
+        names = ", ".join(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or str(a)
+                          for a in range(model.nactuator) if model.actuator_actnum[a] > 0)
+        raise UserError(f"the model's actuator(s) {names} have activation states (LuGre, inductance, "
                         "filters): the missing torque cannot be seen by inverse dynamics; compare "
                         "replays instead (omni discrepancy)")
     if model.nhistory > 0 or np.any(model.actuator_delay > 0):
