@@ -42,7 +42,7 @@ from omni_sim import model as om
 from . import effects as fx
 from . import shape
 from .runs import ReplayRun
-from .torque import Estimator, InverseModel, MissingTorque, smooth
+from .torque import Estimator, InverseModel, MissingTorque, invert, smooth
 
 #: Below this explained share the best library law does not have the missing torque's shape:
 #: the report says "unexplained, and here is its shape".  Fixed before any result was seen: at
@@ -260,29 +260,19 @@ def missing_torque_evidence(spec: mujoco.MjSpec, model: mujoco.MjModel, runs: li
     except UserError as exc:
         return Evidence(False, str(exc), bandwidth_hz=est.bandwidth_hz, half_window_s=est.half_window_s,
                         cost={"wall_s": time.perf_counter() - t0, "compiles": 0, "inverse_calls": 0})
-    torques, taus, bands, motors = [], [], [], []
-    for sm in smoothed:
-        tau, motor, steady = inv.missing(sm)
-        band = inv.band(sm)
-        torques.append(MissingTorque(sm.name, sm.t, sm.q, sm.qd, sm.qdd, motor, tau, band, sm.trusted, steady))
-        taus.append(tau)
-        motors.append(motor)
-        bands.append(np.maximum(band, 1e-12))
+    torques = invert(inv, smoothed)
     cost = {"compiles": 0, "inverse_calls": inv.calls}
     if not any(sm.trusted.any() for sm in smoothed):
         return Evidence(False, "no trusted output time in any run (every window holds a torque switch)",
                         bandwidth_hz=est.bandwidth_hz, half_window_s=est.half_window_s,
                         cost={"wall_s": time.perf_counter() - t0, **cost})
-    states = shape.States(smoothed, taus, bands, motors, [sm.trusted for sm in smoothed])
+    states = shape.States.of(smoothed, torques)
     builder = fx.ModelBuilder(spec, target)
-    chosen = [e.name for e in fx.LIBRARY if e.applies(spec, target)] if names is None else list(names)
-    fits = [shape.fit_candidate(builder, n, states, model, free) for n in chosen if n not in free]
+    ranked = shape.ranked(builder, states, model, names, free)
     alone = shape.fit_candidate(builder, "", states, model, free) if free else None
-    scored = sorted((f for f in fits if f.explained is not None), key=lambda f: -f.explained)
-    ranked = scored + [f for f in fits if f.explained is None]
     units = {f.name: {p.name: p.unit for p in builder.effect(f.name).params} for f in ranked}
     bounds = {f.name: builder.effect(f.name).bounds() for f in ranked}
-    spent = fits + ([alone] if alone is not None else [])
+    spent = ranked + ([alone] if alone is not None else [])
     cost = {"wall_s": time.perf_counter() - t0, "compiles": sum(f.compiles for f in spent),
             "inverse_calls": inv.calls + sum(f.inverse_calls for f in spent)}
     return Evidence(True, "", tuple(torques), tuple(ranked), units, est.bandwidth_hz, est.half_window_s, cost,

@@ -40,7 +40,7 @@ from identification.errors import UserError
 from omni_sim import model as om
 from .effects import LIBRARY, ModelBuilder
 from .runs import ReplayRun
-from .torque import Estimator, InverseModel, smooth
+from .torque import Estimator, InverseModel, invert, smooth
 
 #: Speed bins [rad/s] of :func:`disagreements` (|qd|).
 SPEED_BINS = (0.0, 0.03, 0.1, 0.3, 1.0, 3.0, math.inf)
@@ -92,6 +92,13 @@ class States:
     motor: list
     keep: list
 
+    @classmethod
+    def of(cls, smoothed: list, torques: list) -> "States":
+        """From the smoothed runs and their missing torque (:func:`~.torque.invert`): a band
+        floored at 1e-12 N*m (a weight, never a division by zero)."""
+        return cls(smoothed, [m.tau_miss for m in torques], [np.maximum(m.band, 1e-12) for m in torques],
+                   [m.tau_motor for m in torques], [m.trusted for m in torques])
+
     def weighted(self, taus) -> np.ndarray:
         """``tau / band`` over the trusted output times of every run, concatenated."""
         return np.concatenate([t[k] / b[k] for t, b, k in zip(taus, self.band, self.keep)])
@@ -100,15 +107,8 @@ class States:
 def prepare(model: mujoco.MjModel, runs: list[ReplayRun], target: om.Target | None = None,
             est: Estimator = Estimator()) -> States:
     """Smooth every run once and compute the nominal model's missing torque and noise band."""
-    inv = InverseModel(model, target)
     sm = [smooth(run, float(model.opt.timestep), est) for run in runs]
-    taus, bands, motors = [], [], []
-    for s in sm:
-        tau, motor, _ = inv.missing(s)
-        taus.append(tau)
-        motors.append(motor)
-        bands.append(np.maximum(inv.band(s), 1e-12))
-    return States(sm, taus, bands, motors, [s.trusted for s in sm])
+    return States.of(sm, invert(InverseModel(model, target), sm))
 
 
 def needs_replay(model: mujoco.MjModel, nominal: mujoco.MjModel) -> str:
@@ -238,7 +238,16 @@ def rank(spec: mujoco.MjSpec, runs: list[ReplayRun], target: om.Target = om.OMNI
     states = prepare(nominal, runs, target, est)
     if not any(k.any() for k in states.keep):
         raise UserError("no trusted output time in any run (every window holds a torque switch)")
+    return ranked(builder, states, nominal, names)
+
+
+def ranked(builder: ModelBuilder, states: States, nominal: mujoco.MjModel, names: tuple | None = None,
+           free: tuple = ()) -> list[ShapeFit]:
+    """Every applicable library effect (or ``names``; ``free`` ones left out) fitted by
+    :func:`fit_candidate`: scored ones by explained share (highest first), then those that
+    need a replay (library order)."""
+    spec, target = builder.spec, builder.target
     chosen = [e.name for e in LIBRARY if e.applies(spec, target)] if names is None else list(names)
-    fits = [fit_candidate(builder, n, states, nominal) for n in chosen]
+    fits = [fit_candidate(builder, n, states, nominal, free) for n in chosen if n not in free]
     scored = sorted((f for f in fits if f.explained is not None), key=lambda f: -f.explained)
     return scored + [f for f in fits if f.explained is None]

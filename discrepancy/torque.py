@@ -293,10 +293,16 @@ def missing_torque(model: mujoco.MjModel, runs: list[ReplayRun], target: om.Targ
     list of MissingTorque
     """
     inv = InverseModel(model, target)
+    return invert(inv, [smooth(run, float(model.opt.timestep), est) for run in runs])
+
+
+def invert(inv: "InverseModel", smoothed: list) -> list[MissingTorque]:
+    """The missing torque of each smoothed run (:func:`discrepancy.smoothing.smooth`) under
+    ``inv``'s model, with its band: the one loop :func:`missing_torque`, the shape fits and
+    the report's evidence share."""
     out = []
-    for run in runs:
-        sm = smooth(run, float(model.opt.timestep), est)
+    for sm in smoothed:
         tau, motor, steady = inv.missing(sm)
-        out.append(MissingTorque(run.name, sm.t, sm.q, sm.qd, sm.qdd, motor, tau, inv.band(sm),
+        out.append(MissingTorque(sm.name, sm.t, sm.q, sm.qd, sm.qdd, motor, tau, inv.band(sm),
                                  sm.trusted, steady))
     return out
