@@ -42,13 +42,22 @@ _MAX_BISECT = 200
 _MAX_CREEP = 61
 
 
+#: the functions Python calls (the loop, and ``interp`` for the tests); the others are called
+#: only from compiled code and get no Python or C entry wrapper: a first run compiles ~16 %
+#: less (2.6 s instead of 3.1 s of one core, measured in a fresh process with an empty cache)
+_ENTRY_POINTS = ("loop", "interp")
+
+
 def _jit(fn):
     """numba.njit with IEEE semantics (no fast-math; division by zero gives inf/NaN as in
     numpy) and an on-disk cache where one can be written."""
+    internal = fn.__name__ not in _ENTRY_POINTS
+    options = dict(error_model="numpy", nogil=True, no_cpython_wrapper=internal,
+                   no_cfunc_wrapper=True)
     try:
-        return numba.njit(cache=True, error_model="numpy", nogil=True)(fn)
+        return numba.njit(cache=True, **options)(fn)
     except RuntimeError:  # no cache locator (nothing writable): compile in memory
-        return numba.njit(error_model="numpy", nogil=True)(fn)
+        return numba.njit(**options)(fn)
 
 
 @_jit
