@@ -3,16 +3,30 @@ removes a clear share of the gap, repeat (forward selection, up to three effects
 
 Scoring (per round):
 
-1. *prescreen* every candidate on short records (the first :data:`PRESCREEN_S` seconds
-   of each run): its grid, then a few damped Gauss-Newton steps, all candidates in lockstep so
-   each iteration is one batch of rollouts (earlier accepted effects stay free so effects can
-   trade off).  A candidate costs a few short batches, not a campaign;
-2. *screen* the :data:`N_SCREEN` best on all runs: least squares from the prescreen's point,
-   then the held-out gap with k-fold over runs, each fold's parameters from one Gauss-Newton
-   step from the all-runs fit with the held-out runs' rows removed (cheap: one Jacobian);
-3. *confirm*: the best candidates (``n_confirm``) are refitted exactly on each fold's training
-   runs (warm start) and their held-out runs simulated with those parameters; this held-out gap
-   decides.  The fold fits also give a jackknife spread of each parameter.
+1. *prescreen* every candidate on short records of each fold's training samples (for every
+   fold, the training samples of the first :data:`PRESCREEN_S` seconds of each run,
+   :func:`fold_records`): its grid, then a few damped Gauss-Newton steps, all candidates in
+   lockstep so each iteration is one batch of rollouts (earlier accepted effects stay free so
+   effects can trade off).  The candidates are ranked by their training gap averaged over the
+   folds: no held-out sample ranks a candidate.  A candidate costs a few short batches per
+   fold, not a campaign;
+2. *screen* the :data:`N_SCREEN` best: least squares on all runs from the prescreen's point
+   (the values reported, never a held-out score), then the held-out gap with k folds, each
+   fold's parameters from :data:`SCREEN_STEPS` Gauss-Newton step on its training samples from
+   its own start;
+3. *confirm*: the best candidates (``n_confirm``) are refitted on each fold's training samples
+   to convergence (:func:`_refit_folds`) and their held-out samples simulated with those
+   parameters; this held-out gap decides.  The fold fits also give a jackknife spread of each
+   parameter.
+
+Held out means held out: every fold's fit starts from a point found without the fold's
+held-out samples -- the earlier effects at their own fit on that fold (the corrections of the
+nominal, the set accepted so far), the new candidate at its prescreen point on that fold's
+training samples, a given set (the corrections in the first round) at its given values -- and
+never from the all-runs fit.  A fold's fit stops when a step lowers its training cost by less
+than :data:`REFIT_FTOL` (1e-3) of it, or moves every parameter by less than :data:`REFIT_XTOL`
+(1e-3) of its scale, or after :data:`REFIT_MAX_STEPS` (8) steps; the reasons are given at those
+constants.
 
 Acceptance (held-out stopping): the best candidate's held-out gap must fall by at least
 ``min_share`` of the gap it started from, and that starting gap must stand clearly above the
