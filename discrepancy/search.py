@@ -339,7 +339,7 @@ class Search:
                         row["after_unstable_replays"] = row["corrected_unstable_replays"]
                     continue
                 if sch != self.scheme:
-                    sc = scorer.rescore(sc, gap_nominal, self._rescore_starts(sc, corrected_fold_x))
+                    sc = scorer.rescore(sc, gap_nominal, *self._rescore_starts(sc, corrected_fold_x))
                 if key == "corrected":
                     corrected_fold_x = sc.fold_x
                 row[key] = sc.heldout_gap
@@ -351,16 +351,18 @@ class Search:
             for sch, r in out.items()))
         return out
 
-    def _rescore_starts(self, sc: Scored, corrected_fold_x: list | None) -> list | None:
-        """Each fold's start for rescoring ``sc`` on the other scheme's folds: the corrected
-        nominal's fold fit on those folds for the corrections (when ``sc`` begins with them),
-        the builder's nominal values for the rest; None (every effect nominal) without."""
+    def _rescore_starts(self, sc: Scored, corrected_fold_x: list | None) -> tuple[list | None, int]:
+        """Each fold's start for rescoring ``sc`` on the other scheme's folds and the index of
+        the first effect to start from its grid: the corrected nominal's fold fit on those folds
+        for the corrections (when ``sc`` begins with them), the rest from their grid's best
+        point on the fold's training samples; without, every effect from its nominal values
+        (the corrections) or its grid (the named effects)."""
         start = self.start
         n = len(start.effects) if start is not None else 0
         if corrected_fold_x is None or [e.name for e in sc.effects[:n]] != [e.name for e in start.effects]:
-            return None
+            return None, n if sc is not start else len(sc.effects)
         rest = [self.builder.nominal_values(e) for e in sc.effects[n:]]
-        return [np.concatenate([np.asarray(x, float)] + rest) for x in corrected_fold_x]
+        return [np.concatenate([np.asarray(x, float)] + rest) for x in corrected_fold_x], n
 
 
 def round_entry(rnd: int, scored: list[Scored], gap_start: float, noise: float) -> dict:

@@ -378,6 +378,26 @@ class Prescreened:
     fold_x: list = field(default_factory=list, repr=False)
 
 
+def fold_grid_starts(problem: Problem, folds: list[Fold], starts: list, grid_from: int = 0,
+                     seconds: float = PRESCREEN_S) -> list[np.ndarray]:
+    """Each fold's start with the free effects of ``problem`` from index ``grid_from`` on moved,
+    one after the other, to the best point of their grid (:meth:`Problem.grid_start`, the others
+    held) on the fold's training samples of the first ``seconds`` of each run
+    (:func:`fold_records`): a local fit cannot find a delay or a friction level the data never
+    "feel" at the nominal values, and the fold's held-out samples must not choose its start."""
+    out = []
+    for fold, x0 in zip(folds, starts):
+        runs, masks = fold_records(problem.runs, fold, seconds)
+        pf = Problem(problem.builder, problem.fixed, problem.free, runs, problem.rep, masks=masks)
+        x = np.clip(np.asarray(x0, float), problem.lower, problem.upper)
+        for i in range(grid_from, len(problem.free)):
+            x = pf.grid_start(x, i)
+        problem.nsim += pf.nsim
+        problem.unstable += pf.unstable
+        out.append(x)
+    return out
+
+
 def fold_records(runs: list[ReplayRun], fold: Fold | None, seconds: float) -> tuple[list[ReplayRun], list]:
     """The prescreen's short records of ``fold``'s training samples: per run with any, the
     shortest start of the run (a replay always starts at the run's start) that holds
@@ -875,15 +895,18 @@ class Scorer:
         self._confirm(sc, gap_start)
         return sc
 
-    def rescore(self, s: Scored, gap_start: float, starts: list | None = None) -> Scored:
+    def rescore(self, s: Scored, gap_start: float, starts: list | None = None, grid_from: int = 0) -> Scored:
         """``s``'s set of effects scored held out on this scorer's folds (per-fold refits to
-        convergence from ``starts``, one per fold, default the builder's nominal values of
-        every effect: no data seen; the all-runs fit is kept): e.g. the named set under the
-        fold scheme the verdict did not use (:meth:`on`)."""
+        convergence; the all-runs fit is kept): e.g. the named set under the fold scheme the
+        verdict did not use (:meth:`on`).  Each fold starts from ``starts[f]`` (default the
+        builder's nominal values of every effect: no data seen), the effects from index
+        ``grid_from`` on moved to their grid's best point on the fold's training samples
+        (:func:`fold_grid_starts`)."""
         prob = self.problem(s.effects)
         if starts is None:
             x0 = np.clip(np.concatenate([self.builder.nominal_values(e) for e in s.effects]), prob.lower, prob.upper)
             starts = [x0] * len(self.folds)
+        starts = fold_grid_starts(prob, self.folds, starts, grid_from)
         fold_x = (_polish_folds(prob, self.folds, starts) if rough(s.effects)
                   else _refit_folds(prob, self.folds, starts))
         raw = _heldout(prob, fold_x, self.folds)
