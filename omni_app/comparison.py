@@ -43,10 +43,10 @@ def fig_C_alpha(folder: Path, results: dict) -> None:
     t7, t10 = paper.table7(), paper.table10()
     alphas = np.array([r["alpha"] for r in t7])
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    top = max(alphas.max(), *(res["ident"].alpha_model.alpha_breaks[-1] for res in results.values()))
+    top = max(alphas.max(), *(res.ident.alpha_model.alpha_breaks[-1] for res in results.values()))
     grid = np.concatenate([[0.0], np.logspace(-2, math.log10(top * 2), 300)])
     for fam, res in results.items():
-        ident = res["ident"]
+        ident = res.ident
         p = pose_of(ident, DETAIL_POSE)
         am = ident.alpha_model
         I = ident.pose_inertia(p)
@@ -67,7 +67,7 @@ def fig_C_alpha(folder: Path, results: dict) -> None:
 
 
 def _sine_row(res):
-    return next(r for r in res["scores"]["sine"]
+    return next(r for r in res.sine_rows
                 if (round(r["gamma1_set_deg"]), round(r["gamma2_set_deg"])) == DETAIL_POSE)
 
 
@@ -102,7 +102,7 @@ def fig_step(folder: Path, results: dict) -> None:
                              squeeze=False)
     for ax, (fam, res) in zip(axes[0], results.items()):
         run = _run(res, name)
-        pred = res["predictions"][name]
+        pred = res.predictions[name]
         k = run.t < 1.0
         ax.plot(run.t[k], run.r[k], ":", color="gray", label="reference r")
         ax.plot(run.t[k], run.theta[k], "-", color="k", lw=2, label=f"{fam} (data)")

@@ -13,6 +13,7 @@ import numpy as np
 
 from identification import paper as _paper
 from omni_studies.comparison import DETAIL_POSE
+from omni_studies.reproduce import ReproduceResult
 
 
 def _plt():
@@ -96,10 +97,10 @@ def _detail_pose(ident):
     return ident.poses[-1]
 
 
-def fig_inertia(folder: Path, res: dict) -> None:
+def fig_inertia(folder: Path, res: ReproduceResult) -> None:
     """Figs. 4-5: C_linear and beta_tilde_linear against the fitted inertia, with the paper's."""
     plt = _plt()
-    ident = res["ident"]
+    ident = res.ident
     params = ident.inertia.params
     paper = _paper.table3()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
@@ -121,18 +122,18 @@ def fig_inertia(folder: Path, res: dict) -> None:
     save_png(fig, folder / "fig04_05_inertia_fits.png")
 
 
-def fig_inertia_truth(folder: Path, res: dict) -> None:
+def fig_inertia_truth(folder: Path, res: ReproduceResult) -> None:
     """Identified inertia model x beta_bar against MuJoCo's mass matrix at the 25 poses."""
     plt = _plt()
-    rows = res["scores"]["summary"]["inertia"]["poses"]
+    rows = res.summary.inertia.poses
     fig, ax = plt.subplots(figsize=(6, 4.5))
     for fitted, marker, label in ((True, "o", "Table 1 pose (used in the fit)"),
                                   (False, "s", "Table 2 only (never fitted)")):
-        sel = [r for r in rows if r["fitted_pose"] == fitted]
-        ax.plot([1e3 * r["true_kg_m2"] for r in sel], [1e3 * r["identified_kg_m2"] for r in sel],
+        sel = [r for r in rows if r.fitted_pose == fitted]
+        ax.plot([1e3 * r.true_kg_m2 for r in sel], [1e3 * r.identified_kg_m2 for r in sel],
                 marker, label=label)
-    lo = min(min(r["true_kg_m2"], r["identified_kg_m2"]) for r in rows) * 1e3 * 0.95
-    hi = max(max(r["true_kg_m2"], r["identified_kg_m2"]) for r in rows) * 1e3 * 1.05
+    lo = min(min(r.true_kg_m2, r.identified_kg_m2) for r in rows) * 1e3 * 0.95
+    hi = max(max(r.true_kg_m2, r.identified_kg_m2) for r in rows) * 1e3 * 1.05
     ax.plot([lo, hi], [lo, hi], "k-", lw=0.8, label="identity")
     ax.fill_between([lo, hi], [lo * 0.98, hi * 0.98], [lo * 1.02, hi * 1.02], color="g", alpha=0.15,
                     label="+-2 % target")
@@ -143,10 +144,10 @@ def fig_inertia_truth(folder: Path, res: dict) -> None:
     save_png(fig, folder / "inertia_truth.png")
 
 
-def fig_nonlinear_vs_inertia(folder: Path, res: dict) -> None:
+def fig_nonlinear_vs_inertia(folder: Path, res: ReproduceResult) -> None:
     """Figs. 6-7: C_k(I) and beta_k(I) of (40), (42) with the per-pose intermediate values."""
     plt = _plt()
-    am = res["ident"].alpha_model
+    am = res.ident.alpha_model
     diag = am.diagnostics.get("poses", [])
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     I = np.array([d["I"] for d in diag])
@@ -161,7 +162,7 @@ def fig_nonlinear_vs_inertia(folder: Path, res: dict) -> None:
                              label=f"beta~_{k}(I), alpha = {am.alpha_bar[k]:.3g}")
         if diag and "beta_k" in diag[0]:
             axes[1].plot(I, [d["beta_k"][k] for d in diag], "o", color=line.get_color())
-    lin = res["ident"].inertia.params
+    lin = res.ident.inertia.params
     axes[0].plot(grid, 1 / (lin.C0_bar * grid), "k--", label="global linear (24)")
     axes[1].plot(grid, 1 / grid, "k--", label="global linear (25)")
     axes[0].set(xlabel="I [V s^2/rad]", ylabel="C [1/s]", title="Fig. 6: non-linear C model vs inertia")
@@ -173,11 +174,11 @@ def fig_nonlinear_vs_inertia(folder: Path, res: dict) -> None:
     save_png(fig, folder / "fig06_07_nonlinear_vs_inertia.png")
 
 
-def fig_alpha_vs_frequency(folder: Path, res: dict) -> None:
+def fig_alpha_vs_frequency(folder: Path, res: ReproduceResult) -> None:
     """Fig. 8: alpha (36) against frequency, every pose."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 4.5))
-    for p in res["ident"].poses:
+    for p in res.ident.poses:
         ax.semilogy([q.frequency_hz for q in p.frequencies], [q.alpha for q in p.frequencies], "o-",
                     ms=3, label=f"({p.gamma1_set_deg:g}, {p.gamma2_set_deg:g})")
     ax.set(xlabel="frequency [Hz]", ylabel="alpha [V^2/s^2]", title="Fig. 8: alpha-invariant vs frequency")
@@ -186,10 +187,10 @@ def fig_alpha_vs_frequency(folder: Path, res: dict) -> None:
     save_png(fig, folder / "fig08_alpha_vs_frequency.png")
 
 
-def fig_C_beta_vs_alpha(folder: Path, res: dict) -> None:
+def fig_C_beta_vs_alpha(folder: Path, res: ReproduceResult) -> None:
     """Figs. 9-10: C_data and beta~_data against alpha at the detail pose, with both models."""
     plt = _plt()
-    ident = res["ident"]
+    ident = res.ident
     am = ident.alpha_model
     p = _detail_pose(ident)
     I = ident.pose_inertia(p)
@@ -218,13 +219,13 @@ def fig_C_beta_vs_alpha(folder: Path, res: dict) -> None:
 
 
 def _sine_row(res, pose):
-    for row in res["scores"]["sine"]:
+    for row in res.sine_rows:
         if (row["gamma1_set_deg"], row["gamma2_set_deg"]) == pose:
             return row
-    return res["scores"]["sine"][-1]
+    return res.sine_rows[-1]
 
 
-def fig_bode(folder: Path, res: dict) -> None:
+def fig_bode(folder: Path, res: ReproduceResult) -> None:
     """Figs. 11-12: fundamental magnitude and phase at the detail pose."""
     plt = _plt()
     row = _sine_row(res, DETAIL_POSE)
@@ -249,14 +250,14 @@ TIME_FIGURE_RUNS = (f"sine_g{DETAIL_POSE[0]:02d}_{DETAIL_POSE[1]:03d}_f2p50",
 
 
 def _run(res, name):
-    return next(r for r in res["runs"] if r.name == name)
+    return next(r for r in res.runs if r.name == name)
 
 
-def _time_figure(folder: Path, res: dict, name: str, keep, title: str, filename: str) -> None:
+def _time_figure(folder: Path, res: ReproduceResult, name: str, keep, title: str, filename: str) -> None:
     """Measured and both models' yaw angle of one run over the samples ``keep(run)``."""
     plt = _plt()
     run = _run(res, name)
-    pred = res["predictions"][name]
+    pred = res.predictions[name]
     k = keep(run)
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(run.t[k], run.r[k], ":", color="gray", label="reference r")
@@ -269,14 +270,14 @@ def _time_figure(folder: Path, res: dict, name: str, keep, title: str, filename:
     save_png(fig, folder / filename)
 
 
-def fig_time_sine(folder: Path, res: dict) -> None:
+def fig_time_sine(folder: Path, res: ReproduceResult) -> None:
     """Fig. 13: time response at 2.5 Hz at the detail pose (last two cycles)."""
     _time_figure(folder, res, TIME_FIGURE_RUNS[0],
                  lambda run: run.t >= run.t[-1] - 2 / 2.5,
                  f"Fig. 13: 2.5 Hz response at {DETAIL_POSE} deg", "fig13_time_2p5hz.png")
 
 
-def fig_step(folder: Path, res: dict) -> None:
+def fig_step(folder: Path, res: ReproduceResult) -> None:
     """Fig. 14: first second after the negative-to-positive edge at the detail pose."""
     _time_figure(folder, res, TIME_FIGURE_RUNS[1],
                  lambda run: run.t < 1.0, f"Fig. 14: step response at {DETAIL_POSE} deg",
@@ -288,7 +289,7 @@ FIGURES = (fig_inertia, fig_inertia_truth, fig_nonlinear_vs_inertia, fig_alpha_v
            fig_C_beta_vs_alpha, fig_bode, fig_time_sine, fig_step)
 
 
-def write_figures(folder: Path, res: dict) -> list[str]:
+def write_figures(folder: Path, res: ReproduceResult) -> list[str]:
     """Write every figure into ``folder``; returns the file names."""
     for fn in FIGURES:
         fn(folder, res)

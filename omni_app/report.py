@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from identification import paper
 from identification.simulate import DEFAULT_MAX_ITER
+from omni_studies.reproduce import ReproduceResult
 
 from .identify_report import EQUATIONS_LEGEND
 
@@ -24,9 +25,9 @@ def _run_counts(runs) -> str:
     return text + (f", {other} other runs" if other else "")
 
 
-def format_report(res: dict) -> str:
+def format_report(res: ReproduceResult) -> str:
     """report.md: the targets, then the paper's tables beside this run's, section by section."""
-    ident = res["ident"]
+    ident = res.ident
     lines = _header(res) + _targets(res) + _inertia_truth(res) + _linear_model(res)
     lines += _alpha_model(res) + _sine_table(res) + _step_table(res)
     if ident.warnings:
@@ -34,13 +35,13 @@ def format_report(res: dict) -> str:
     return "\n".join(lines)
 
 
-def _header(res: dict) -> list[str]:
+def _header(res: ReproduceResult) -> list[str]:
     """The title and what the run was."""
-    s = res["scores"]["summary"]
+    s = res.summary
     lines = ["# omni reproduce: the alpha-invariant paper on the virtual Omni", ""]
-    run = s["run"]
-    lines += [f"Model: `{run['model']}` (sha256 {run['model_sha256']}). Simulated "
-              f"{run['simulated_time_s']:.0f} s of experiments ({_run_counts(res['runs'])}). "
+    run = s.run
+    lines += [f"Model: `{run.model}` (sha256 {run.model_sha256}). Simulated "
+              f"{run.simulated_time_s:.0f} s of experiments ({_run_counts(res.runs)}). "
               f"Every number below comes from this run; `dataset/` holds the data, `params.json` "
               f"the identified parameters, `predictions/` both models' simulations.", "",
               EQUATIONS_LEGEND, ""]
@@ -48,48 +49,48 @@ def _header(res: dict) -> list[str]:
     return lines
 
 
-def target_rows(res: dict) -> list[tuple[str, str, str]]:
+def target_rows(res: ReproduceResult) -> list[tuple[str, str, str]]:
     """The issue's targets, each ``(target, measured, verdict)``, verdict ``"met"`` or ``"not
     met"`` (with a qualifier where one applies).  The report's target table and the console
     summary of ``omni reproduce`` are both written from these rows, so they say the same."""
-    s = res["scores"]["summary"]
-    inr = s["inertia"]
-    st = s["step"]
-    sn = s["sine"]
-    whole = st["windows"]["whole_record"]
-    after = st["windows"]["after_edges"]
+    s = res.summary
+    inr = s.inertia
+    st = s.step
+    sn = s.sine
+    whole = st.windows.whole_record
+    after = st.windows.after_edges
     t8_avg = paper.table8_average()
     p11s = paper.table11_summary()  # Table 11 reduced with our statistics (like for like)
-    sim = s["alpha_simulation"]
-    n = st["n_poses"]
+    sim = s.alpha_simulation
+    n = st.n_poses
     return [
-        (f"identified inertia (6) x beta_bar within 2 % of MuJoCo at all {inr['n_poses']} Table 2 poses",
-         f"max {100 * inr['max_rel_error']:.1f} % (unseen poses: {100 * inr['max_rel_error_unseen_poses']:.1f} %)",
-         _verdict(inr["max_rel_error"] <= TARGET_INERTIA_REL)),
+        (f"identified inertia (6) x beta_bar within 2 % of MuJoCo at all {inr.n_poses} Table 2 poses",
+         f"max {100 * inr.max_rel_error:.1f} % (unseen poses: {100 * inr.max_rel_error_unseen_poses:.1f} %)",
+         _verdict(inr.max_rel_error <= TARGET_INERTIA_REL)),
         ("alpha model beats linear on the step response at every pose (each run's median error over "
          "the whole record)",
-         f"{st['alpha_better_poses']}/{n}; but by each run's p90 {whole['alpha_better_poses_p90']}/{n} "
-         f"(p90, median over runs: alpha {1e3 * whole['p90_abs_error_alpha_rad']:.1f} mrad, linear "
-         f"{1e3 * whole['p90_abs_error_linear_rad']:.1f} mrad), and in the first second after each edge "
-         f"{after['alpha_better_poses']}/{n}",
-         f"{_verdict(st['alpha_better_poses'] == n)} (by the median only)"),
+         f"{st.alpha_better_poses}/{n}; but by each run's p90 {whole.alpha_better_poses_p90}/{n} "
+         f"(p90, median over runs: alpha {1e3 * whole.p90_abs_error_alpha_rad:.1f} mrad, linear "
+         f"{1e3 * whole.p90_abs_error_linear_rad:.1f} mrad), and in the first second after each edge "
+         f"{after.alpha_better_poses}/{n}",
+         f"{_verdict(st.alpha_better_poses == n)} (by the median only)"),
         ("ratio of medians linear/alpha >= 3",
-         f"whole record {whole['ratio_of_medians']:.2f} (paper's Table 11: {p11s['ratio_of_medians']:.2f}); "
-         f"first second after each edge {after['ratio_of_medians']:.2f}. Ratio of means (the paper's "
-         f"\"{paper.PAPER_STEP_RATIO}\"): whole record {whole['ratio_of_means']:.2f} (paper "
-         f"{p11s['ratio_of_means']:.2f}), after edges {after['ratio_of_means']:.2f}",
-         f"whole record {_verdict(whole['ratio_of_medians'] >= TARGET_STEP_RATIO)}, after edges "
-         f"{_verdict(after['ratio_of_medians'] >= TARGET_STEP_RATIO)}"),
+         f"whole record {whole.ratio_of_medians:.2f} (paper's Table 11: {p11s['ratio_of_medians']:.2f}); "
+         f"first second after each edge {after.ratio_of_medians:.2f}. Ratio of means (the paper's "
+         f"\"{paper.PAPER_STEP_RATIO}\"): whole record {whole.ratio_of_means:.2f} (paper "
+         f"{p11s['ratio_of_means']:.2f}), after edges {after.ratio_of_means:.2f}",
+         f"whole record {_verdict(whole.ratio_of_medians >= TARGET_STEP_RATIO)}, after edges "
+         f"{_verdict(after.ratio_of_medians >= TARGET_STEP_RATIO)}"),
         (f"alpha model halves the linear model's sine phase p90 error (paper "
          f"{t8_avg['phase_p90_linear_deg']:.1f} -> {t8_avg['phase_p90_alpha_deg']:.1f} deg)",
-         f"{sn['phase_p90_linear_deg']:.1f} -> {sn['phase_p90_alpha_deg']:.1f} deg",
-         _verdict(sn["phase_p90_alpha_deg"] <= 0.5 * sn["phase_p90_linear_deg"])),
+         f"{sn.phase_p90_linear_deg:.1f} -> {sn.phase_p90_alpha_deg:.1f} deg",
+         _verdict(sn.phase_p90_alpha_deg <= 0.5 * sn.phase_p90_linear_deg)),
         ("quasilinear iteration converges",
-         f"{sim['steps_not_converged']} of {sim['steps']} steps did not "
-         f"({sim.get('steps_solved_by_bisection', 0)} more did not meet the iteration's convergence "
+         f"{sim.steps_not_converged} of {sim.steps} steps did not "
+         f"({sim.steps_solved_by_bisection} more did not meet the iteration's convergence "
          f"test (46) within {DEFAULT_MAX_ITER} iterations, cycling or creeping, and were solved by a "
          "bracketed bisection: identification/simulate.py)",
-         _verdict(sim["steps_not_converged"] == 0)),
+         _verdict(sim.steps_not_converged == 0)),
     ]
 
 
@@ -97,44 +98,44 @@ def _verdict(ok: bool) -> str:
     return "met" if ok else "not met"
 
 
-def _targets(res: dict) -> list[str]:
+def _targets(res: ReproduceResult) -> list[str]:
     """The issue's targets, each with the measured figure (:func:`target_rows`)."""
     lines = ["## Targets", "", "| target | measured | |", "|---|---|---|"]
     lines += [f"| {t} | {m} | {v.replace('not met', '**not met**')} |" for t, m, v in target_rows(res)]
     return lines + [""]
 
 
-def summary_lines(res: dict, label: str = "") -> list[str]:
+def summary_lines(res: ReproduceResult, label: str = "") -> list[str]:
     """The console summary of ``omni reproduce``: every target of the report's table, met or
     not, with its measured figure (:func:`target_rows`)."""
     return [f"{label}[{v}] {t}: {m}" for t, m, v in target_rows(res)]
 
 
-def _inertia_truth(res: dict) -> list[str]:
+def _inertia_truth(res: ReproduceResult) -> list[str]:
     """Ground truth: the identified inertia model against MuJoCo's mass matrix."""
-    inr = res["scores"]["summary"]["inertia"]
+    inr = res.summary.inertia
     lines = []
-    n_fitted = sum(bool(r["fitted_pose"]) for r in inr["poses"])
+    n_fitted = sum(bool(r.fitted_pose) for r in inr.poses)
     lines += ["## Ground truth: inertia", "",
               "The identified minimal inertia model (6), scaled by the model's torque constant "
-              f"beta_bar = {inr['beta_bar_N_m_per_V']:.4g} N m/V, against the yaw element of MuJoCo's "
+              f"beta_bar = {inr.beta_bar_N_m_per_V:.4g} N m/V, against the yaw element of MuJoCo's "
               "mass matrix at the actual (sagged) pose. `fitted` marks the "
               f"{n_fitted} Table 1 poses whose sine sweeps were identified; the other "
-              f"{len(inr['poses']) - n_fitted} were never seen by the fit.", "",
+              f"{len(inr.poses) - n_fitted} were never seen by the fit.", "",
               "| set pose [deg] | actual [deg] | MuJoCo [1e-3 kg m^2] | identified | error | fitted |",
               "|---|---|---|---|---|---|"]
-    for r in inr["poses"]:
-        lines.append(f"| ({r['gamma1_set_deg']}, {r['gamma2_set_deg']}) | ({r['gamma1_deg']:.2f}, "
-                     f"{r['gamma2_deg']:.2f}) | {1e3 * r['true_kg_m2']:.4f} | {1e3 * r['identified_kg_m2']:.4f} | "
-                     f"{100 * r['rel_error']:+.1f} % | {'yes' if r['fitted_pose'] else ''} |")
+    for r in inr.poses:
+        lines.append(f"| ({r.gamma1_set_deg}, {r.gamma2_set_deg}) | ({r.gamma1_deg:.2f}, "
+                     f"{r.gamma2_deg:.2f}) | {1e3 * r.true_kg_m2:.4f} | {1e3 * r.identified_kg_m2:.4f} | "
+                     f"{100 * r.rel_error:+.1f} % | {'yes' if r.fitted_pose else ''} |")
     lines += ["", "![inertia truth](inertia_truth.png)", ""]
 
     return lines
 
 
-def _linear_model(res: dict) -> list[str]:
+def _linear_model(res: ReproduceResult) -> list[str]:
     """Table 3: the global linear model per pose, its truth and the inertia model (6)."""
-    ident = res["ident"]
+    ident = res.ident
     lines = []
     lines += ["## Global linear model per pose (Table 3) and its truth", "",
               "C_true = c/I and beta_true = kp beta_bar / I are the model's continuous values without "
@@ -145,7 +146,7 @@ def _linear_model(res: dict) -> list[str]:
               "paper C_linear | paper beta~_linear x kp |", "|---|---|---|---|---|---|---|---|"]
     p3 = paper.by_set_pose(paper.table3())
     kp_paper = paper.kp()
-    for p, t in zip(ident.poses, res["linear_truth"]):
+    for p, t in zip(ident.poses, res.linear_truth):
         pp = p3.get((int(p.gamma1_set_deg), int(p.gamma2_set_deg)), {})
         lines.append(f"| ({p.gamma1_set_deg:g}, {p.gamma2_set_deg:g}) | ({p.gamma1_deg:.2f}, {p.gamma2_deg:.2f}) | "
                      f"{p.C_linear:.3f} | {t['C_true']:.3f} | {p.beta_linear:.1f} | {t['beta_true']:.1f} | "
@@ -160,10 +161,10 @@ def _linear_model(res: dict) -> list[str]:
     return lines
 
 
-def _alpha_model(res: dict) -> list[str]:
+def _alpha_model(res: ReproduceResult) -> list[str]:
     """Tables 6, 7, 10: the α-invariant model beside the paper's."""
     lines = []
-    am = res["ident"].alpha_model
+    am = res.ident.alpha_model
     t6, t7 = paper.table6(), paper.table7()
     # Tables 6-7 in the order Table 10 implies (reversed; identification/data/README.md)
     paper_breaks = ", ".join(f"{r['alpha']:g}" for r in t7)
@@ -175,7 +176,7 @@ def _alpha_model(res: dict) -> list[str]:
               f"{', '.join(f'{c:.2f}' for c in am.C_k1)} (paper, in the order Table 10 implies: "
               f"{paper_C_k1}). beta~_k1 = {', '.join(f'{b:.3f}' for b in am.beta_k1)} at "
               f"alpha = {am.alpha_bar[0]:g}, {am.alpha_bar[1]:g} (paper Table 6 reordered: {paper_beta_k1})."
-              + beta_k1_note(res["ident"]), "", "Options of the fit:", "", *options_table(am.options), "",
+              + beta_k1_note(res.ident), "", "Options of the fit:", "", *options_table(am.options), "",
               "![Figs. 6-7](fig06_07_nonlinear_vs_inertia.png)",
               "![Fig. 8](fig08_alpha_vs_frequency.png)",
               "![Figs. 9-10](fig09_10_C_beta_vs_alpha.png)", ""]
@@ -234,26 +235,26 @@ def beta_k1_note(ident) -> str:
             f"{a0:g} (the paper's, to {100 * paper_share:.0f} % by alpha_bar = {t6[-1]['alpha_bar']:g}).")
 
 
-def _sine_table(res: dict) -> list[str]:
+def _sine_table(res: ReproduceResult) -> list[str]:
     """Table 8: the sine sweep's p90 errors per pose."""
-    sn = res["scores"]["summary"]["sine"]
+    sn = res.summary.sine
     t8_avg = paper.table8_average()
     lines = []
     p8 = paper.by_set_pose(paper.table8())
     lines += ["## Sine sweep (Table 8)", "",
-              f"90th percentile over the {len(res['scores']['sine'][0]['frequencies_hz'])} frequencies of the absolute fundamental magnitude error "
+              f"90th percentile over the {len(res.sine_rows[0]['frequencies_hz'])} frequencies of the absolute fundamental magnitude error "
               "(|theta|/A_r) and phase error, per pose.", "",
               "| set pose | linear mag | alpha mag | linear phase [deg] | alpha phase [deg] | paper linear mag / phase | paper alpha mag / phase |",
               "|---|---|---|---|---|---|---|"]
-    for row in res["scores"]["sine"]:
+    for row in res.sine_rows:
         pp = p8.get((int(row["gamma1_set_deg"]), int(row["gamma2_set_deg"])))
         lines.append(f"| ({row['gamma1_set_deg']:g}, {row['gamma2_set_deg']:g}) | "
                      f"{row['linear']['magnitude_p90']:.3f} | {row['alpha']['magnitude_p90']:.3f} | "
                      f"{row['linear']['phase_p90_deg']:.1f} | {row['alpha']['phase_p90_deg']:.1f} | "
                      f"{pp['magnitude_p90_linear']:.3f} / {pp['phase_p90_linear_deg']:.1f} | "
                      f"{pp['magnitude_p90_alpha']:.3f} / {pp['phase_p90_alpha_deg']:.1f} |")
-    lines += [f"| **mean** | {sn['magnitude_p90_linear']:.3f} | {sn['magnitude_p90_alpha']:.3f} | "
-              f"{sn['phase_p90_linear_deg']:.1f} | {sn['phase_p90_alpha_deg']:.1f} | "
+    lines += [f"| **mean** | {sn.magnitude_p90_linear:.3f} | {sn.magnitude_p90_alpha:.3f} | "
+              f"{sn.phase_p90_linear_deg:.1f} | {sn.phase_p90_alpha_deg:.1f} | "
               f"{t8_avg['magnitude_p90_linear']:.3f} / {t8_avg['phase_p90_linear_deg']:.1f} | "
               f"{t8_avg['magnitude_p90_alpha']:.3f} / {t8_avg['phase_p90_alpha_deg']:.1f} |",
               "", "![Figs. 11-12](fig11_12_bode.png)", "![Fig. 13](fig13_time_2p5hz.png)", ""]
@@ -261,10 +262,10 @@ def _sine_table(res: dict) -> list[str]:
     return lines
 
 
-def _step_table(res: dict) -> list[str]:
+def _step_table(res: ReproduceResult) -> list[str]:
     """Table 11: the step responses' errors per pose, and like for like with the paper."""
-    st = res["scores"]["summary"]["step"]
-    whole, after = st["windows"]["whole_record"], st["windows"]["after_edges"]
+    st = res.summary.step
+    whole, after = st.windows.whole_record, st.windows.after_edges
     t11 = paper.table11()
     p11s = paper.table11_summary()
     lines = []
@@ -272,10 +273,10 @@ def _step_table(res: dict) -> list[str]:
     lines += ["## Step responses (Table 11)", "",
               "Absolute angle error [mrad] over the whole 8 s record and over the first second after "
               f"each edge. `unseen` marks poses with no sine data "
-              f"({sum(not r['fitted_pose'] for r in res['scores']['step'])} of {len(res['scores']['step'])}).", "",
+              f"({sum(not r['fitted_pose'] for r in res.step_rows)} of {len(res.step_rows)}).", "",
               "| set pose | linear median | alpha median | linear p90 | alpha p90 | after-edge ratio | unseen | paper median lin / alpha |",
               "|---|---|---|---|---|---|---|---|"]
-    for r in res["scores"]["step"]:
+    for r in res.step_rows:
         w = r["whole_record"]
         pp = p11.get((int(r["gamma1_set_deg"]), int(r["gamma2_set_deg"])))
         lines.append(f"| ({r['gamma1_set_deg']:g}, {r['gamma2_set_deg']:g}) | "
@@ -287,20 +288,20 @@ def _step_table(res: dict) -> list[str]:
               "statistics; its scoring window is not stated; ours over the whole record unless "
               "said):", "",
               "| over poses | ours | paper |", "|---|---|---|",
-              f"| ratio of medians linear/alpha | {whole['ratio_of_medians']:.2f} (after edges "
-              f"{after['ratio_of_medians']:.2f}) | {p11s['ratio_of_medians']:.2f} |",
+              f"| ratio of medians linear/alpha | {whole.ratio_of_medians:.2f} (after edges "
+              f"{after.ratio_of_medians:.2f}) | {p11s['ratio_of_medians']:.2f} |",
               f"| ratio of means linear/alpha (the paper's \"{paper.PAPER_STEP_RATIO}x\": its 'Medians' "
-              f"row holds the column means) | {whole['ratio_of_means']:.2f} (after edges "
-              f"{after['ratio_of_means']:.2f}) | {p11s['ratio_of_means']:.2f} |",
+              f"row holds the column means) | {whole.ratio_of_means:.2f} (after edges "
+              f"{after.ratio_of_means:.2f}) | {p11s['ratio_of_means']:.2f} |",
               f"| median error, median over poses: linear / alpha [mrad] | "
-              f"{1e3 * whole['median_abs_error_linear_rad']:.2f} / {1e3 * whole['median_abs_error_alpha_rad']:.2f} | "
+              f"{1e3 * whole.median_abs_error_linear_rad:.2f} / {1e3 * whole.median_abs_error_alpha_rad:.2f} | "
               f"{1e3 * p11s['median_abs_error_linear_rad']:.1f} / {1e3 * p11s['median_abs_error_alpha_rad']:.1f} |",
               f"| p90 error, median over poses: linear / alpha [mrad] | "
-              f"{1e3 * whole['p90_abs_error_linear_rad']:.2f} / {1e3 * whole['p90_abs_error_alpha_rad']:.2f} | "
+              f"{1e3 * whole.p90_abs_error_linear_rad:.2f} / {1e3 * whole.p90_abs_error_alpha_rad:.2f} | "
               f"{1e3 * p11s['p90_abs_error_linear_rad']:.1f} / {1e3 * p11s['p90_abs_error_alpha_rad']:.1f} |",
               f"| poses where alpha is better: by the median / by the p90 | "
-              f"{whole['alpha_better_poses']} / {whole['alpha_better_poses_p90']} of {whole['n_poses']} "
-              f"(after edges {after['alpha_better_poses']} / {after['alpha_better_poses_p90']}) | "
+              f"{whole.alpha_better_poses} / {whole.alpha_better_poses_p90} of {whole.n_poses} "
+              f"(after edges {after.alpha_better_poses} / {after.alpha_better_poses_p90}) | "
               f"{p11s['alpha_better_poses']} / {p11s['alpha_better_poses_p90']} of {p11s['n_poses']} |",
               "", "![Fig. 14](fig14_step.png)", ""]
     return lines

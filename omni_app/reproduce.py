@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 
@@ -21,7 +22,7 @@ from identification.errors import UserError
 from identification.validation import write_predictions
 from omni_sim import model as om
 from omni_sim.device import Device
-from omni_studies.reproduce import STAGES, analyse, run_reproduce, simulate_campaign
+from omni_studies.reproduce import STAGES, ReproduceResult, analyse, run_reproduce, simulate_campaign
 
 from . import figures as F
 from .identify_report import write_identify_figures, write_identify_report
@@ -51,10 +52,11 @@ def write_dataset(folder: Path, runs) -> None:
         write_run(folder, run)
 
 
-def draw_figures(folder: Path, res: dict) -> None:
-    """The reproduction's figures (the paper's and the identification's) into ``folder``."""
+def draw_figures(folder: Path, res: ReproduceResult) -> None:
+    """The reproduction's figures (the paper's and the identification's) into ``folder``
+    (``res.device`` is not read)."""
     F.write_figures(folder, res)
-    write_identify_figures(res["ident"], folder / "identify")
+    write_identify_figures(res.ident, folder / "identify")
 
 
 def worker_pool():
@@ -74,38 +76,38 @@ def worker_pool():
     return pool
 
 
-def write_reproduce(folder: Path, res: dict, t0: float, pool=None, dataset=None) -> None:
+def write_reproduce(folder: Path, res: ReproduceResult, t0: float, pool=None, dataset=None) -> float:
     """Write one reproduction into the (new, empty) ``folder``: dataset/, predictions/,
     params.json, identify/, figures, summary.json, scores.json, report.md.  ``t0``: its start
     (perf_counter), for the real-time factor.  ``pool`` (:func:`worker_pool`): the figures are
     drawn there while this process writes the predictions (None: here); ``dataset``: the
     future of the dataset already being written there (:func:`write_dataset`; None: written
-    here)."""
+    here).  Returns the whole wall time [s] (``summary.json``'s ``run.wall_s_total``; ``res``
+    is not changed)."""
     (folder / "identify").mkdir()
     figures = None
     if pool is not None:
         shown = F.TIME_FIGURE_RUNS  # the only runs and predictions the figures draw
-        figures = pool.submit(draw_figures, folder, {
-            "ident": res["ident"], "scores": res["scores"],
-            "runs": [r for r in res["runs"] if r.name in shown],
-            "predictions": {n: p for n, p in res["predictions"].items() if n in shown}})
+        # nor do they read the device: a MuJoCo model, whose unpickling imports MuJoCo there
+        figures = pool.submit(draw_figures, folder, replace(
+            res, device=None, runs=tuple(r for r in res.runs if r.name in shown),
+            predictions={n: p for n, p in res.predictions.items() if n in shown}))
     if dataset is None:
-        write_dataset(folder / "dataset", res["runs"])
-    write_predictions(folder, res["runs"], res["predictions"])
-    (folder / "params.json").write_text(json.dumps(res["params"], indent=2) + "\n")
-    write_identify_report(res["ident"], folder / "identify", source="dataset/", figures=False)
+        write_dataset(folder / "dataset", res.runs)
+    write_predictions(folder, list(res.runs), res.predictions)
+    (folder / "params.json").write_text(json.dumps(res.params, indent=2) + "\n")
+    write_identify_report(res.ident, folder / "identify", source="dataset/", figures=False)
     if figures is None:
         draw_figures(folder, res)
     for job in (dataset, figures):
         if job is not None:
             job.result()  # a worker's error, if any, is raised here
-    summary = res["scores"]["summary"]
-    summary["run"]["wall_s_total"] = time.perf_counter() - t0
-    summary["run"]["real_time_factor"] = summary["run"]["simulated_time_s"] / summary["run"]["wall_s_total"]
-    (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    (folder / "scores.json").write_text(json.dumps(res["scores"], indent=2) + "\n")
+    wall_s_total = time.perf_counter() - t0
+    (folder / "summary.json").write_text(json.dumps(res.summary.to_json(wall_s_total), indent=2) + "\n")
+    (folder / "scores.json").write_text(json.dumps(res.to_json(wall_s_total), indent=2) + "\n")
     from .report import format_report
     (folder / "report.md").write_text(format_report(res))
+    return wall_s_total
 
 
 def one_blas_thread():
@@ -122,7 +124,7 @@ def one_blas_thread():
         return contextlib.nullcontext()
 
 
-def _print_summary(res: dict, label: str = "") -> None:
+def _print_summary(res: ReproduceResult, label: str = "") -> None:
     """Every target of the report's table, met or not, with its measured figure (the same
     rows: :func:`omni_app.report.summary_lines`)."""
     from .report import summary_lines
@@ -149,16 +151,16 @@ def reproduce_command(args) -> int:
     # the pool is left first: its jobs end before a failure removes the temporary folder
     with one_blas_thread(), atomic_output_dir(out, force=args.force) as tmp, worker_pool() as pool:
         try:
-            res = simulate_campaign(device, args.jobs, progress=advance)
-            dataset = pool.submit(write_dataset, tmp / "dataset", res["runs"])  # while it analyses
-            res = analyse(res, advance)
+            sim = simulate_campaign(device, args.jobs, progress=advance)
+            dataset = pool.submit(write_dataset, tmp / "dataset", sim.runs)  # while it analyses
+            res = analyse(sim, advance)
             advance("writing report and figures")
-            write_reproduce(tmp, res, t0, pool, dataset)
+            wall_s_total = write_reproduce(tmp, res, t0, pool, dataset)
         finally:
             bar.close()
     _print_summary(res)
     print(f"wrote {out}/report.md, summary.json, figures and predictions/ "
-          f"(real-time factor {res['scores']['summary']['run']['real_time_factor']:.0f})")
+          f"(real-time factor {res.summary.run.real_time_factor(wall_s_total):.0f})")
     return 0
 
 

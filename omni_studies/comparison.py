@@ -1,7 +1,7 @@
 """The friction families beside the paper: the comparison's figures (a study: it computes them;
 ``omni reproduce --friction all`` writes them through :mod:`omni_app.comparison`).
 
-:func:`family_figures` reads one family's in-memory reproduction (``omni_app.reproduce.
+:func:`family_figures` reads one family's in-memory reproduction (``omni_studies.reproduce.
 run_reproduce``'s result) and returns its figures; :func:`paper_figures` the paper's values of
 the same figures; :func:`compare` both, as ``comparison.json`` holds them.  Nothing here changes
 a model: every number is measured on the family's scene as it is.
@@ -86,43 +86,44 @@ def step_linear_vs_table11(step_rows) -> dict:
             "poses": rows}
 
 
-def family_figures(res: dict) -> dict:
-    """The comparison figures of one family's reproduction (see the module docstring)."""
-    ident = res["ident"]
-    s = res["scores"]["summary"]
+def family_figures(res) -> dict:
+    """The comparison figures of one family's reproduction (a
+    :class:`omni_studies.reproduce.ReproduceResult`; see the module docstring)."""
+    ident = res.ident
+    s = res.summary
     detail = pose_of(ident, DETAIL_POSE)
     am = ident.alpha_model
     I = ident.pose_inertia(detail)
-    inr = s["inertia"]
-    errs = [r["rel_error"] for r in inr["poses"]]
-    win = s["step"]["windows"]
+    inr = s.inertia
+    errs = [r.rel_error for r in inr.poses]
+    win = s.step.windows
     return {
-        "model": s["run"]["model"],
-        "model_sha256": s["run"]["model_sha256"],
-        "friction": s["run"].get("friction"),
+        "model": s.run.model,
+        "model_sha256": s.run.model_sha256,
+        "friction": s.run.friction,
         "table3": table3_errors(ident),
         "resonance_hz_65_90": resonance_hz(detail.beta_linear),
         "C_alpha_fall": am.C_fall(I),
         "alpha_breaks": [float(a) for a in am.alpha_breaks],
         "C_at_breaks_65_90": [float(c) for c in am.C(am.alpha_breaks, I)],
         "inertia_65_90": float(I),
-        "inertia": {"max_rel_error": inr["max_rel_error"],
+        "inertia": {"max_rel_error": inr.max_rel_error,
                     "worst_signed_rel_error": _worst(errs),
                     "min_rel_error": float(min(errs)), "max_signed_rel_error": float(max(errs)),
-                    "n_poses": inr["n_poses"]},
-        "step": {"ratio_of_medians_whole_record": win["whole_record"]["ratio_of_medians"],
-                 "ratio_of_medians_after_edges": win["after_edges"]["ratio_of_medians"],
-                 "ratio_of_means_whole_record": win["whole_record"]["ratio_of_means"],
-                 "ratio_of_means_after_edges": win["after_edges"]["ratio_of_means"],
-                 "p90_abs_error_linear_rad": win["whole_record"]["p90_abs_error_linear_rad"],
-                 "p90_abs_error_alpha_rad": win["whole_record"]["p90_abs_error_alpha_rad"],
-                 "alpha_better_poses": s["step"]["alpha_better_poses"],
-                 "alpha_better_poses_p90": win["whole_record"]["alpha_better_poses_p90"],
-                 "alpha_better_poses_after_edges": win["after_edges"]["alpha_better_poses"],
-                 "n_poses": s["step"]["n_poses"]},
-        "sine": {k: s["sine"][k] for k in ("phase_p90_linear_deg", "phase_p90_alpha_deg",
+                    "n_poses": inr.n_poses},
+        "step": {"ratio_of_medians_whole_record": win.whole_record.ratio_of_medians,
+                 "ratio_of_medians_after_edges": win.after_edges.ratio_of_medians,
+                 "ratio_of_means_whole_record": win.whole_record.ratio_of_means,
+                 "ratio_of_means_after_edges": win.after_edges.ratio_of_means,
+                 "p90_abs_error_linear_rad": win.whole_record.p90_abs_error_linear_rad,
+                 "p90_abs_error_alpha_rad": win.whole_record.p90_abs_error_alpha_rad,
+                 "alpha_better_poses": s.step.alpha_better_poses,
+                 "alpha_better_poses_p90": win.whole_record.alpha_better_poses_p90,
+                 "alpha_better_poses_after_edges": win.after_edges.alpha_better_poses,
+                 "n_poses": s.step.n_poses},
+        "sine": {k: getattr(s.sine, k) for k in ("phase_p90_linear_deg", "phase_p90_alpha_deg",
                                            "magnitude_p90_linear", "magnitude_p90_alpha")},
-        "step_linear_vs_table11": step_linear_vs_table11(res["scores"]["step"]),
+        "step_linear_vs_table11": step_linear_vs_table11(res.step_rows),
     }
 
 

@@ -137,9 +137,9 @@ def measure(cand: dict, step_ratio: float, jobs: int | None = None) -> dict:
     except UserError as exc:  # the pipeline could not identify an alpha model: that is the verdict
         return {**row, "error": str(exc), "wall_s": time.perf_counter() - t0}
     f = family_figures(res)
-    s = res["scores"]["summary"]["step"]
-    alpha = {"step": {**f["step"], "median_abs_error_linear_rad": s["median_abs_error_linear_rad"],
-                      "median_abs_error_alpha_rad": s["median_abs_error_alpha_rad"]},
+    s = res.summary.step
+    alpha = {"step": {**f["step"], "median_abs_error_linear_rad": s.median_abs_error_linear_rad,
+                      "median_abs_error_alpha_rad": s.median_abs_error_alpha_rad},
              "sine": f["sine"], "C_alpha_fall": f["C_alpha_fall"],
              "inertia_worst_signed_rel_error": f["inertia"]["worst_signed_rel_error"]}
     check = {"step_median_rad": [sf["step_median_rad"], f["step_linear_vs_table11"]["median_over_poses_rad"]],

@@ -197,8 +197,7 @@ def measure_model(model, jobs=None) -> dict:
     from omni_sim.device import Device
     from omni_studies.reproduce import simulate_campaign
 
-    res = simulate_campaign(Device(model), jobs)
-    runs = res["runs"]
+    runs = list(simulate_campaign(Device(model), jobs).runs)
     lin = identify_runs(runs, linear_only=True)  # per-pose linear models: stops before any alpha fit
     usable = [p for p in lin.poses if p.physical]
     out: dict = {"warnings": list(lin.warnings)}

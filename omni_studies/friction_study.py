@@ -33,22 +33,23 @@ def _worst(values) -> float:
     return float(max(values, key=abs))
 
 
-def level_figures(res: dict) -> dict:
-    """The study's figures of one in-memory reproduction."""
-    s = res["scores"]["summary"]
-    win = s["step"]["windows"]
-    errs = [r["rel_error"] for r in s["inertia"]["poses"]]
+def level_figures(res) -> dict:
+    """The study's figures of one in-memory reproduction (a
+    :class:`omni_studies.reproduce.ReproduceResult`)."""
+    s = res.summary
+    win = s.step.windows
+    errs = [r.rel_error for r in s.inertia.poses]
     return {
-        "step_ratio_of_medians_whole_record": win["whole_record"]["ratio_of_medians"],
-        "step_ratio_of_medians_after_edges": win["after_edges"]["ratio_of_medians"],
-        "step_alpha_better_poses": s["step"]["alpha_better_poses"],
-        "step_n_poses": s["step"]["n_poses"],
-        **{f"sine_{k}": s["sine"][k] for k in ("phase_p90_linear_deg", "phase_p90_alpha_deg",
+        "step_ratio_of_medians_whole_record": win.whole_record.ratio_of_medians,
+        "step_ratio_of_medians_after_edges": win.after_edges.ratio_of_medians,
+        "step_alpha_better_poses": s.step.alpha_better_poses,
+        "step_n_poses": s.step.n_poses,
+        **{f"sine_{k}": getattr(s.sine, k) for k in ("phase_p90_linear_deg", "phase_p90_alpha_deg",
                                                "magnitude_p90_linear", "magnitude_p90_alpha")},
-        "inertia_max_rel_error": s["inertia"]["max_rel_error"],
+        "inertia_max_rel_error": s.inertia.max_rel_error,
         "inertia_worst_signed_rel_error": _worst(errs),
-        "alpha_breaks": [float(a) for a in res["ident"].alpha_model.alpha_breaks],
-        "alpha_steps_not_converged": s["alpha_simulation"]["steps_not_converged"],
+        "alpha_breaks": [float(a) for a in res.ident.alpha_model.alpha_breaks],
+        "alpha_steps_not_converged": s.alpha_simulation.steps_not_converged,
     }
 
 

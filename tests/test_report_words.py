@@ -17,19 +17,21 @@ from omni_app.reproduce import _print_summary
 
 
 def _summary(inertia=0.073, ratio=2.69, phase=(23.3, 19.1)):
-    whole = {"alpha_better_poses_p90": 0, "p90_abs_error_alpha_rad": 0.0326, "p90_abs_error_linear_rad": 0.0164,
-             "ratio_of_medians": ratio, "ratio_of_means": 3.2}
-    after = {"alpha_better_poses": 0, "ratio_of_medians": 0.79, "ratio_of_means": 0.73}
-    return {"inertia": {"n_poses": 25, "max_rel_error": inertia, "max_rel_error_unseen_poses": inertia},
-            "step": {"alpha_better_poses": 25, "n_poses": 25,
-                     "windows": {"whole_record": whole, "after_edges": after}},
-            "sine": {"phase_p90_linear_deg": phase[0], "phase_p90_alpha_deg": phase[1]},
-            "alpha_simulation": {"steps": 686000, "steps_not_converged": 0, "steps_solved_by_bisection": 7996}}
+    """The figures the target table reads, as the result's attributes (a stand-in for a
+    :class:`omni_studies.reproduce.ReproduceSummary`)."""
+    ns = SimpleNamespace
+    whole = ns(alpha_better_poses_p90=0, p90_abs_error_alpha_rad=0.0326, p90_abs_error_linear_rad=0.0164,
+               ratio_of_medians=ratio, ratio_of_means=3.2)
+    after = ns(alpha_better_poses=0, ratio_of_medians=0.79, ratio_of_means=0.73)
+    return ns(inertia=ns(n_poses=25, max_rel_error=inertia, max_rel_error_unseen_poses=inertia),
+              step=ns(alpha_better_poses=25, n_poses=25, windows=ns(whole_record=whole, after_edges=after)),
+              sine=ns(phase_p90_linear_deg=phase[0], phase_p90_alpha_deg=phase[1]),
+              alpha_simulation=ns(steps=686000, steps_not_converged=0, steps_solved_by_bisection=7996))
 
 
 @pytest.mark.parametrize("kw,not_met", [({}, 4), ({"inertia": 0.01, "ratio": 3.5, "phase": (20.0, 9.0)}, 1)])
 def test_console_prints_every_target_as_the_table(kw, not_met, capsys):
-    res = {"scores": {"summary": _summary(**kw)}}
+    res = SimpleNamespace(summary=_summary(**kw))
     rows = rp.target_rows(res)
     table = rp._targets(res)
     _print_summary(res)
@@ -78,8 +80,8 @@ def test_beta_k1_far_from_the_paper_is_explained():
 
 
 def test_equation_numbers_are_named_as_the_papers():
-    res = {"scores": {"summary": {"run": {"model": "m.xml", "model_sha256": "ab", "simulated_time_s": 1.0}}},
-           "runs": []}
+    res = SimpleNamespace(summary=SimpleNamespace(run=SimpleNamespace(model="m.xml", model_sha256="ab",
+                                                                      simulated_time_s=1.0)), runs=())
     header = rp._header(res)
     assert EQUATIONS_LEGEND in header
     assert "equation numbers of the paper" in EQUATIONS_LEGEND and "The α-invariant" in EQUATIONS_LEGEND

@@ -207,15 +207,15 @@ duration_s = 4.0
     res = sw.run_variant(study.jobs()[0])
     assert res["result"]["status"] == "ok", res["result"]["error"]
     ref = run_reproduce(Device.load(friction="lugre"), jobs=1, campaign=str(tmp_path / "camp.toml"))
-    s = ref["scores"]["summary"]
+    s = ref.summary
     fig = res["result"]["figures"]
-    assert fig["inertia_max_rel_error"] == pytest.approx(s["inertia"]["max_rel_error"], rel=1e-9)
+    assert fig["inertia_max_rel_error"] == pytest.approx(s.inertia.max_rel_error, rel=1e-9)
     assert fig["step_ratio_of_medians_whole_record"] == pytest.approx(
-        s["step"]["windows"]["whole_record"]["ratio_of_medians"], rel=1e-9)
+        s.step.windows.whole_record.ratio_of_medians, rel=1e-9)
     assert fig["step_ratio_of_medians_after_edges"] == pytest.approx(
-        s["step"]["windows"]["after_edges"]["ratio_of_medians"], rel=1e-9)
+        s.step.windows.after_edges.ratio_of_medians, rel=1e-9)
     for k in ("phase_p90_linear_deg", "phase_p90_alpha_deg", "magnitude_p90_linear", "magnitude_p90_alpha"):
-        assert fig[f"sine_{k}"] == pytest.approx(s["sine"][k], rel=1e-9)
+        assert fig[f"sine_{k}"] == pytest.approx(getattr(s.sine, k), rel=1e-9)
     assert json.loads(res["files"]["summary.json"])["inertia"]["n_poses"] == 25
 
 
