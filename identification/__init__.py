@@ -25,7 +25,7 @@ _EXPORTS = {
                 "inertia_analytic", "inertia_minimal", "minimal_from_analytic"),
     # the paper's method end to end: ``omni identify`` and ``omni validate`` in Python
     "identify": ("Identification", "identify_runs"),
-    "validation": ("Params", "read_params", "validate_runs"),
+    "validation": ("Params", "read_params", "validate_runs", "Validation", "ValidationSummary"),
 }
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 
@@ -50,4 +50,5 @@ __all__ = ["Run", "UserError", "read_dataset", "read_run", "write_dataset", "wri
            "local_coefficients",
            "InertiaFit", "InertiaParameters", "c0_bar_regression", "fit_inertia_model",
            "inertia_analytic", "inertia_minimal", "minimal_from_analytic",
-           "Identification", "identify_runs", "Params", "read_params", "validate_runs"]
+           "Identification", "identify_runs", "Params", "read_params", "validate_runs",
+           "Validation", "ValidationSummary"]

@@ -12,6 +12,11 @@
 3. ``summary.json`` (contract keys plus details) and ``predictions/NAME.csv`` (``t, theta,
    theta_linear, theta_alpha``) are written.
 
+:func:`validate_runs` returns a frozen :class:`Validation`: ``summary`` (a
+:class:`ValidationSummary`, typed sections :class:`SineSummary`, :class:`StepSummary` with its
+:class:`StepWindows`, :class:`AlphaSimulation`), the per-pose and per-run rows and the
+predictions; ``to_json()`` is ``scores.json``, ``summary.to_json()`` is ``summary.json``.
+
 Without an α model (``params.json``'s ``alpha_model`` null or empty: what ``omni identify``
 writes when it cannot fit one) the linear model is scored alone: every α score in
 ``summary.json`` and ``scores.json`` is null, ``summary["alpha_not_scored"]`` says why (the
@@ -45,6 +50,7 @@ from .errors import UserError
 from .identify import check_closed_loop_runs, check_pose_runs, check_sine_record
 from .inertia import InertiaParameters
 from .nonlinear import AlphaModel
+from .records import Record
 from .simulate import simulate_alpha_batch, simulate_linear
 from .sine_fit import fundamentals
 
@@ -294,55 +300,196 @@ def _pose_counts(rows: list[dict], keys: list[tuple], window: str) -> dict:
     return out
 
 
-def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> dict:
+@dataclass(frozen=True)
+class SineSummary(Record):
+    """Table 8 over poses (``summary.json``'s ``sine``): the mean over poses of each pose's 90th
+    percentile over frequencies."""
+
+    magnitude_p90_linear: float | None  #: fundamental magnitude error |theta|/A_r, linear model [-]
+    phase_p90_linear_deg: float | None  #: phase error, linear model [deg]
+    magnitude_p90_alpha: float | None  #: the same, α-invariant model [-] (None: no α model)
+    phase_p90_alpha_deg: float | None  #: the same, α-invariant model [deg] (None: no α model)
+    n_poses: int  #: poses with sine runs
+    statistic: str  #: the statistic, in words
+
+
+@dataclass(frozen=True)
+class StepWindow(Record):
+    """The step responses' absolute angle errors over one window, over runs and poses
+    (``summary.json``'s ``step.windows.<window>``).  Medians and p90s are per run, then the
+    median (or ``mean_``: the mean) over runs.  Without an α model every α figure, ratio and
+    count is None."""
+
+    median_abs_error_linear_rad: float  #: [rad]
+    mean_median_abs_error_linear_rad: float  #: [rad]
+    p90_abs_error_linear_rad: float  #: [rad]
+    mean_p90_abs_error_linear_rad: float  #: [rad]
+    median_abs_error_alpha_rad: float | None  #: [rad]
+    mean_median_abs_error_alpha_rad: float | None  #: [rad]
+    p90_abs_error_alpha_rad: float | None  #: [rad]
+    mean_p90_abs_error_alpha_rad: float | None  #: [rad]
+    ratio_of_medians: float | None  #: linear / α of the medians [-]
+    ratio_of_means: float | None  #: linear / α of the means of the run medians [-]
+    alpha_better_poses: int | None  #: poses where α's median error is smaller at every run
+    alpha_better_poses_p90: int | None  #: the same by the p90
+    n_poses: int  #: distinct poses
+    n_runs: int  #: step runs scored
+    alpha_better_runs: int | None  #: runs where α's median error is smaller
+    alpha_better_runs_p90: int | None  #: the same by the p90
+
+
+@dataclass(frozen=True)
+class StepWindows(Record):
+    """The two scoring windows of the step responses (:data:`identification.scoring.STEP_WINDOWS`)."""
+
+    whole_record: StepWindow  #: the whole record
+    after_edges: StepWindow  #: the first second after each edge
+
+    @classmethod
+    def from_json(cls, d: dict) -> StepWindows:
+        return cls(StepWindow(**d["whole_record"]), StepWindow(**d["after_edges"]))
+
+
+@dataclass(frozen=True)
+class StepSummary(Record):
+    """Table 11 over poses (``summary.json``'s ``step``): the headline figures over the whole
+    record, the rest of the story beside them, the paper's Table 11 reduced with the same
+    statistics and both windows in full.  Without an α model every α figure is None."""
+
+    median_abs_error_linear_rad: float  #: [rad], whole record
+    median_abs_error_alpha_rad: float | None  #: [rad], whole record
+    alpha_better_poses: int | None  #: by the median, whole record
+    n_poses: int  #: distinct poses (the paper's count)
+    n_runs: int  #: step runs scored
+    alpha_better_runs: int | None  #: by the median, whole record
+    ratio_of_medians: float | None  #: linear / α [-], whole record
+    statistic: str  #: the headline statistic, in words
+    ratio_of_means: float | None  #: [-], whole record (the paper's "2.6" is one)
+    p90_abs_error_linear_rad: float  #: [rad], whole record
+    p90_abs_error_alpha_rad: float | None  #: [rad], whole record
+    alpha_better_poses_p90: int | None  #: by the p90, whole record
+    alpha_better_poses_after_edges: int | None  #: by the median, first second after each edge
+    ratio_of_medians_after_edges: float | None  #: [-], first second after each edge
+    paper_table11: dict  #: the paper's Table 11 reduced alike (:func:`identification.paper.table11_summary`)
+    windows: StepWindows  #: both windows in full
+
+    @classmethod
+    def from_json(cls, d: dict) -> StepSummary:
+        return cls(**{**d, "windows": StepWindows.from_json(d["windows"])})
+
+
+@dataclass(frozen=True)
+class AlphaSimulation(Record):
+    """The α model's quasilinear iteration over every run (``summary.json``'s
+    ``alpha_simulation``)."""
+
+    steps: int  #: control steps simulated
+    steps_not_converged: int  #: steps neither the iteration nor the bisection solved
+    steps_solved_by_bisection: int  #: steps the iteration did not, a bracketed bisection did
+
+
+@dataclass(frozen=True)
+class ValidationSummary(Record):
+    """``omni validate``'s ``summary.json``.  Its ``inertia`` key is always null (validate has
+    no model to compare the inertia model with; ``omni reproduce``'s summary fills it), so it
+    is written but not stored."""
+
+    sine: SineSummary | None  #: Table 8 over poses (None: no sine runs)
+    step: StepSummary | None  #: Table 11 over poses (None: no step runs)
+    alpha_simulation: AlphaSimulation | None  #: the α model's iteration (None: no α model)
+    alpha_not_scored: str | None = None  #: why the α model was not scored (None: it was)
+
+    def to_json(self) -> dict:
+        """The ``summary.json`` object: ``inertia`` null first, ``alpha_not_scored`` only when
+        the α model was not scored."""
+        out = {"inertia": None, **super().to_json()}
+        if self.alpha_not_scored is None:
+            del out["alpha_not_scored"]
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict) -> ValidationSummary:
+        return cls(None if d["sine"] is None else SineSummary(**d["sine"]),
+                   None if d["step"] is None else StepSummary.from_json(d["step"]),
+                   None if d["alpha_simulation"] is None else AlphaSimulation(**d["alpha_simulation"]),
+                   d.get("alpha_not_scored"))
+
+
+@dataclass(frozen=True)
+class Validation:
+    """Both models scored against runs (:func:`validate_runs`).
+
+    ``scores, predictions = validate_runs(...)`` still unpacks as before this was an object
+    (``scores``: :meth:`to_json`, a new dict each time)."""
+
+    summary: ValidationSummary  #: the figures of ``summary.json``
+    sine_rows: tuple[dict, ...]  #: Table 8 per pose (``scores.json``'s ``sine`` rows)
+    step_rows: tuple[dict, ...]  #: Table 11 per step run (``scores.json``'s ``step`` rows)
+    #: per run name: ``theta_linear``, ``theta_alpha`` [rad], ``n_not_converged``,
+    #: ``n_bracketed``, ``I`` (``predictions/``)
+    predictions: dict
+
+    def to_json(self) -> dict:
+        """``scores.json``: the summary (:meth:`ValidationSummary.to_json`) and the rows."""
+        return {"summary": self.summary.to_json(), "sine": list(self.sine_rows),
+                "step": list(self.step_rows)}
+
+    def __iter__(self):
+        """``(self.to_json(), self.predictions)``: what :func:`validate_runs` returned before."""
+        return iter((self.to_json(), self.predictions))
+
+
+def _sine_summary(sine_rows: list[dict]) -> SineSummary | None:
+    """Table 8 over poses from the per-pose rows (None: no sine runs)."""
+    if not sine_rows:
+        return None
+    avg = {}
+    for label in ("linear", "alpha"):
+        rows = [r[label] for r in sine_rows if r[label] is not None]
+        avg[f"magnitude_p90_{label}"] = float(np.mean([r["magnitude_p90"] for r in rows])) if rows else None
+        avg[f"phase_p90_{label}_deg"] = float(np.mean([r["phase_p90_deg"] for r in rows])) if rows else None
+    return SineSummary(**avg, n_poses=len(sine_rows), statistic="mean over poses of the per-pose "
+                       "90th percentile over frequencies (Table 8 'Average')")
+
+
+def _step_summary(st: dict | None) -> StepSummary | None:
+    """Table 11 over poses from :func:`_step_rows`' per-window summary (None: no step runs)."""
+    if st is None:
+        return None
+    whole, edges = st["whole_record"], st["after_edges"]
+    return StepSummary(
+        **{k: whole[k] for k in ("median_abs_error_linear_rad", "median_abs_error_alpha_rad",
+                                 "alpha_better_poses", "n_poses", "n_runs", "alpha_better_runs",
+                                 "ratio_of_medians")},
+        statistic="median over runs of each run's median |error| over the whole record",
+        # the rest of the story beside the headline (docs/studies/reproduce/results.md): the same ratio
+        # with means (the paper's "2.6" is a ratio of means), the whole-record p90 and the
+        # pose counts by p90 and in the first second after the edges
+        **{k: whole[k] for k in ("ratio_of_means", "p90_abs_error_linear_rad", "p90_abs_error_alpha_rad",
+                                 "alpha_better_poses_p90")},
+        alpha_better_poses_after_edges=edges["alpha_better_poses"],
+        ratio_of_medians_after_edges=edges["ratio_of_medians"],
+        # Table 11 reduced with the same statistics (like for like; not measured here)
+        paper_table11=paper.table11_summary(),
+        windows=StepWindows.from_json(st))
+
+
+def score(runs: list[Run], params: Params, predictions: dict[str, dict]) -> Validation:
     """Tables 8 and 11 for both models (the linear one alone without an α model), and the
     summary (contract keys plus details)."""
     models = ("linear",) if params.alpha is None else ("linear", "alpha")
     sine_rows = _sine_rows(runs, predictions, models)
     step_rows, st = _step_rows(runs, params, predictions)
-    summary: dict = {"inertia": None, "sine": None, "step": None}
-    if sine_rows:
-        avg = {}
-        for label in ("linear", "alpha"):
-            rows = [r[label] for r in sine_rows if r[label] is not None]
-            avg[f"magnitude_p90_{label}"] = float(np.mean([r["magnitude_p90"] for r in rows])) if rows else None
-            avg[f"phase_p90_{label}_deg"] = float(np.mean([r["phase_p90_deg"] for r in rows])) if rows else None
-        summary["sine"] = {**avg, "n_poses": len(sine_rows), "statistic": "mean over poses of the "
-                           "per-pose 90th percentile over frequencies (Table 8 'Average')"}
-    if step_rows:
-        whole = st["whole_record"]
-        summary["step"] = {
-            "median_abs_error_linear_rad": whole["median_abs_error_linear_rad"],
-            "median_abs_error_alpha_rad": whole["median_abs_error_alpha_rad"],
-            "alpha_better_poses": whole["alpha_better_poses"],
-            "n_poses": whole["n_poses"],  # distinct poses (the paper's count)
-            "n_runs": whole["n_runs"],  # step runs scored (one per pose in the paper)
-            "alpha_better_runs": whole["alpha_better_runs"],
-            "ratio_of_medians": whole["ratio_of_medians"],
-            "statistic": "median over runs of each run's median |error| over the whole record",
-            # the rest of the story beside the headline (docs/studies/reproduce/results.md): the same ratio
-            # with means (the paper's "2.6" is a ratio of means), the whole-record p90 and the
-            # pose counts by p90 and in the first second after the edges
-            "ratio_of_means": whole["ratio_of_means"],
-            "p90_abs_error_linear_rad": whole["p90_abs_error_linear_rad"],
-            "p90_abs_error_alpha_rad": whole["p90_abs_error_alpha_rad"],
-            "alpha_better_poses_p90": whole["alpha_better_poses_p90"],
-            "alpha_better_poses_after_edges": st["after_edges"]["alpha_better_poses"],
-            "ratio_of_medians_after_edges": st["after_edges"]["ratio_of_medians"],
-            # Table 11 reduced with the same statistics (like for like; not measured here)
-            "paper_table11": paper.table11_summary(),
-            "windows": st,
-        }
     if params.alpha is None:
-        summary["alpha_simulation"] = None
-        summary["alpha_not_scored"] = params.alpha_missing
+        alpha_simulation, missing = None, params.alpha_missing
     else:
-        n_bad = sum(p["n_not_converged"] for p in predictions.values())
-        n_steps = sum(len(r.t) for r in runs)
-        n_brk = sum(p.get("n_bracketed", 0) for p in predictions.values())
-        summary["alpha_simulation"] = {"steps": n_steps, "steps_not_converged": n_bad,
-                                       "steps_solved_by_bisection": n_brk}
-    return {"summary": summary, "sine": sine_rows, "step": step_rows}
+        alpha_simulation = AlphaSimulation(
+            steps=sum(len(r.t) for r in runs),
+            steps_not_converged=sum(p["n_not_converged"] for p in predictions.values()),
+            steps_solved_by_bisection=sum(p.get("n_bracketed", 0) for p in predictions.values()))
+        missing = None
+    summary = ValidationSummary(_sine_summary(sine_rows), _step_summary(st), alpha_simulation, missing)
+    return Validation(summary, tuple(sine_rows), tuple(step_rows), predictions)
 
 
 def write_predictions(folder: Path, runs: list[Run], predictions: dict[str, dict]) -> None:
@@ -355,8 +502,10 @@ def write_predictions(folder: Path, runs: list[Run], predictions: dict[str, dict
             fh.write(format_rows(data))  # "%.17g" per number, ASCII
 
 
-def validate_runs(runs: list[Run], params: Params) -> tuple[dict, dict]:
-    """Simulate and score; returns (scores, predictions).
+def validate_runs(runs: list[Run], params: Params) -> Validation:
+    """Simulate and score; returns the scores and the predictions as a frozen
+    :class:`Validation` (``scores, predictions = validate_runs(...)`` unpacks it as before:
+    ``scores`` is its :meth:`~Validation.to_json`, ``scores.json``).
 
     Raises
     ------
@@ -373,4 +522,4 @@ def validate_runs(runs: list[Run], params: Params) -> tuple[dict, dict]:
         if r.kind == "sine":
             check_sine_record(r)
     predictions = simulate_runs(runs, params)
-    return score(runs, params, predictions), predictions
+    return score(runs, params, predictions)

@@ -16,7 +16,7 @@ from identification.dataset import (atomic_output_dir, atomic_write_text, check_
 from identification.errors import UserError
 from identification.identify import check_closed_loop_runs, check_pose_runs, fit_inertia_table, identify_runs
 from identification.inertia import InertiaFit
-from identification.validation import read_params, validate_runs, write_predictions
+from identification.validation import ValidationSummary, read_params, validate_runs, write_predictions
 from .inputs import check_run_poses, omni_pose_check
 from omni_sim import experiments as ex
 from omni_sim import model as om
@@ -211,35 +211,35 @@ def validate(args: argparse.Namespace) -> int:
     check_closed_loop_runs(runs, "validate", args.data)
     for run in runs:
         params.linear_coefficients(run)  # a run at a pose the params cannot predict: refused here
-    scores, predictions = validate_runs(runs, params)
+    val = validate_runs(runs, params)
     with atomic_output_dir(args.out, force=getattr(args, "force", False)) as tmp:
-        write_predictions(tmp, runs, predictions)
-        (tmp / "summary.json").write_text(json.dumps(scores["summary"], indent=2) + "\n")
-        (tmp / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
-    _print_scores(scores["summary"])
+        write_predictions(tmp, runs, val.predictions)
+        (tmp / "summary.json").write_text(json.dumps(val.summary.to_json(), indent=2) + "\n")
+        (tmp / "scores.json").write_text(json.dumps(val.to_json(), indent=2) + "\n")
+    _print_scores(val.summary)
     print(f"wrote {args.out}/summary.json and predictions/")
     return 0
 
 
-def _print_scores(s: dict) -> None:
+def _print_scores(s: ValidationSummary) -> None:
     """validate's printed summary: both models, or the linear one and why the α one is not
     scored."""
-    alpha = s.get("alpha_not_scored") is None
-    st, sn = s["step"], s["sine"]
+    alpha = s.alpha_not_scored is None
+    st, sn = s.step, s.sine
     if st and alpha:
-        print(f"step: median |error| linear {st['median_abs_error_linear_rad']:.4f} rad, alpha "
-              f"{st['median_abs_error_alpha_rad']:.4f} rad (ratio {st['ratio_of_medians']:.2f}); "
-              f"alpha better at {st['alpha_better_poses']}/{st['n_poses']} poses "
-              f"({st['alpha_better_runs']}/{st['n_runs']} runs)")
+        print(f"step: median |error| linear {st.median_abs_error_linear_rad:.4f} rad, alpha "
+              f"{st.median_abs_error_alpha_rad:.4f} rad (ratio {st.ratio_of_medians:.2f}); "
+              f"alpha better at {st.alpha_better_poses}/{st.n_poses} poses "
+              f"({st.alpha_better_runs}/{st.n_runs} runs)")
     elif st:
-        print(f"step: median |error| linear {st['median_abs_error_linear_rad']:.4f} rad over "
-              f"{st['n_runs']} run(s) at {st['n_poses']} pose(s)")
+        print(f"step: median |error| linear {st.median_abs_error_linear_rad:.4f} rad over "
+              f"{st.n_runs} run(s) at {st.n_poses} pose(s)")
     if sn and alpha:
-        print(f"sine: magnitude p90 linear {sn['magnitude_p90_linear']:.3f}, alpha "
-              f"{sn['magnitude_p90_alpha']:.3f}; phase p90 linear {sn['phase_p90_linear_deg']:.1f} deg, "
-              f"alpha {sn['phase_p90_alpha_deg']:.1f} deg")
+        print(f"sine: magnitude p90 linear {sn.magnitude_p90_linear:.3f}, alpha "
+              f"{sn.magnitude_p90_alpha:.3f}; phase p90 linear {sn.phase_p90_linear_deg:.1f} deg, "
+              f"alpha {sn.phase_p90_alpha_deg:.1f} deg")
     elif sn:
-        print(f"sine: magnitude p90 linear {sn['magnitude_p90_linear']:.3f}; phase p90 linear "
-              f"{sn['phase_p90_linear_deg']:.1f} deg")
+        print(f"sine: magnitude p90 linear {sn.magnitude_p90_linear:.3f}; phase p90 linear "
+              f"{sn.phase_p90_linear_deg:.1f} deg")
     if not alpha:
-        print(f"alpha model not scored (linear model only): {s['alpha_not_scored']}")
+        print(f"alpha model not scored (linear model only): {s.alpha_not_scored}")

@@ -16,9 +16,9 @@ import numpy as np
 
 from identification.errors import UserError
 from omni_studies.zwidth import (DURATION_S, MEMORY_BUDGET_BYTES, PROBE_PERIODS, SETTLE_FRACTION,
-                                  START_PENETRATION, TOL, beyond_boundary, boundary, colgate_limit,
-                                  map_device, map_memory_bytes, map_notes, passivity_map,
-                                  physical_damping, probe_amplitude_counts, require_damping)
+                                  START_PENETRATION, TOL, MapRecord, MapSettings, beyond_boundary,
+                                  colgate_limit, map_device, map_memory_bytes, map_record,
+                                  passivity_map, probe_amplitude_counts, require_damping)
 from omni_studies import zwidth_damping, zwidth_study
 
 
@@ -85,63 +85,48 @@ def zwidth_command(args) -> int:
                         probe_speed=args.probe_speed, nthread=args.jobs,
                         progress=sys.stderr.isatty())
     elapsed = time.perf_counter() - t0
-    doc = _map_doc(args, dev, K, B, res, quantize, tlim, elapsed)
+    rec = _map_record(args, dev, K, B, res, quantize, tlim, elapsed)
     from identification.dataset import atomic_output_dir
 
     with atomic_output_dir(args.out, force=args.force) as tmp:
-        (tmp / "zwidth.json").write_text(json.dumps(doc, indent=1) + "\n")
-        plot_map(doc, tmp / "zwidth.png")
+        (tmp / "zwidth.json").write_text(json.dumps(rec.to_json(), indent=1) + "\n")
+        plot_map(rec, tmp / "zwidth.png")
     print(f"zwidth: {len(B)} x {len(K)} walls in {elapsed:.1f} s; b = {b:.4g} N*m*s/rad, "
           f"T = {T:g} s; wrote {Path(args.out) / 'zwidth.json'}, zwidth.png")
-    for note in doc["notes"]:
+    for note in rec.notes:
         print(f"note: {note}")
     return 0
 
 
-def _map_doc(args, dev, K, B, res, quantize, tlim, elapsed) -> dict:
-    """The map's JSON document (the contract's keys first, then the extras and the notes)."""
+def _map_record(args, dev, K, B, res, quantize, tlim, elapsed) -> MapRecord:
+    """The map's record (``zwidth.json``): the settings from the command's arguments."""
     from omni_sim.device import ENCODER_STEP_RAD
     from omni_sim.model import model_path
 
-    b, T = physical_damping(dev), dev.control_period_s
     family = "ideal" if args.ideal else dev.friction_family(
         None if args.model else model_path(None, args.friction))
-    doc = {
-        "stiffness": K, "damping": B,
-        "passive": res["passive"].tolist(),
-        "physical_damping": b, "sample_period_s": T,
-        "settings": {"model": str(args.model) if args.model else None, "friction": family,
-                     "ideal": bool(args.ideal), "quantize": quantize, "delay_periods": args.delay,
-                     "physics_substeps": args.substeps, "probe_speed": args.probe_speed,
-                     "probe_periods": list(PROBE_PERIODS),
-                     "start_penetration_rad": START_PENETRATION, "duration_s": DURATION_S,
-                     "settle_fraction": SETTLE_FRACTION, "tolerance": TOL,
-                     "torque_limit": tlim, "encoder_step_rad": ENCODER_STEP_RAD,
-                     "elapsed_s": round(elapsed, 2)},
-        "energy_index": res["index"].round(6).tolist(),
-        "energy_index_per_probe": {str(m): x.round(6).tolist()
-                                   for m, x in zip(res["probe_periods"], res["index_per_probe"])},
-        "boundary_stiffness": [None if not np.isfinite(x) else x for x in boundary(K, res["index"])],
-        "colgate_stiffness": colgate_limit(b, B, T).tolist(),
-        "beyond_boundary": beyond_boundary(res["passive"]).tolist(),
-        "probe_amplitude_counts": probe_amplitude_counts(args.probe_speed, PROBE_PERIODS, T),
-    }
-    doc["notes"] = map_notes(doc)
-    return doc
+    settings = MapSettings(
+        model=str(args.model) if args.model else None, friction=family, ideal=bool(args.ideal),
+        quantize=quantize, delay_periods=args.delay, physics_substeps=args.substeps,
+        probe_speed=args.probe_speed, probe_periods=tuple(PROBE_PERIODS),
+        start_penetration_rad=START_PENETRATION, duration_s=DURATION_S,
+        settle_fraction=SETTLE_FRACTION, tolerance=TOL, torque_limit=tlim,
+        encoder_step_rad=ENCODER_STEP_RAD, elapsed_s=round(elapsed, 2))
+    return map_record(dev, K, B, res, settings)
 
 
-def plot_map(doc: dict, path: Path) -> None:
+def plot_map(rec: MapRecord, path: Path) -> None:
     """The map's figure: passive and active cells, the cells beyond the boundary (not a result),
     Colgate & Schenkel's line, the measured boundary, and the map's notes in short."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    K, B = np.array(doc["stiffness"]), np.array(doc["damping"])
-    P = np.array(doc["passive"], dtype=bool)
+    K, B = np.array(rec.stiffness), np.array(rec.damping)
+    P = np.array(rec.passive, dtype=bool)
     X = beyond_boundary(P)
-    b, T = doc["physical_damping"], doc["sample_period_s"]
-    short = _figure_note(doc)
+    b, T = rec.physical_damping, rec.sample_period_s
+    short = _figure_note(rec)
     fig, ax = plt.subplots(figsize=(6, 4.9 if short else 4.5))
     KK, BB = np.meshgrid(K, B)
     ax.scatter(KK[P & ~X], BB[P & ~X], s=18, c="tab:green", marker="o", label="passive")
@@ -151,13 +136,13 @@ def plot_map(doc: dict, path: Path) -> None:
                    linewidths=1.5, label="passive beyond the boundary: not a result")
     bb = np.linspace(min(B.min(), 0), B.max(), 200)
     ax.plot(colgate_limit(b, bb, T), bb, "k-", label="Colgate & Schenkel: b = K T/2 + |B|")
-    kb = np.array([np.nan if x is None else x for x in doc["boundary_stiffness"]], dtype=float)
+    kb = np.array([np.nan if x is None else x for x in rec.boundary_stiffness], dtype=float)
     ax.plot(kb, B, "b--", drawstyle="default", label="measured boundary (largest passive K)")
     ax.set_xlabel("wall stiffness K [N m/rad]")
     ax.set_ylabel("wall damping B [N m s/rad]")
-    s = doc["settings"]
-    ax.set_title(f"Z-width, {s['friction']}, T = {T * 1e3:g} ms, b = {b:.3g}, "
-                 f"q={'on' if s['quantize'] else 'off'}, delay {s['delay_periods']}", fontsize=9)
+    s = rec.settings
+    ax.set_title(f"Z-width, {s.friction}, T = {T * 1e3:g} ms, b = {b:.3g}, "
+                 f"q={'on' if s.quantize else 'off'}, delay {s.delay_periods}", fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
     if short:
         fig.text(0.01, 0.01, short, fontsize=7, color="tab:orange", va="bottom", wrap=True)
@@ -168,20 +153,19 @@ def plot_map(doc: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def _figure_note(doc: dict) -> str:
+def _figure_note(rec: MapRecord) -> str:
     """The figure's footnote: the notes that change how the map reads, in short (from the map's
     cells and settings, so that a record written before the notes plots the same way)."""
-    s = doc["settings"]
-    counts = max(probe_amplitude_counts(s["probe_speed"], s["probe_periods"],
-                                        doc["sample_period_s"]).values())
-    n_beyond = int(beyond_boundary(doc["passive"]).sum())
+    s = rec.settings
+    counts = max(probe_amplitude_counts(s.probe_speed, s.probe_periods, rec.sample_period_s).values())
+    n_beyond = int(beyond_boundary(rec.passive).sum())
     parts = []
-    if s["quantize"] and counts < 1:
+    if s.quantize and counts < 1:
         parts.append(f"every probe below one encoder count (at most {counts:.2f} counts): the "
                      f"boundary is the quantised loop's")
     if n_beyond:
         parts.append(f"{n_beyond} passive cell(s) beyond the boundary (orange) are not a result")
-    if s["delay_periods"]:
+    if s.delay_periods:
         parts.append("loop delay: the map is optimistic")
     return "; ".join(parts)
 

@@ -13,13 +13,15 @@ measures its own wall time and passes it in; it is never stored in the result.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from identification.dataset import Run
 from identification.errors import UserError
 from identification.identify import Identification, identify_runs
-from identification.validation import Params, validate_runs
+from identification.records import Record
+# the validation's sections (validate's summary.json has them too)
+from identification.validation import AlphaSimulation, Params, SineSummary, StepSummary, validate_runs
 
 if TYPE_CHECKING:  # the simulator (and MuJoCo) is imported by the stages that run it, so that a
     # figure worker unpickling a result (omni_app.reproduce) does not import it
@@ -29,30 +31,8 @@ if TYPE_CHECKING:  # the simulator (and MuJoCo) is imported by the stages that r
 STAGES = ("simulating the paper campaign", "identifying", "validating", "ground truth")
 
 
-class _Record:
-    """A frozen dataclass whose field names are the keys of its JSON object, in order."""
-
-    def to_json(self) -> dict:
-        """The JSON object (plain dicts, lists, numbers and strings), keys in field order."""
-        return {f.name: _json(getattr(self, f.name)) for f in fields(self)}
-
-    @classmethod
-    def from_json(cls, d: dict):
-        """The record of the JSON object ``d`` (the keys must be exactly the fields)."""
-        return cls(**d)
-
-
-def _json(value):
-    """``value`` as JSON: records as objects, tuples as lists, the rest as it is."""
-    if isinstance(value, _Record):
-        return value.to_json()
-    if isinstance(value, tuple):
-        return [_json(v) for v in value]
-    return value
-
-
 @dataclass(frozen=True)
-class InertiaPose(_Record):
+class InertiaPose(Record):
     """One Table 2 pose of the inertia check (a row of ``summary.json``'s ``inertia.poses``)."""
 
     gamma1_set_deg: float  #: set pose [deg]
@@ -66,7 +46,7 @@ class InertiaPose(_Record):
 
 
 @dataclass(frozen=True)
-class InertiaTruth(_Record):
+class InertiaTruth(Record):
     """The identified inertia model (6) x beta_bar against MuJoCo's mass matrix
     (:func:`omni_sim.truth.inertia_truth`; ``summary.json``'s ``inertia``)."""
 
@@ -84,94 +64,7 @@ class InertiaTruth(_Record):
 
 
 @dataclass(frozen=True)
-class SineSummary(_Record):
-    """Table 8 over poses (``summary.json``'s ``sine``): the mean over poses of each pose's 90th
-    percentile over frequencies."""
-
-    magnitude_p90_linear: float | None  #: fundamental magnitude error |theta|/A_r, linear model [-]
-    phase_p90_linear_deg: float | None  #: phase error, linear model [deg]
-    magnitude_p90_alpha: float | None  #: the same, α-invariant model [-] (None: no α model)
-    phase_p90_alpha_deg: float | None  #: the same, α-invariant model [deg] (None: no α model)
-    n_poses: int  #: poses with sine runs
-    statistic: str  #: the statistic, in words
-
-
-@dataclass(frozen=True)
-class StepWindow(_Record):
-    """The step responses' absolute angle errors over one window, over runs and poses
-    (``summary.json``'s ``step.windows.<window>``).  Medians and p90s are per run, then the
-    median (or ``mean_``: the mean) over runs."""
-
-    median_abs_error_linear_rad: float  #: [rad]
-    mean_median_abs_error_linear_rad: float  #: [rad]
-    p90_abs_error_linear_rad: float  #: [rad]
-    mean_p90_abs_error_linear_rad: float  #: [rad]
-    median_abs_error_alpha_rad: float  #: [rad]
-    mean_median_abs_error_alpha_rad: float  #: [rad]
-    p90_abs_error_alpha_rad: float  #: [rad]
-    mean_p90_abs_error_alpha_rad: float  #: [rad]
-    ratio_of_medians: float  #: linear / α of the medians [-]
-    ratio_of_means: float  #: linear / α of the means of the run medians [-]
-    alpha_better_poses: int  #: poses where α's median error is smaller at every run
-    alpha_better_poses_p90: int  #: the same by the p90
-    n_poses: int  #: distinct poses
-    n_runs: int  #: step runs scored
-    alpha_better_runs: int  #: runs where α's median error is smaller
-    alpha_better_runs_p90: int  #: the same by the p90
-
-
-@dataclass(frozen=True)
-class StepWindows(_Record):
-    """The two scoring windows of the step responses."""
-
-    whole_record: StepWindow  #: the whole record
-    after_edges: StepWindow  #: the first second after each edge
-
-    @classmethod
-    def from_json(cls, d: dict) -> StepWindows:
-        return cls(StepWindow(**d["whole_record"]), StepWindow(**d["after_edges"]))
-
-
-@dataclass(frozen=True)
-class StepSummary(_Record):
-    """Table 11 over poses (``summary.json``'s ``step``): the headline figures over the whole
-    record, the rest of the story beside them, the paper's Table 11 reduced with the same
-    statistics and both windows in full."""
-
-    median_abs_error_linear_rad: float  #: [rad], whole record
-    median_abs_error_alpha_rad: float  #: [rad], whole record
-    alpha_better_poses: int  #: by the median, whole record
-    n_poses: int  #: distinct poses (the paper's count)
-    n_runs: int  #: step runs scored
-    alpha_better_runs: int  #: by the median, whole record
-    ratio_of_medians: float  #: linear / α [-], whole record
-    statistic: str  #: the headline statistic, in words
-    ratio_of_means: float  #: [-], whole record (the paper's "2.6" is one)
-    p90_abs_error_linear_rad: float  #: [rad], whole record
-    p90_abs_error_alpha_rad: float  #: [rad], whole record
-    alpha_better_poses_p90: int  #: by the p90, whole record
-    alpha_better_poses_after_edges: int  #: by the median, first second after each edge
-    ratio_of_medians_after_edges: float  #: [-], first second after each edge
-    paper_table11: dict  #: the paper's Table 11 reduced alike (:func:`identification.paper.table11_summary`)
-    windows: StepWindows  #: both windows in full
-
-    @classmethod
-    def from_json(cls, d: dict) -> StepSummary:
-        return cls(**{**d, "windows": StepWindows.from_json(d["windows"])})
-
-
-@dataclass(frozen=True)
-class AlphaSimulation(_Record):
-    """The α model's quasilinear iteration over every run (``summary.json``'s
-    ``alpha_simulation``)."""
-
-    steps: int  #: control steps simulated
-    steps_not_converged: int  #: steps neither the iteration nor the bisection solved
-    steps_solved_by_bisection: int  #: steps the iteration did not, a bracketed bisection did
-
-
-@dataclass(frozen=True)
-class RunInfo(_Record):
+class RunInfo(Record):
     """What ran (``summary.json``'s ``run`` without the writer's wall times)."""
 
     simulated_time_s: float  #: simulated time of the campaign [s]
@@ -198,7 +91,7 @@ class RunInfo(_Record):
 
 
 @dataclass(frozen=True)
-class ReproduceSummary(_Record):
+class ReproduceSummary(Record):
     """``summary.json``: every figure of the reproduction, per section."""
 
     inertia: InertiaTruth  #: the inertia model against MuJoCo's mass matrix
@@ -302,7 +195,7 @@ def analyse(sim: SimulatedCampaign, progress=_no_progress) -> ReproduceResult:
     params_dict = ident.to_params()
     progress(STAGES[2])
     params = Params(ident.inertia.params, ident.alpha_model, params_dict["poses"])
-    scores, predictions = validate_runs(runs, params)
+    val = validate_runs(runs, params)
     progress(STAGES[3])
     inertia = truth.inertia_truth(device, ident.inertia.params)
     lin = truth.linear_truth(device, ident)
@@ -310,7 +203,8 @@ def analyse(sim: SimulatedCampaign, progress=_no_progress) -> ReproduceResult:
     run = RunInfo(simulated_time_s=sum(len(r.t) for r in runs) * ex.CONTROL_PERIOD_S,
                   wall_s_before_writing=time.perf_counter() - sim.started,
                   model=device.label, model_sha256=meta["model_sha256"], friction=meta["friction"])
-    summary = ReproduceSummary.from_json({**scores["summary"], "inertia": inertia, "run": run.to_json()})
+    summary = ReproduceSummary(InertiaTruth.from_json(inertia), val.summary.sine, val.summary.step,
+                               val.summary.alpha_simulation, run)
     return ReproduceResult(device=device, runs=sim.runs, ident=ident, params=params_dict, summary=summary,
-                           sine_rows=tuple(scores["sine"]), step_rows=tuple(scores["step"]),
-                           predictions=predictions, linear_truth=tuple(lin))
+                           sine_rows=val.sine_rows, step_rows=val.step_rows,
+                           predictions=val.predictions, linear_truth=tuple(lin))

@@ -434,9 +434,8 @@ def _reproduce(spec, model, values: dict, settings, pipe: dict) -> tuple[dict, d
         raise UserError("identification failed: " + "; ".join(w for w in ident.warnings if "not fitted" in w))
     params_dict = ident.to_params()
     params = Params(ident.inertia.params, ident.alpha_model, params_dict["poses"])
-    scores, _ = validate_runs(runs, params)
-    s = scores["summary"]
-    s["inertia"] = truth.inertia_truth(device, ident.inertia.params)
+    s = {**validate_runs(runs, params).summary.to_json(),  # "inertia" (null) stays the first key
+         "inertia": truth.inertia_truth(device, ident.inertia.params)}
     win = s["step"]["windows"]
     fig = {"inertia_max_rel_error": s["inertia"]["max_rel_error"],
            "step_ratio_of_medians_whole_record": win["whole_record"]["ratio_of_medians"],

@@ -53,11 +53,14 @@ physics step, more substeps than change a verdict, and a map larger than the mem
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from identification.errors import UserError
+from identification.records import Record
 
 #: Probe speed [rad/s] of the Nyquist square-wave velocity (our choice: 0.02 rad/s, so the
 #: triangle's corners are +-1e-5 rad -- a pure test of the sampled wall, below one encoder count).
@@ -96,6 +99,98 @@ MIN_SPEED_X_SUBSTEPS = PROBE_SPEED * SUBSTEPS
 #: runs; a larger one is refused (an unbounded 10^8-column grid was killed for its memory
 #: without a message).
 MEMORY_BUDGET_BYTES = 2.0e9
+
+
+@dataclass(frozen=True)
+class PassivityMap:
+    """:func:`passivity_map`'s result: one entry per (damping row, stiffness column) cell."""
+
+    passive: np.ndarray  #: len(damping) x len(stiffness) bools: passive under every probe
+    index: np.ndarray  #: the smallest energy index W / D_b over the probes [-]
+    index_per_probe: np.ndarray  #: probes x damping x stiffness [-]
+    diverged: np.ndarray  #: cells whose run diverged or left the yaw's range under some probe
+    probe_periods: tuple[int, ...]  #: the probes' half-periods [servo periods]
+    #: with ``record``: the rows' traces ``theta``, ``tau_wall`` (row = probe-major, then cell)
+    trace: dict | None = None
+
+
+@dataclass(frozen=True)
+class MapSettings(Record):
+    """How a map was run (``zwidth.json``'s ``settings``)."""
+
+    model: str | None  #: the model file given (None: a built-in scene)
+    friction: str  #: its friction family, or "ideal"
+    ideal: bool  #: no dry friction, exact encoder
+    quantize: bool  #: the encoder's quantisation on
+    delay_periods: int  #: loop delay [servo periods]
+    physics_substeps: int  #: physics steps per servo period
+    probe_speed: float  #: [rad/s]
+    probe_periods: tuple[int, ...]  #: the probes' half-periods [servo periods]
+    start_penetration_rad: float  #: [rad]
+    duration_s: float  #: run length [s]
+    settle_fraction: float  #: the part of the run before the energy window [-]
+    tolerance: float  #: of the energy test [-]
+    torque_limit: float  #: the drive's limit [N*m]
+    encoder_step_rad: float  #: one encoder count [rad]
+    elapsed_s: float  #: the map's wall time [s] (measured: varies)
+
+    @classmethod
+    def from_json(cls, d: dict) -> MapSettings:
+        return cls(**{**d, "probe_periods": tuple(d["probe_periods"])})
+
+
+@dataclass(frozen=True)
+class MapRecord(Record):
+    """One passivity map as ``omni zwidth`` writes it (``zwidth.json``): the contract's keys
+    first, then the extras and the notes.  Rows are damping values, columns stiffness values."""
+
+    stiffness: tuple[float, ...]  #: wall stiffness K, increasing [N*m/rad]
+    damping: tuple[float, ...]  #: wall damping B [N*m*s/rad]
+    passive: tuple[tuple[bool, ...], ...]  #: per cell
+    physical_damping: float  #: the yaw's viscous damping b [N*m*s/rad]
+    sample_period_s: float  #: the servo period T [s]
+    settings: MapSettings  #: how the map was run
+    energy_index: tuple[tuple[float, ...], ...]  #: the smallest W / D_b over the probes (6 decimals)
+    #: per probe half-period (a string), W / D_b per cell (6 decimals)
+    energy_index_per_probe: dict[str, tuple[tuple[float, ...], ...]]
+    boundary_stiffness: tuple[float | None, ...]  #: per row, :func:`boundary` (None: none) [N*m/rad]
+    colgate_stiffness: tuple[float, ...]  #: per row, Colgate & Schenkel's 2 (b - |B|) / T [N*m/rad]
+    beyond_boundary: tuple[tuple[bool, ...], ...]  #: per cell, :func:`beyond_boundary`
+    probe_amplitude_counts: dict[str, float]  #: per probe half-period (a string), its corners [counts]
+    notes: tuple[str, ...]  #: what the cells do not say (:func:`map_notes`)
+
+    @classmethod
+    def from_json(cls, d: dict) -> MapRecord:
+        return cls(**{**d, "stiffness": tuple(d["stiffness"]), "damping": tuple(d["damping"]),
+                      "passive": _rows(d["passive"]), "settings": MapSettings.from_json(d["settings"]),
+                      "energy_index": _rows(d["energy_index"]),
+                      "energy_index_per_probe": {m: _rows(x) for m, x in d["energy_index_per_probe"].items()},
+                      "boundary_stiffness": tuple(d["boundary_stiffness"]),
+                      "colgate_stiffness": tuple(d["colgate_stiffness"]),
+                      "beyond_boundary": _rows(d["beyond_boundary"]), "notes": tuple(d["notes"])})
+
+
+def _rows(a) -> tuple:
+    """A 2-D array (or list of lists) as a tuple of row tuples of Python numbers."""
+    return tuple(tuple(r) for r in np.asarray(a).tolist())
+
+
+def map_record(device, stiffness, damping, res: PassivityMap, settings: MapSettings) -> MapRecord:
+    """The record of a map (``zwidth.json``): ``res`` from :func:`passivity_map` on ``device``
+    for the walls ``stiffness`` x ``damping``, run as ``settings`` says; the boundaries, Colgate
+    & Schenkel's line, the cells beyond the boundary and the notes are computed here."""
+    b, T = physical_damping(device), device.control_period_s
+    rec = MapRecord(
+        stiffness=tuple(stiffness), damping=tuple(damping), passive=_rows(res.passive),
+        physical_damping=b, sample_period_s=T, settings=settings,
+        energy_index=_rows(res.index.round(6)),
+        energy_index_per_probe={str(m): _rows(x.round(6)) for m, x in zip(res.probe_periods, res.index_per_probe)},
+        boundary_stiffness=tuple(None if not np.isfinite(x) else float(x) for x in boundary(stiffness, res.index)),
+        colgate_stiffness=tuple(colgate_limit(b, damping, T).tolist()),
+        beyond_boundary=_rows(beyond_boundary(res.passive)),
+        probe_amplitude_counts=probe_amplitude_counts(settings.probe_speed, settings.probe_periods, T),
+        notes=())
+    return dataclasses.replace(rec, notes=tuple(map_notes(rec.to_json())))
 
 
 def physical_damping(device) -> float:
@@ -216,9 +311,10 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
     """Run every (K, B) cell under every probe and decide passivity (see the module doc), after
     :func:`check_map`.  ``progress``: a bar of the servo periods on stderr (tqdm).
 
-    Returns a dict: ``passive`` (len(damping) x len(stiffness) bools), ``index`` (the smallest
-    W / D_b over the probes), ``index_per_probe`` (probes x damping x stiffness),
-    ``diverged``; with ``record`` also the rows' traces (row = probe-major, then cell)."""
+    Returns a frozen :class:`PassivityMap`: ``passive`` (len(damping) x len(stiffness) bools),
+    ``index`` (the smallest W / D_b over the probes), ``index_per_probe`` (probes x damping x
+    stiffness), ``diverged``, ``probe_periods``; with ``record`` also the rows' traces (row =
+    probe-major, then cell).  :func:`map_record` makes ``zwidth.json``'s record of it."""
     check_map(device, stiffness, damping, torque_limit, quantize, delay, probe_speed,
               probe_periods, duration_s, record)
     K = np.asarray(stiffness, dtype=float)
@@ -235,11 +331,8 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
     per = index.reshape((P,) + KK.shape)
     worst = per.min(axis=0)
     diverged = bad.reshape((P,) + KK.shape).any(axis=0)
-    out = {"passive": (worst >= -TOL) & ~diverged, "index": worst, "index_per_probe": per,
-           "diverged": diverged, "probe_periods": periods}
-    if record:
-        out["trace"] = rec
-    return out
+    return PassivityMap(passive=(worst >= -TOL) & ~diverged, index=worst, index_per_probe=per,
+                        diverged=diverged, probe_periods=tuple(periods), trace=rec)
 
 
 def _run_rows(device, k_row, b_row, periods, torque_limit, quantize, delay, probe_speed,

@@ -75,10 +75,10 @@ def probe_alpha(case: str, measured: list, damping: np.ndarray, pose: dict) -> d
     res = zw.passivity_map(dev, K, damping, torque_limit=tlim, quantize=quantize,
                            probe_speed=speed, record=True)
     nB, nK = len(damping), len(K)
-    tau = res["trace"]["tau_wall"]
+    tau = res.trace["tau_wall"]
     n = tau.shape[1]
     k0 = int(round(zw.SETTLE_FRACTION * n))
-    per = res["index_per_probe"]  # probes x damping x stiffness
+    per = res.index_per_probe  # probes x damping x stiffness
     out = []
     for i in range(nB):
         alphas = []
@@ -90,8 +90,8 @@ def probe_alpha(case: str, measured: list, damping: np.ndarray, pose: dict) -> d
             alphas.append(float(2.0 * np.mean((np.diff(v) / T) ** 2)))
         binding = int(np.argmin(per[:, i, i]))
         out.append({"K": float(K[i]), "B": float(damping[i]),
-                    "alpha_per_probe": alphas, "probe_periods": list(res["probe_periods"]),
-                    "binding_probe": res["probe_periods"][binding],
+                    "alpha_per_probe": alphas, "probe_periods": list(res.probe_periods),
+                    "binding_probe": res.probe_periods[binding],
                     "alpha": alphas[binding],
                     "index_per_probe": [float(x) for x in per[:, i, i]]})
     return out

@@ -81,8 +81,8 @@ def run_case(name: str, nthread=None) -> dict:
                            delay=delay, probe_speed=speed, duration_s=duration,
                            nthread=nthread)
     elapsed = time.perf_counter() - t0
-    kb = zw.boundary(STIFFNESS, res["index"])
-    passive = res["passive"]
+    kb = zw.boundary(STIFFNESS, res.index)
+    passive = res.passive
     # K_max as the table reports it: the interpolated boundary, and whether the row is passive
     # to the grid's end (">" 40) or not even at K = 0 ("none")
     table = {}
@@ -95,7 +95,7 @@ def run_case(name: str, nthread=None) -> dict:
     return {
         "settings": {"friction": family, "ideal": ideal, "quantize": quantize,
                      "probe_speed": speed, "delay_periods": delay,
-                     "probe_periods": list(res["probe_periods"]),
+                     "probe_periods": list(res.probe_periods),
                      "physics_substeps": dev.substeps, "torque_limit": tlim,
                      "duration_s": duration, "settle_fraction": zw.SETTLE_FRACTION,
                      "tolerance": zw.TOL, "start_penetration_rad": zw.START_PENETRATION},
@@ -107,9 +107,9 @@ def run_case(name: str, nthread=None) -> dict:
         "table": table,
         "non_monotone_rows": rows, "non_monotone_cells": cells,
         "n_cells": int(passive.size),
-        "diverged_cells": int(res["diverged"].sum()),
+        "diverged_cells": int(res.diverged.sum()),
         "passive": passive.astype(int).tolist(),
-        "energy_index": np.round(res["index"], 6).tolist(),
+        "energy_index": np.round(res.index, 6).tolist(),
     }
 
 

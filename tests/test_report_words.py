@@ -4,12 +4,15 @@ the α model's options are a table, a fitted beta~_k1 far from the paper's is ex
 paper's equation numbers are named as such, and a step count says whether it counts runs or
 poses."""
 
+import dataclasses
+import json
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 
 from identification.nonlinear import AlphaModel
-from identification.validation import _pose_counts
+from identification.validation import StepSummary, ValidationSummary, _pose_counts
 from omni_app import report as rp
 from omni_app.commands import _print_scores
 from omni_app.identify_report import EQUATIONS_LEGEND
@@ -103,9 +106,12 @@ def test_step_counts_name_runs_and_poses():
 
 
 def test_validate_prints_poses_and_runs(capsys):
-    step = {"median_abs_error_linear_rad": 0.003, "median_abs_error_alpha_rad": 0.001, "ratio_of_medians": 3.0,
-            "alpha_better_poses": 0, "n_poses": 1, "alpha_better_runs": 1, "n_runs": 2}
-    _print_scores({"step": step, "sine": None})
+    committed = json.loads((Path(__file__).resolve().parents[1] / "docs" / "studies" / "reproduce"
+                            / "summary.json").read_text())
+    step = dataclasses.replace(StepSummary.from_json(committed["step"]), median_abs_error_linear_rad=0.003,
+                               median_abs_error_alpha_rad=0.001, ratio_of_medians=3.0,
+                               alpha_better_poses=0, n_poses=1, alpha_better_runs=1, n_runs=2)
+    _print_scores(ValidationSummary(sine=None, step=step, alpha_simulation=None))
     assert "alpha better at 0/1 poses (1/2 runs)" in capsys.readouterr().out
-    _print_scores({"step": step, "sine": None, "alpha_not_scored": "no alpha model"})
+    _print_scores(ValidationSummary(sine=None, step=step, alpha_simulation=None, alpha_not_scored="no alpha model"))
     assert "over 2 run(s) at 1 pose(s)" in capsys.readouterr().out

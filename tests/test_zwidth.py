@@ -33,11 +33,11 @@ def test_ideal_boundary_within_15_percent_of_colgate(ideal):
     # the tool's 1 s runs: at B = 0 (every frequency equally bad) the slow probe's transient
     # still counts after 0.5 s (-9 % there, measured)
     res = passivity_map(dev, K, B, tlim)
-    kb, kc = boundary(K, res["index"]), colgate_limit(b, B, T)
+    kb, kc = boundary(K, res.index), colgate_limit(b, B, T)
     assert np.all(np.abs(kb / kc - 1) < 0.15), (kb, kc)
     assert np.all(np.abs(kb[:4] / kc[:4] - 1) < 0.01), (kb, kc)
     # the map is not all one colour: walls well outside the bound are found active
-    assert res["passive"][:, 0].all() and not res["passive"][:, -1].any()
+    assert res.passive[:, 0].all() and not res.passive[:, -1].any()
 
 
 def test_negative_damping_is_caught_by_the_slow_probes(ideal):
@@ -47,9 +47,9 @@ def test_negative_damping_is_caught_by_the_slow_probes(ideal):
     dev, tlim = ideal
     b, T = physical_damping(dev), dev.control_period_s
     res = passivity_map(dev, [0.2 * b / T, 2.0 * b / T], [-0.5 * b], tlim, duration_s=0.5)
-    assert res["passive"].tolist() == [[True, False]]
+    assert res.passive.tolist() == [[True, False]]
     # the Nyquist probe alone does not see the negative damper: a slow probe is what fails
-    per = res["index_per_probe"]
+    per = res.index_per_probe
     assert per[0, 0, 1] > 0 and per[1:, 0, 1].min() < -0.02
 
 
@@ -61,7 +61,7 @@ def test_delay_shrinks_the_boundary(ideal):
     b, T = physical_damping(dev), dev.control_period_s
     K = np.linspace(0.0, 2.0 * b / T, 21)
     res = passivity_map(dev, K, [0.0], tlim, delay=1, duration_s=0.5)
-    kb = boundary(K, res["index"])[0]
+    kb = boundary(K, res.index)[0]
     assert abs(kb / (2 * b / (3 * T)) - 1) < 0.25, kb
 
 
@@ -100,7 +100,7 @@ def test_coulomb_friction_acts_as_damping_fc_over_v():
     expected = 2 * (b + fc / V) / T
     K = np.linspace(0.5 * expected, 1.5 * expected, 11)
     res = passivity_map(dev, K, [0.0], tlim, probe_speed=V)  # 1 s: the slow probe needs it
-    kb = boundary(K, res["index"])[0]
+    kb = boundary(K, res.index)[0]
     assert abs(kb / expected - 1) < 0.10, (kb, expected)
     assert kb > 1.2 * colgate_limit(b, 0.0, T)  # clearly beyond the viscous-only bound
 
@@ -220,9 +220,9 @@ def test_a_yaw_without_range_is_not_diverged(ideal):
     free.model.jnt_limited[free.joint_id] = 0
     free.model.jnt_range[free.joint_id] = (0.0, 0.0)
     res = passivity_map(free, K, [0.0], tlim, duration_s=0.5)
-    assert not res["diverged"].any()
-    assert res["passive"].tolist() == ranged["passive"].tolist() == [[True, False]]
-    assert np.array_equal(res["index"], ranged["index"])
+    assert not res.diverged.any()
+    assert res.passive.tolist() == ranged.passive.tolist() == [[True, False]]
+    assert np.array_equal(res.index, ranged.index)
 
 
 def test_unsorted_stiffness_gives_the_sorted_boundary(tmp_path, capsys):
@@ -340,7 +340,7 @@ def test_method_error_law_behind_the_probe_bounds():
     def err(speed, substeps):
         dev, tlim = map_device(ideal=True, substeps=substeps)
         res = passivity_map(dev, [0.0, 10.0], [0.0], tlim, probe_speed=speed, probe_periods=(1,))
-        return res["index"][0, 1] - (1 - 10.0 * dev.control_period_s / (2 * physical_damping(dev)))
+        return res.index[0, 1] - (1 - 10.0 * dev.control_period_s / (2 * physical_damping(dev)))
 
     base = err(zw.PROBE_SPEED, zw.SUBSTEPS)
     finer = err(zw.PROBE_SPEED, 4 * zw.SUBSTEPS)
