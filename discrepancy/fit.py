@@ -458,7 +458,24 @@ def damped_step(J: np.ndarray, r: np.ndarray, damping: float = 1e-6) -> np.ndarr
 
 
 def jacobian_se(problem: Problem, fit: FitResult) -> np.ndarray:
-    """Standard errors of the fitted parameters from the Jacobian at the optimum.
+    """Standard errors of the fitted parameters from the Jacobian at the optimum: the square
+    roots of :func:`jacobian_cov`'s diagonal."""
+    return np.sqrt(np.maximum(np.diag(jacobian_cov(problem, fit)), 0.0))
+
+
+def jacobian_correlation(problem: Problem, fit: FitResult) -> np.ndarray:
+    """The fitted parameters' correlation matrix from :func:`jacobian_cov` (``cov_ij /
+    sqrt(cov_ii cov_jj)``; NaN where a variance is 0 or not finite)."""
+    cov = jacobian_cov(problem, fit)
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    corr[~np.isfinite(corr)] = np.nan
+    return corr
+
+
+def jacobian_cov(problem: Problem, fit: FitResult) -> np.ndarray:
+    """Covariance of the fitted parameters (in their own units) from the Jacobian at the optimum.
 
     ``cov = s^2 tau (J'WJ)^-1 J'W^2J (J'WJ)^-1`` (sandwich for the run weights ``W``) with the
     residual variance ``s^2`` and the residuals' correlation time ``tau`` [samples]; the
@@ -477,6 +494,5 @@ def jacobian_se(problem: Problem, fit: FitResult) -> np.ndarray:
     try:
         Ai = np.linalg.pinv(A)
     except np.linalg.LinAlgError:
-        return np.full(p, np.inf)
-    cov = s2 * tau * Ai @ B @ Ai
-    return np.sqrt(np.maximum(np.diag(cov), 0.0))
+        return np.diag(np.full(p, np.inf))
+    return s2 * tau * Ai @ B @ Ai

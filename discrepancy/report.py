@@ -194,6 +194,35 @@ def _bound_flags(eff, x) -> dict:
     return out
 
 
+#: A correction's constant and a named effect's parameter the fit cannot tell apart: the
+#: magnitude of their correlation at the all-runs optimum (:func:`discrepancy.fit.jacobian_correlation`)
+#: at least this.  0.9, fixed before any case was looked at: a variance inflation factor
+#: 1 / (1 - r^2) of 5.3, past the usual rule of thumb for harmful collinearity (VIF > 5; James,
+#: Witten, Hastie and Tibshirani, *An Introduction to Statistical Learning*, 2013, sect. 3.3.3).
+CONFOUNDED_CORRELATION = 0.9
+
+
+def confounded(best: Scored, corr: np.ndarray, fixed: tuple[str, ...]) -> dict:
+    """``{(correction, parameter): [(effect, parameter, correlation), ...]}``: each refitted
+    constant of the nominal whose correlation with a named effect's parameter reaches
+    :data:`CONFOUNDED_CORRELATION` in magnitude (parameters on a bound left out: their
+    correlation is not defined)."""
+    rows = []
+    for eff, x, part in _parts(best):
+        on_bound = _bound_flags(eff, x)
+        for k, p in enumerate(eff.params):
+            rows.append((eff.name, p.name, part.start + k, eff.name in fixed, p.name in on_bound))
+    out: dict = {}
+    for e1, p1, i, fix1, b1 in rows:
+        for e2, p2, j, fix2, b2 in rows:
+            if not fix1 or fix2 or b1 or b2:
+                continue
+            r = float(corr[i, j])
+            if math.isfinite(r) and abs(r) >= CONFOUNDED_CORRELATION:
+                out.setdefault((e1, p1), []).append((e2, p2, r))
+    return out
+
+
 def _correction_items(builder, best: Scored, unc: dict, fixed: tuple[str, ...]) -> list[dict]:
     """The report's ``corrections``: each refitted constant of the nominal with the user's value,
     the fitted one, its 95 % half-width (as the effects'), the factor moved, and a warning when
@@ -202,9 +231,11 @@ def _correction_items(builder, best: Scored, unc: dict, fixed: tuple[str, ...]) 
     ``within_factor`` (bool) says the fitted value lies within :data:`PLAUSIBLE_FACTOR` of the
     user's value, ``plausible_factor`` is that factor, ``at_bound`` the bound it sits on (or
     None); ``plausible`` (kept for compatibility) is ``within_factor and not at_bound``: those
-    two checks only, not a test of the value against the truth."""
+    two checks only, not a test of the value against the truth.  ``confounded_with`` lists the
+    named effects' parameters the fit trades it against (:func:`confounded`)."""
     cover = un.coverage_factor(len(best.folds))
     se, bias = unc["se"], unc["measurement_bias"]
+    mixed = confounded(best, unc["correlation"], fixed) if "correlation" in unc else {}
     out = []
     for eff, x, part in _parts(best):
         if eff.name not in fixed:
@@ -227,6 +258,8 @@ def _correction_items(builder, best: Scored, unc: dict, fixed: tuple[str, ...]) 
             item["plausible_factor"] = PLAUSIBLE_FACTOR
             item["plausible"] = not notes  # = within_factor and not at_bound (the only checks)
             item["at_bound"] = bounds.get(p.name)
+            item["confounded_with"] = [{"effect": e, "parameter": q, "correlation": r}
+                                       for e, q, r in mixed.get((eff.name, p.name), [])]
             if notes:
                 item["warning"] = "; ".join(notes)
             out.append(item)

@@ -59,7 +59,7 @@ import math
 
 import numpy as np
 
-from .fit import Problem, damped_step, jacobian_se
+from .fit import Problem, damped_step, jacobian_correlation, jacobian_se
 from .runs import ReplayRun
 from .select import Scored
 
@@ -74,7 +74,9 @@ def uncertainty(builder, s: Scored, runs: list[ReplayRun], rep, encoder_step_rad
     Returns a dict of arrays: ``jackknife`` (over the k folds' parameters), ``jacobian`` (at the
     all-runs optimum, :func:`jacobian_se`), ``measurement`` and ``measurement_bias`` (the
     measurement process through the closed loop, :func:`measurement_effect`), ``optimiser``
-    and ``numerical_floor`` (half-widths, :func:`optimiser_term`, :func:`numerical_floor`), and
+    and ``numerical_floor`` (half-widths, :func:`optimiser_term`, :func:`numerical_floor`),
+    ``correlation`` (the parameters' correlation matrix at the all-runs optimum,
+    :func:`~discrepancy.fit.jacobian_correlation`: which ones the data cannot tell apart), and
     ``se``, the root-sum-square of the three standard errors and the two half-widths / sqrt(3)
     (the reported one; see the module docstring).
     """
@@ -93,7 +95,7 @@ def uncertainty(builder, s: Scored, runs: list[ReplayRun], rep, encoder_step_rad
     se = np.sqrt(se_jk**2 + se_jac**2 + se_meas**2 + (b_opt**2 + b_floor**2) / 3.0)
     return {"se": se, "jackknife": se_jk, "jacobian": se_jac, "measurement": se_meas,
             "measurement_bias": bias, "optimiser": b_opt, "numerical_floor": b_floor,
-            "optimiser_info": opt_info}
+            "optimiser_info": opt_info, "correlation": jacobian_correlation(prob, s.fit)}
 
 
 def coverage_factor(k: int) -> float:

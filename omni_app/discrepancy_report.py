@@ -12,6 +12,7 @@ from omni_sim import runtime
 from discrepancy import effects as fx
 from discrepancy.evidence import EXPLAINED_ENOUGH
 from discrepancy.localise import command_note, lag_text
+from discrepancy.report import CONFOUNDED_CORRELATION
 
 
 def _fmt(x, digits=3) -> str:
@@ -387,9 +388,18 @@ def _md_corrections(rep: dict) -> list[str]:
                  f"{_fmt(c['fitted'], 4)} | {_fmt(c['half_width_95'], 2)} | {ratio} | "
                  f"{correction_note(c)} |")
     factor = rows[0].get("plausible_factor", 2.0)
-    return L + ["", f"*checked* says what was tested, and nothing more: that the fitted value lies "
-                f"within a factor {factor:g} of your value and off its parameter's bounds. It does not say "
-                "the fitted value is right; the ± column is the interval the data support.", ""]
+    L += ["", f"*checked* says what was tested, and nothing more: that the fitted value lies "
+          f"within a factor {factor:g} of your value and off its parameter's bounds. It does not say "
+          "the fitted value is right; the ± column is the interval the data support.", ""]
+    mixed = [(c, m) for c in rows for m in c.get("confounded_with", [])]
+    if mixed:
+        pairs = "; ".join(f"{c['effect']}: {c['parameter']} with {m['effect']}: {m['parameter']} "
+                          f"(correlation {m['correlation']:+.2f})" for c, m in mixed)
+        L += [f"**Confounded with a named law:** {pairs}. The fit trades one for the other (|correlation| "
+              f"of at least {CONFOUNDED_CORRELATION:g} at the all-runs optimum), so the data do not measure "
+              "these constants apart from the named effect: read the correction and the effect together, "
+              "not the corrected constant as a measurement of your robot's.", ""]
+    return L
 
 
 def correction_note(c: dict) -> str:
@@ -400,6 +410,8 @@ def correction_note(c: dict) -> str:
     hw, fitted = c["half_width_95"], c["fitted"]
     interval = (f"interval ±{100 * hw / abs(fitted):.0f} % of the fitted value"
                 if fitted and math.isfinite(hw) else f"interval ±{_fmt(hw, 2)}")
+    if c.get("confounded_with"):
+        interval += "; confounded with " + ", ".join(m["effect"] for m in c["confounded_with"])
     if c.get("warning"):
         return f"{c['warning']}; {interval}"
     if c["ratio_to_nominal"] is None:
