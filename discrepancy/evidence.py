@@ -126,8 +126,8 @@ class Evidence:
         return self.best is not None and self.best.explained >= EXPLAINED_ENOUGH
 
     def shortlist(self, names: tuple) -> tuple:
-        """The candidates of ``names`` the closed-loop search scores (issue 41, "name by shape,
-        cheaply"): the :data:`N_SHAPE` that explain most of the missing torque, and every one
+        """The candidates of ``names`` the closed-loop search scores (named by shape, cheaply):
+        the :data:`N_SHAPE` that explain most of the missing torque, and every one
         equation error cannot judge (hidden state: it needs a replay), in the order of
         ``names``; all of ``names`` when the evidence is not available (a stateful actuator,
         a failure).  The shape fits saw every fit sample, so they rank only: no fold starts from
