@@ -246,6 +246,7 @@ def test_simulate_grouped_mixes_structures(spec):
         np.testing.assert_array_equal(t, alone[i][j])
 
 
+@pytest.mark.slow  # > 10 s (the default suite's time, 2 cores)
 def test_polish_moves_a_stalled_backlash_fit_into_its_basin(spec):
     """A backlash's replay error is jagged in the slack (contact events at discrete samples):
     the trust-region fit stops where it starts; the basin search (Problem.polish) brings the

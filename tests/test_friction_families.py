@@ -258,6 +258,7 @@ def _csv(name):
                 for r in csv.DictReader(fh)}
 
 
+@pytest.mark.slow  # > 10 s (the default suite's time, 2 cores)
 def test_comparison_layout_and_shape(compared):
     names = {p.name for p in compared.iterdir()}
     assert {"coulomb", "lugre", "comparison.json", "comparison.md", "comparison_C_alpha.png",
@@ -283,6 +284,7 @@ def test_comparison_layout_and_shape(compared):
 
 
 @pytest.mark.parametrize("fam", om.FRICTION_FAMILIES)
+@pytest.mark.slow  # > 10 s (the default suite's time, 2 cores)
 def test_comparison_figures_recomputed_independently(compared, fam):
     c = json.loads((compared / "comparison.json").read_text())["families"][fam]
     params = json.loads((compared / fam / "params.json").read_text())

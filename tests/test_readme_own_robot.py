@@ -56,6 +56,7 @@ def test_the_parsers_read_blocks():
     assert "[sine]" in pendulum_toml() and "poses_deg =" not in pendulum_toml()
 
 
+@pytest.mark.slow  # > 10 s (the default suite's time, 2 cores)
 def test_the_readme_sequence_runs_as_printed(tmp_path, monkeypatch, capsys):
     steps = console_steps(section(README.read_text(), "Your own robot"))
     assert [argv[0] for argv, _ in steps] == ["generate", "identify", "discrepancy"]

@@ -20,6 +20,7 @@ def ideal():
     return map_device(ideal=True)
 
 
+@pytest.mark.slow  # > 10 s (the default suite's time, 2 cores)
 def test_ideal_boundary_within_15_percent_of_colgate(ideal):
     """On the ideal device (no dry friction, no quantisation) the largest passive K of each
     damping row B < b is 2 (b - |B|) / T within 15 % (Colgate & Schenkel 1997), up to 0.99 b.
