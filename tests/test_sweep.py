@@ -187,21 +187,9 @@ def test_reproduce_pipeline_matches_run_reproduce(tmp_path):
     from omni_sim.device import Device
     from omni_studies.reproduce import run_reproduce
 
-    camp = """
-[sine]
-poses_deg = [[25, 70], [25, 115], [45, 90], [65, 70], [65, 90], [65, 115]]
-frequencies_hz = [2.5, 3.0, 3.5, 5.0]
-amplitude_rad = 0.05
-settle_s = 2.0
-record_s = 1.2
+    from test_reproduce_result import CAMPAIGN  # 6 Table 1 poses and one step run: seconds
 
-[step]
-poses_deg = [[65, 90]]
-frequency_hz = 0.5
-amplitude_rad = 0.07
-duration_s = 4.0
-"""
-    _write(tmp_path, camp, "camp.toml")
+    _write(tmp_path, CAMPAIGN, "camp.toml")
     study = sw.parse_study(_spec('[list]\nparams = ["friction_scale"]\nrows = [[1.0]]',
                                  'name = "reproduce"\ncampaign = "camp.toml"'), "s", tmp_path)
     res = sw.run_variant(study.jobs()[0])
