@@ -4,8 +4,9 @@ A :class:`Record` is a frozen dataclass whose field names are the keys of its JS
 the order the file has them: ``to_json()`` gives the object (``json.dumps(..., indent=2)`` of it
 is the file's text), ``from_json(d)`` reads it back.  Nested records are written as objects and
 tuples as lists.  The validation's sections (:mod:`identification.validation`), the
-reproduction's (:mod:`omni_studies.reproduce`) and the Z-width's map (``zwidth.json``,
-:mod:`omni_studies.zwidth`) are records.
+reproduction's (:mod:`omni_studies.reproduce`), the Z-width's map (``zwidth.json``,
+:mod:`omni_studies.zwidth`) and a sweep variant's result (``result.json``,
+:mod:`omni_studies.sweep`) are records.
 """
 
 from __future__ import annotations

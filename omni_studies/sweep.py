@@ -25,6 +25,7 @@ Pipelines:
 from __future__ import annotations
 
 import csv
+import dataclasses
 import hashlib
 import io
 import itertools
@@ -35,27 +36,119 @@ import shutil
 import sys
 import time
 import tomllib
+import typing
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
 
 from identification.errors import UserError
+from identification.records import Record
 
 PIPELINES = ("reproduce", "discrepancy", "simulate")
-#: The figures of each pipeline, in results.csv's column order.
-FIGURES = {
-    "reproduce": ("inertia_max_rel_error", "step_ratio_of_medians_whole_record",
-                  "step_ratio_of_medians_after_edges", "sine_phase_p90_linear_deg",
-                  "sine_phase_p90_alpha_deg", "sine_magnitude_p90_linear", "sine_magnitude_p90_alpha"),
-    "discrepancy": ("effects", "passed", "assessment", "shrink_factor", "gap_before_rad",
-                    "gap_after_rad", "unexplained"),
-    "simulate": ("rms_error_rad", "max_abs_error_rad", "rms_error_sine_rad", "rms_error_step_rad"),
-}
 TIMING_COLUMNS = ("wall_s",)
 #: Seconds to wait for an existing scheduler (--scheduler).
 CONNECT_TIMEOUT_S = 20
 _TOP_KEYS = ("description", "seed", "base", "pipeline", "fixed", "grid", "list", "random")
 _PIPELINE_KEYS = {"reproduce": ("name", "campaign"), "simulate": ("name", "campaign"),
                   "discrepancy": ("name", "hidden", "duration_s")}
+
+
+# -- results as objects --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ReproduceFigures(Record):
+    """The ``reproduce`` pipeline's figures of one variant (``result.json``'s ``figures``; the
+    reproduce job's ``summary.json`` figures of the same names; None: not computed)."""
+
+    inertia_max_rel_error: float | None  #: largest inertia parameter error vs MuJoCo's mass matrix [-]
+    #: median step error linear / α, whole record (> 1: the α model better) [-]
+    step_ratio_of_medians_whole_record: float | None
+    step_ratio_of_medians_after_edges: float | None  #: the same, first second after each edge [-]
+    sine_phase_p90_linear_deg: float | None  #: Table 8 phase error, linear model [deg]
+    sine_phase_p90_alpha_deg: float | None  #: the same, α-invariant model [deg]
+    sine_magnitude_p90_linear: float | None  #: Table 8 magnitude error |theta|/A_r, linear model [-]
+    sine_magnitude_p90_alpha: float | None  #: the same, α-invariant model [-]
+
+
+@dataclass(frozen=True)
+class DiscrepancyFigures(Record):
+    """The ``discrepancy`` pipeline's figures of one variant (from its ``report.json``)."""
+
+    effects: str  #: the effects named, joined by "+" ("": none)
+    passed: int  #: 1 when the bank's criteria pass (:func:`discrepancy.hidden.assess`), else 0
+    assessment: str  #: why, in words
+    shrink_factor: float  #: held-out gap before / after [-]
+    gap_before_rad: float  #: the nominal model's replay gap [rad]
+    gap_after_rad: float  #: the held-out gap with the named effects [rad]
+    unexplained: int  #: 1 when the gap left stands well above the noise floor, else 0
+
+
+@dataclass(frozen=True)
+class SimulateFigures(Record):
+    """The ``simulate`` pipeline's figures of one variant: the tracking error theta - r."""
+
+    rms_error_rad: float  #: RMS over every run [rad]
+    max_abs_error_rad: float  #: largest |theta - r| [rad]
+    rms_error_sine_rad: float  #: RMS over the sine runs (NaN: none) [rad]
+    rms_error_step_rad: float  #: RMS over the step runs (NaN: none) [rad]
+
+
+#: Each pipeline's figures record (its fields: :data:`FIGURES`' columns, in order).
+FIGURE_TYPES = {"reproduce": ReproduceFigures, "discrepancy": DiscrepancyFigures,
+                "simulate": SimulateFigures}
+Figures = ReproduceFigures | DiscrepancyFigures | SimulateFigures
+#: The figures of each pipeline, in results.csv's column order.
+FIGURES = {name: tuple(f.name for f in dataclasses.fields(cls)) for name, cls in FIGURE_TYPES.items()}
+
+
+@dataclass(frozen=True)
+class VariantResult(Record):
+    """One variant's result: ``variants/<id>/result.json``, a row of ``results.csv``."""
+
+    id: str  #: ``v0000``, ``v0001``, ... in expansion order
+    seed: int  #: from the study's seed and the id (:func:`variant_seed`)
+    params: dict[str, float]  #: the varied parameters' values
+    fixed: dict[str, float]  #: the study's ``[fixed]`` values
+    pipeline: str  #: reproduce | discrepancy | simulate
+    status: str  #: "ok" or "failed"
+    error: str  #: a failed variant's error, ``Type: message`` ("" when ok)
+    figures: Figures | None  #: the pipeline's figures (None: failed; ``{}`` in the file)
+    wall_s: float  #: the variant's wall time on its worker [s] (measured: varies)
+
+    def to_json(self) -> dict:
+        return {**super().to_json(), "figures": {} if self.figures is None else self.figures.to_json()}
+
+    @classmethod
+    def from_json(cls, d: dict) -> VariantResult:
+        figs = FIGURE_TYPES[d["pipeline"]](**d["figures"]) if d["figures"] else None
+        return cls(**{**d, "figures": figs})
+
+
+@dataclass(frozen=True)
+class VariantOutput:
+    """What :func:`run_variant` returns (from a worker): the result and the variant's files."""
+
+    result: VariantResult  #: ``result.json``
+    files: dict[str, str]  #: the pipeline's own files (``summary.json``, ``report.json``, ...): name -> text
+
+
+@dataclass(frozen=True)
+class SweepSummary:
+    """What :func:`run_sweep` returns: every variant's result and what this call did."""
+
+    variants: tuple[VariantResult, ...]  #: every variant of the study, in id order
+    ran: int  #: variants run by this call
+    skipped: int  #: variants already finished in the folder (a resume)
+    wall_s: float  #: this call's wall time, cluster start-up included [s] (measured: varies)
+
+    @property
+    def n(self) -> int:
+        """The study's variants."""
+        return len(self.variants)
+
+    @property
+    def failed(self) -> int:
+        """Variants whose status is ``failed``."""
+        return sum(v.status == "failed" for v in self.variants)
 
 EXAMPLE = '''\
 # omni sweep study: the reproduce figures against the yaw drive's dry-friction level and its
@@ -416,7 +509,7 @@ def _campaign(pipe: dict):
     return ex.parse_campaign(pipe["campaign_text"], pipe["campaign_source"])
 
 
-def _reproduce(spec, model, values: dict, settings, pipe: dict) -> tuple[dict, dict]:
+def _reproduce(spec, model, values: dict, settings, pipe: dict) -> tuple[ReproduceFigures, dict]:
     """The reproduce job's stages (:func:`omni_studies.reproduce.run_reproduce`) with run settings."""
     from identification.identify import identify_runs
     from identification.validation import Params, validate_runs
@@ -437,16 +530,17 @@ def _reproduce(spec, model, values: dict, settings, pipe: dict) -> tuple[dict, d
     s = {**validate_runs(runs, params).summary.to_json(),  # "inertia" (null) stays the first key
          "inertia": truth.inertia_truth(device, ident.inertia.params)}
     win = s["step"]["windows"]
-    fig = {"inertia_max_rel_error": s["inertia"]["max_rel_error"],
-           "step_ratio_of_medians_whole_record": win["whole_record"]["ratio_of_medians"],
-           "step_ratio_of_medians_after_edges": win["after_edges"]["ratio_of_medians"],
-           **{f"sine_{k}": s["sine"][k] for k in ("phase_p90_linear_deg", "phase_p90_alpha_deg",
-                                                  "magnitude_p90_linear", "magnitude_p90_alpha")}}
+    fig = ReproduceFigures(
+        inertia_max_rel_error=s["inertia"]["max_rel_error"],
+        step_ratio_of_medians_whole_record=win["whole_record"]["ratio_of_medians"],
+        step_ratio_of_medians_after_edges=win["after_edges"]["ratio_of_medians"],
+        **{f"sine_{k}": s["sine"][k] for k in ("phase_p90_linear_deg", "phase_p90_alpha_deg",
+                                               "magnitude_p90_linear", "magnitude_p90_alpha")})
     return fig, {"summary.json": json.dumps(s, indent=2) + "\n",
                  "params.json": json.dumps(params_dict, indent=2) + "\n"}
 
 
-def _simulate(spec, model, values, settings, pipe) -> tuple[dict, dict]:
+def _simulate(spec, model, values, settings, pipe) -> tuple[SimulateFigures, dict]:
     import numpy as np
 
     from omni_sim import experiments as ex
@@ -465,13 +559,14 @@ def _simulate(spec, model, values, settings, pipe) -> tuple[dict, dict]:
             return float("nan")
         return float(np.sqrt(np.mean(np.concatenate([err[n] ** 2 for n in names]))))
 
-    fig = {"rms_error_rad": rms(err), "max_abs_error_rad": float(max(np.max(np.abs(e)) for e in err.values())),
-           "rms_error_sine_rad": rms(n for n in err if kinds[n] == "sine"),
-           "rms_error_step_rad": rms(n for n in err if kinds[n] == "step")}
+    fig = SimulateFigures(rms_error_rad=rms(err),
+                          max_abs_error_rad=float(max(np.max(np.abs(e)) for e in err.values())),
+                          rms_error_sine_rad=rms(n for n in err if kinds[n] == "sine"),
+                          rms_error_step_rad=rms(n for n in err if kinds[n] == "step"))
     return fig, {}
 
 
-def _discrepancy(spec, model, values, settings, pipe) -> tuple[dict, dict]:
+def _discrepancy(spec, model, values, settings, pipe) -> tuple[DiscrepancyFigures, dict]:
     import tempfile
 
     from omni_sim import experiments as ex
@@ -491,9 +586,10 @@ def _discrepancy(spec, model, values, settings, pipe) -> tuple[dict, dict]:
         out = run_discrepancy(runs, nominal, jobs=1)
     rep = out.report
     ok, why = hidden.assess(case, rep)
-    fig = {"effects": "+".join(e["name"] for e in rep["effects"]), "passed": int(ok), "assessment": why,
-           "shrink_factor": rep["shrink_factor"], "gap_before_rad": rep["gap_before"],
-           "gap_after_rad": rep["gap_after"], "unexplained": int(rep["unexplained"])}
+    fig = DiscrepancyFigures(effects="+".join(e["name"] for e in rep["effects"]), passed=int(ok),
+                             assessment=why, shrink_factor=rep["shrink_factor"],
+                             gap_before_rad=rep["gap_before"], gap_after_rad=rep["gap_after"],
+                             unexplained=int(rep["unexplained"]))
     rep = {k: v for k, v in rep.items() if k != "timings"}
     return fig, {"report.json": json.dumps(rep, indent=2, default=float) + "\n"}
 
@@ -501,39 +597,39 @@ def _discrepancy(spec, model, values, settings, pipe) -> tuple[dict, dict]:
 _PIPELINE_FUNCS = {"reproduce": _reproduce, "simulate": _simulate, "discrepancy": _discrepancy}
 
 
-def run_variant(job: dict) -> dict:
+def run_variant(job: dict) -> VariantOutput:
     """Run one variant (on a worker, one thread); never raises for a failing variant: its error
-    is the result.  Returns ``{"result": result.json content, "files": {name: text}}``."""
+    is the result.  Returns a frozen :class:`VariantOutput` (``.result``: ``result.json``'s
+    :class:`VariantResult`, ``.files``: the pipeline's files, name -> text)."""
     from omni_sim import variants as va
 
     t0 = time.perf_counter()
     values = {**job["fixed"], **job["values"]}
     name = job["pipeline"]["name"]
-    result = {"id": job["id"], "seed": job["seed"], "params": job["values"], "fixed": job["fixed"],
-              "pipeline": name, "status": "ok", "error": "", "figures": {}}
-    files = {}
+    figures, files, error = None, {}, ""
     try:
         spec = va.base_spec(job["base"]["model"], job["base"]["friction"])
         spec, model = va.build(spec, values)
         settings = _settings(values, job["seed"], name)
-        result["figures"], files = _PIPELINE_FUNCS[name](spec, model, values, settings, job["pipeline"])
+        figures, files = _PIPELINE_FUNCS[name](spec, model, values, settings, job["pipeline"])
     except Exception as exc:  # a variant that fails is a result, not a lost task
-        result["status"] = "failed"
-        result["error"] = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
-    result["wall_s"] = time.perf_counter() - t0
-    return {"result": result, "files": files}
+        error = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    result = VariantResult(id=job["id"], seed=job["seed"], params=job["values"], fixed=job["fixed"],
+                           pipeline=name, status="failed" if error else "ok", error=error,
+                           figures=figures, wall_s=time.perf_counter() - t0)
+    return VariantOutput(result, files)
 
 
 # -- the output folder ---------------------------------------------------------------------
-def _write_variant(out: Path, res: dict) -> None:
+def _write_variant(out: Path, res: VariantOutput) -> None:
     """``out/variants/<id>/`` atomically: a temporary folder renamed into place."""
     vdir = out / "variants"
-    final = vdir / res["result"]["id"]
-    tmp = vdir / f".{res['result']['id']}.{uuid.uuid4().hex}.tmp"
+    final = vdir / res.result.id
+    tmp = vdir / f".{res.result.id}.{uuid.uuid4().hex}.tmp"
     tmp.mkdir(parents=True)
-    for name, text in res["files"].items():
+    for name, text in res.files.items():
         (tmp / name).write_text(text)
-    (tmp / "result.json").write_text(json.dumps(res["result"], indent=2, default=float) + "\n")
+    (tmp / "result.json").write_text(json.dumps(res.result.to_json(), indent=2, default=float) + "\n")
     if final.exists():
         shutil.rmtree(final)
     os.rename(tmp, final)
@@ -547,7 +643,9 @@ def finished(out: Path) -> set[str]:
     return {d.name for d in vdir.iterdir() if not d.name.startswith(".") and (d / "result.json").is_file()}
 
 
-def _fmt(v) -> str:
+def cell_text(v) -> str:
+    """A value as ``results.csv`` writes it: "" for None, a float's ``repr`` (it reads back as
+    the same float), anything else as ``str``."""
     if v is None:
         return ""
     if isinstance(v, float):
@@ -555,23 +653,65 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def write_table(out: Path, study: Study) -> Path:
-    """``out/results.csv`` from the variants' result.json, in id order."""
-    figs = FIGURES[study.pipeline["name"]]
-    cols = ["id", "seed", *study.params, *figs, "status", "error", *TIMING_COLUMNS]
+def read_variants(out: Path, study: Study) -> tuple[VariantResult, ...]:
+    """The finished variants' results (``out/variants/<id>/result.json``), in id order."""
+    files = [Path(out) / "variants" / vid / "result.json" for vid, _ in study.variants]
+    return tuple(VariantResult.from_json(json.loads(f.read_text())) for f in files if f.is_file())
+
+
+def _columns(study: Study) -> list[str]:
+    """``results.csv``'s columns: id, seed, the parameters, the figures, status, error, wall_s."""
+    return ["id", "seed", *study.params, *FIGURES[study.pipeline["name"]], "status", "error",
+            *TIMING_COLUMNS]
+
+
+def table_text(study: Study, variants) -> str:
+    """``results.csv``'s text: one row per :class:`VariantResult` of ``variants``, in the order given."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    for vid, _ in study.variants:
-        f = out / "variants" / vid / "result.json"
-        if not f.is_file():
-            continue
-        r = json.loads(f.read_text())
-        w.writerow([r["id"], r["seed"], *(_fmt(r["params"].get(p)) for p in study.params),
-                    *(_fmt(r["figures"].get(k)) for k in figs), r["status"], r["error"],
-                    *(_fmt(r.get(k)) for k in TIMING_COLUMNS)])
+    w.writerow(_columns(study))
+    for v in variants:
+        figs = {} if v.figures is None else v.figures.to_json()
+        w.writerow([v.id, v.seed, *(cell_text(v.params.get(p)) for p in study.params),
+                    *(cell_text(figs.get(k)) for k in FIGURES[study.pipeline["name"]]), v.status, v.error,
+                    *(cell_text(getattr(v, k)) for k in TIMING_COLUMNS)])
+    return buf.getvalue()
+
+
+def read_table(text: str, study: Study) -> tuple[VariantResult, ...]:
+    """The variants of a ``results.csv`` text of ``study`` (``fixed``: the study's), each value of
+    its field's type; :func:`table_text` of them is ``text`` again."""
+    kind = FIGURE_TYPES[study.pipeline["name"]]
+    types = typing.get_type_hints(kind)
+    out = []
+    for row in csv.DictReader(io.StringIO(text)):
+        figs = None
+        if row["status"] == "ok":
+            figs = kind(**{k: _cell(row[k], types[k]) for k in FIGURES[study.pipeline["name"]]})
+        out.append(VariantResult(id=row["id"], seed=int(row["seed"]),
+                                 params={p: float(row[p]) for p in study.params}, fixed=study.fixed,
+                                 pipeline=study.pipeline["name"], status=row["status"],
+                                 error=row["error"], figures=figs, wall_s=float(row["wall_s"])))
+    return tuple(out)
+
+
+def _cell(text: str, hint):
+    """A ``results.csv`` cell as its field's type (``hint``): str, int or float; "" is None but
+    for a str."""
+    if hint is str:
+        return text
+    if text == "":
+        return None
+    return int(text) if hint is int else float(text)
+
+
+def write_table(out: Path, study: Study, variants=None) -> Path:
+    """``out/results.csv`` (:func:`table_text`) of ``variants`` (default: :func:`read_variants`),
+    written atomically."""
+    out = Path(out)
+    variants = read_variants(out, study) if variants is None else variants
     tmp = out / ".results.csv.tmp"
-    tmp.write_text(buf.getvalue())
+    tmp.write_text(table_text(study, variants))
     os.replace(tmp, out / "results.csv")
     return out / "results.csv"
 
@@ -629,8 +769,9 @@ def _client(workers: int | None, scheduler: str | None):
 
 
 def run_sweep(study: Study, out: str | os.PathLike, workers: int | None = None,
-              scheduler: str | None = None, progress: bool | None = None) -> dict:
-    """Run every unfinished variant of ``study`` into ``out``; returns counts and wall time."""
+              scheduler: str | None = None, progress: bool | None = None) -> SweepSummary:
+    """Run every unfinished variant of ``study`` into ``out``; returns a frozen
+    :class:`SweepSummary` (every variant's result, what ran, what was skipped, the wall time)."""
     from distributed import as_completed
     from tqdm import tqdm
 
@@ -659,7 +800,6 @@ def run_sweep(study: Study, out: str | os.PathLike, workers: int | None = None,
             client.close()
             if cluster is not None:
                 cluster.close()
-    write_table(out, study)
-    results = [json.loads((out / "variants" / v / "result.json").read_text()) for v, _ in study.variants]
-    return {"n": len(results), "ran": len(todo), "skipped": len(done),
-            "failed": sum(r["status"] == "failed" for r in results), "wall_s": time.perf_counter() - t0}
+    variants = read_variants(out, study)
+    write_table(out, study, variants)
+    return SweepSummary(variants, ran=len(todo), skipped=len(done), wall_s=time.perf_counter() - t0)

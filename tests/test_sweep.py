@@ -150,7 +150,7 @@ def test_one_vs_two_workers_resume_and_failed_variant(tmp_path):
     assert len(study.variants) == 8
     r1 = sw.run_sweep(study, tmp_path / "w1", workers=1, progress=False)
     r2 = sw.run_sweep(study, tmp_path / "w2", workers=2, progress=False)
-    assert r1["failed"] == r2["failed"] == 4 and r1["ran"] == 8
+    assert r1.failed == r2.failed == 4 and r1.ran == 8
     t1, t2 = _table(tmp_path / "w1"), _table(tmp_path / "w2")
     assert t1 == t2
     assert [r["id"] for r in t1] == [f"v{i:04d}" for i in range(8)]
@@ -167,10 +167,10 @@ def test_one_vs_two_workers_resume_and_failed_variant(tmp_path):
         shutil.rmtree(tmp_path / "w1" / "variants" / v)
     (tmp_path / "w1" / "results.csv").unlink()
     r3 = sw.run_sweep(study, tmp_path / "w1", workers=2, progress=False)
-    assert (r3["ran"], r3["skipped"]) == (2, 6)
+    assert (r3.ran, r3.skipped) == (2, 6)
     assert _table(tmp_path / "w1") == t1
     # a finished study: nothing to run, no cluster started
-    assert sw.run_sweep(study, tmp_path / "w1", progress=False)["ran"] == 0
+    assert sw.run_sweep(study, tmp_path / "w1", progress=False).ran == 0
     # resume with another spec: a user error
     other = sw.parse_study(GRID, "s", tmp_path)
     with pytest.raises(UserError, match="different spec"):
@@ -193,18 +193,18 @@ def test_reproduce_pipeline_matches_run_reproduce(tmp_path):
     study = sw.parse_study(_spec('[list]\nparams = ["friction_scale"]\nrows = [[1.0]]',
                                  'name = "reproduce"\ncampaign = "camp.toml"'), "s", tmp_path)
     res = sw.run_variant(study.jobs()[0])
-    assert res["result"]["status"] == "ok", res["result"]["error"]
+    assert res.result.status == "ok", res.result.error
     ref = run_reproduce(Device.load(friction="lugre"), jobs=1, campaign=str(tmp_path / "camp.toml"))
     s = ref.summary
-    fig = res["result"]["figures"]
-    assert fig["inertia_max_rel_error"] == pytest.approx(s.inertia.max_rel_error, rel=1e-9)
-    assert fig["step_ratio_of_medians_whole_record"] == pytest.approx(
+    fig = res.result.figures
+    assert fig.inertia_max_rel_error == pytest.approx(s.inertia.max_rel_error, rel=1e-9)
+    assert fig.step_ratio_of_medians_whole_record == pytest.approx(
         s.step.windows.whole_record.ratio_of_medians, rel=1e-9)
-    assert fig["step_ratio_of_medians_after_edges"] == pytest.approx(
+    assert fig.step_ratio_of_medians_after_edges == pytest.approx(
         s.step.windows.after_edges.ratio_of_medians, rel=1e-9)
     for k in ("phase_p90_linear_deg", "phase_p90_alpha_deg", "magnitude_p90_linear", "magnitude_p90_alpha"):
-        assert fig[f"sine_{k}"] == pytest.approx(getattr(s.sine, k), rel=1e-9)
-    assert json.loads(res["files"]["summary.json"])["inertia"]["n_poses"] == 25
+        assert getattr(fig, f"sine_{k}") == pytest.approx(getattr(s.sine, k), rel=1e-9)
+    assert json.loads(res.files["summary.json"])["inertia"]["n_poses"] == 25
 
 
 # -- an external cluster ---------------------------------------------------------------------
@@ -243,7 +243,7 @@ def test_external_scheduler_and_two_workers(tmp_path):
         assert all(r["status"] == "ok" for r in remote)
         # the same figures as the variants run in this process
         for job, row in zip(sw.parse_study(GRID, "s", tmp_path).jobs(), remote):
-            assert row["rms_error_rad"] == repr(sw.run_variant(job)["result"]["figures"]["rms_error_rad"])
+            assert row["rms_error_rad"] == repr(sw.run_variant(job).result.figures.rms_error_rad)
     finally:
         for pr in reversed(procs):
             pr.terminate()
