@@ -8,6 +8,8 @@ processes listening on 127.0.0.1 (default) or on an existing cluster (``--schedu
 rollouts run on one thread.  The client writes each finished variant atomically into
 ``DIR/variants/<id>/`` (``result.json`` plus the pipeline's own files), so a killed study resumes
 where it stopped; ``DIR/results.csv`` is rebuilt from the variants' ``result.json`` in id order.
+Results are frozen objects: a variant's :class:`VariantResult` (``result.json``, its figures a
+typed record per pipeline), :func:`run_sweep`'s :class:`SweepSummary`; the writers take them.
 
 Pipelines:
 
@@ -580,18 +582,22 @@ def _discrepancy(spec, model, values, settings, pipe) -> tuple[DiscrepancyFigure
                                       duration_s=pipe["duration_s"])
     truth_model = hidden.truth_spec(case, base=spec.copy()).compile()
     runs = ex.simulate(Device(truth_model), exps, settings, jobs=1)
+    xml = spec.to_xml()
     with tempfile.TemporaryDirectory(prefix="omni-sweep-") as d:
         nominal = Path(d) / "nominal.xml"
-        nominal.write_text(spec.to_xml())
+        nominal.write_text(xml)
         out = run_discrepancy(runs, nominal, jobs=1)
     rep = out.report
+    # the nominal model is written beside report.json, which names it there (not the temporary
+    # folder's path: the same study gives the same bytes)
+    rep = {**rep, "settings": {**rep["settings"], "model": "nominal.xml"}}
     ok, why = hidden.assess(case, rep)
     fig = DiscrepancyFigures(effects="+".join(e["name"] for e in rep["effects"]), passed=int(ok),
                              assessment=why, shrink_factor=rep["shrink_factor"],
                              gap_before_rad=rep["gap_before"], gap_after_rad=rep["gap_after"],
                              unexplained=int(rep["unexplained"]))
     rep = {k: v for k, v in rep.items() if k != "timings"}
-    return fig, {"report.json": json.dumps(rep, indent=2, default=float) + "\n"}
+    return fig, {"report.json": json.dumps(rep, indent=2, default=float) + "\n", "nominal.xml": xml}
 
 
 _PIPELINE_FUNCS = {"reproduce": _reproduce, "simulate": _simulate, "discrepancy": _discrepancy}
@@ -670,10 +676,11 @@ def table_text(study: Study, variants) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(_columns(study))
+    names = FIGURES[study.pipeline["name"]]
     for v in variants:
         figs = {} if v.figures is None else v.figures.to_json()
         w.writerow([v.id, v.seed, *(cell_text(v.params.get(p)) for p in study.params),
-                    *(cell_text(figs.get(k)) for k in FIGURES[study.pipeline["name"]]), v.status, v.error,
+                    *(cell_text(figs.get(k)) for k in names), v.status, v.error,
                     *(cell_text(getattr(v, k)) for k in TIMING_COLUMNS)])
     return buf.getvalue()
 
