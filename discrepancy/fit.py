@@ -458,16 +458,20 @@ def damped_step(J: np.ndarray, r: np.ndarray, damping: float = 1e-6) -> np.ndarr
 
 
 def jacobian_se(problem: Problem, fit: FitResult) -> np.ndarray:
-    """Standard errors of the fitted parameters from the Jacobian at the optimum: the square
-    roots of :func:`jacobian_cov`'s diagonal."""
-    return np.sqrt(np.maximum(np.diag(jacobian_cov(problem, fit)), 0.0))
+    """Standard errors of the fitted parameters from the Jacobian at the optimum
+    (:func:`standard_errors` of :func:`jacobian_cov`)."""
+    return standard_errors(jacobian_cov(problem, fit))
 
 
-def jacobian_correlation(problem: Problem, fit: FitResult) -> np.ndarray:
-    """The fitted parameters' correlation matrix from :func:`jacobian_cov` (``cov_ij /
-    sqrt(cov_ii cov_jj)``; NaN where a variance is 0 or not finite)."""
-    cov = jacobian_cov(problem, fit)
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+def standard_errors(cov: np.ndarray) -> np.ndarray:
+    """The square roots of a covariance's diagonal (negative round-off clipped to 0)."""
+    return np.sqrt(np.maximum(np.diag(cov), 0.0))
+
+
+def correlation(cov: np.ndarray) -> np.ndarray:
+    """The correlation matrix of a covariance ``cov`` (e.g. :func:`jacobian_cov`'s): ``cov_ij /
+    sqrt(cov_ii cov_jj)``; NaN where a variance is 0 or not finite."""
+    sd = standard_errors(cov)
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(sd, sd)
     corr[~np.isfinite(corr)] = np.nan

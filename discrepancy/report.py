@@ -195,7 +195,7 @@ def _bound_flags(eff, x) -> dict:
 
 
 #: A correction's constant and a named effect's parameter the fit cannot tell apart: the
-#: magnitude of their correlation at the all-runs optimum (:func:`discrepancy.fit.jacobian_correlation`)
+#: magnitude of their correlation at the all-runs optimum (:func:`discrepancy.fit.correlation`)
 #: at least this.  0.9, fixed before any case was looked at: a variance inflation factor
 #: 1 / (1 - r^2) of 5.3, past the usual rule of thumb for harmful collinearity (VIF > 5; James,
 #: Witten, Hastie and Tibshirani, *An Introduction to Statistical Learning*, 2013, sect. 3.3.3).
@@ -207,16 +207,15 @@ def confounded(best: Scored, corr: np.ndarray, fixed: tuple[str, ...]) -> dict:
     constant of the nominal whose correlation with a named effect's parameter reaches
     :data:`CONFOUNDED_CORRELATION` in magnitude (parameters on a bound left out: their
     correlation is not defined)."""
-    rows = []
+    corrections, named = [], []
     for eff, x, part in _parts(best):
         on_bound = _bound_flags(eff, x)
         for k, p in enumerate(eff.params):
-            rows.append((eff.name, p.name, part.start + k, eff.name in fixed, p.name in on_bound))
+            if p.name not in on_bound:
+                (corrections if eff.name in fixed else named).append((eff.name, p.name, part.start + k))
     out: dict = {}
-    for e1, p1, i, fix1, b1 in rows:
-        for e2, p2, j, fix2, b2 in rows:
-            if not fix1 or fix2 or b1 or b2:
-                continue
+    for e1, p1, i in corrections:
+        for e2, p2, j in named:
             r = float(corr[i, j])
             if math.isfinite(r) and abs(r) >= CONFOUNDED_CORRELATION:
                 out.setdefault((e1, p1), []).append((e2, p2, r))
@@ -235,7 +234,7 @@ def _correction_items(builder, best: Scored, unc: dict, fixed: tuple[str, ...]) 
     named effects' parameters the fit trades it against (:func:`confounded`)."""
     cover = un.coverage_factor(len(best.folds))
     se, bias = unc["se"], unc["measurement_bias"]
-    mixed = confounded(best, unc["correlation"], fixed) if "correlation" in unc else {}
+    mixed = confounded(best, unc["correlation"], fixed)
     out = []
     for eff, x, part in _parts(best):
         if eff.name not in fixed:

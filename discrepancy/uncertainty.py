@@ -59,7 +59,7 @@ import math
 
 import numpy as np
 
-from .fit import Problem, damped_step, jacobian_correlation, jacobian_se
+from .fit import Problem, correlation, damped_step, jacobian_cov, standard_errors
 from .runs import ReplayRun
 from .select import Scored
 
@@ -76,7 +76,8 @@ def uncertainty(builder, s: Scored, runs: list[ReplayRun], rep, encoder_step_rad
     measurement process through the closed loop, :func:`measurement_effect`), ``optimiser``
     and ``numerical_floor`` (half-widths, :func:`optimiser_term`, :func:`numerical_floor`),
     ``correlation`` (the parameters' correlation matrix at the all-runs optimum,
-    :func:`~discrepancy.fit.jacobian_correlation`: which ones the data cannot tell apart), and
+    the Jacobian's covariance, :func:`~discrepancy.fit.correlation`: which ones the data cannot
+    tell apart), and
     ``se``, the root-sum-square of the three standard errors and the two half-widths / sqrt(3)
     (the reported one; see the module docstring).
     """
@@ -88,14 +89,15 @@ def uncertainty(builder, s: Scored, runs: list[ReplayRun], rep, encoder_step_rad
     X = np.array(s.fold_x)
     se_jk = np.sqrt((k - 1) / k * np.sum((X - X.mean(axis=0)) ** 2, axis=0)) if k > 1 else np.zeros(len(s.fit.x))
     prob = Problem(builder, [], s.effects, runs, rep)
-    se_jac = jacobian_se(prob, s.fit)
+    cov_jac = jacobian_cov(prob, s.fit)  # once: its diagonal and its correlations
+    se_jac = standard_errors(cov_jac)  # = fit.jacobian_se
     se_meas, bias = measurement_effect(s, runs, rep, builder, encoder_step_rad)
     b_opt, opt_info = optimiser_term(prob, s.fit)
     b_floor = numerical_floor(prob, s.fit)
     se = np.sqrt(se_jk**2 + se_jac**2 + se_meas**2 + (b_opt**2 + b_floor**2) / 3.0)
     return {"se": se, "jackknife": se_jk, "jacobian": se_jac, "measurement": se_meas,
             "measurement_bias": bias, "optimiser": b_opt, "numerical_floor": b_floor,
-            "optimiser_info": opt_info, "correlation": jacobian_correlation(prob, s.fit)}
+            "optimiser_info": opt_info, "correlation": correlation(cov_jac)}
 
 
 def coverage_factor(k: int) -> float:

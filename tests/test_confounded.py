@@ -1,5 +1,5 @@
 """A correction confounded with a named law: the parameters' correlation at the optimum
-(discrepancy.fit.jacobian_correlation) and the report's flag (discrepancy.report.confounded).
+(discrepancy.fit.correlation of jacobian_cov) and the report's flag (discrepancy.report.confounded).
 
 Independent truth for the correlation: a linear least-squares problem with a known design,
 refitted on many noise draws; the estimates' empirical correlation is what the Jacobian
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from discrepancy import effects as fx
-from discrepancy.fit import jacobian_correlation
+from discrepancy.fit import correlation, jacobian_cov
 from discrepancy.report import CONFOUNDED_CORRELATION, confounded
 
 
@@ -35,7 +35,7 @@ def test_correlation_matches_the_estimates_spread_over_noise_draws():
         estimates.append(np.linalg.lstsq(J, y, rcond=None)[0])
     empirical = np.corrcoef(np.array(estimates).T)
     raw = 0.01 * rng.standard_normal(len(t))  # white residual: correlation time 1
-    predicted = jacobian_correlation(*_linear_problem(J, raw))
+    predicted = correlation(jacobian_cov(*_linear_problem(J, raw)))
     # 3000 draws: a correlation's sampling error is about (1 - r^2)/sqrt(3000) < 0.02
     assert np.allclose(predicted, empirical, atol=0.03), (predicted, empirical)
     assert predicted[0, 1] < -0.99  # the nearly collinear pair: the case the flag is for
@@ -43,7 +43,7 @@ def test_correlation_matches_the_estimates_spread_over_noise_draws():
 
 def test_correlation_of_a_singular_problem_is_not_a_number_where_undefined():
     J = np.column_stack([np.ones(50), np.zeros(50)])  # the second parameter does nothing
-    corr = jacobian_correlation(*_linear_problem(J, np.full(50, 1e-3)))
+    corr = correlation(jacobian_cov(*_linear_problem(J, np.full(50, 1e-3))))
     assert not np.isfinite(corr[1, 1]) and not np.isfinite(corr[0, 1])
 
 
