@@ -3,16 +3,30 @@ removes a clear share of the gap, repeat (forward selection, up to three effects
 
 Scoring (per round):
 
-1. *prescreen* every candidate on short records (the first :data:`PRESCREEN_S` seconds
-   of each run): its grid, then a few damped Gauss-Newton steps, all candidates in lockstep so
-   each iteration is one batch of rollouts (earlier accepted effects stay free so effects can
-   trade off).  A candidate costs a few short batches, not a campaign;
-2. *screen* the :data:`N_SCREEN` best on all runs: least squares from the prescreen's point,
-   then the held-out gap with k-fold over runs, each fold's parameters from one Gauss-Newton
-   step from the all-runs fit with the held-out runs' rows removed (cheap: one Jacobian);
-3. *confirm*: the best candidates (``n_confirm``) are refitted exactly on each fold's training
-   runs (warm start) and their held-out runs simulated with those parameters; this held-out gap
-   decides.  The fold fits also give a jackknife spread of each parameter.
+1. *prescreen* every candidate on short records of each fold's training samples (for every
+   fold, the training samples of the first :data:`PRESCREEN_S` seconds of each run,
+   :func:`fold_records`): its grid, then a few damped Gauss-Newton steps, all candidates in
+   lockstep so each iteration is one batch of rollouts (earlier accepted effects stay free so
+   effects can trade off).  The candidates are ranked by their training gap averaged over the
+   folds: no held-out sample ranks a candidate.  A candidate costs a few short batches per
+   fold, not a campaign;
+2. *screen* the :data:`N_SCREEN` best: least squares on all runs from the prescreen's point
+   (the values reported, never a held-out score), then the held-out gap with k folds, each
+   fold's parameters from :data:`SCREEN_STEPS` Gauss-Newton step on its training samples from
+   its own start;
+3. *confirm*: the best candidates (``n_confirm``) are refitted on each fold's training samples
+   to convergence (:func:`_refit_folds`) and their held-out samples simulated with those
+   parameters; this held-out gap decides.  The fold fits also give a jackknife spread of each
+   parameter.
+
+Held out means held out: every fold's fit starts from a point found without the fold's
+held-out samples -- the earlier effects at their own fit on that fold (the corrections of the
+nominal, the set accepted so far), the new candidate at its prescreen point on that fold's
+training samples, a given set (the corrections in the first round) at its given values -- and
+never from the all-runs fit.  A fold's fit stops when a step lowers its training cost by less
+than :data:`REFIT_FTOL` (1e-3) of it, or moves every parameter by less than :data:`REFIT_XTOL`
+(1e-3) of its scale, or after :data:`REFIT_MAX_STEPS` (8) steps; the reasons are given at those
+constants.
 
 Acceptance (held-out stopping): the best candidate's held-out gap must fall by at least
 ``min_share`` of the gap it started from, and that starting gap must stand clearly above the
@@ -165,7 +179,8 @@ class Scored:
     share : float
         ``1 - heldout_gap / gap_start`` of the round.
     method : str
-        ``"one-step"`` or ``"refit"`` (how the fold parameters were obtained).
+        ``"screen"`` (one Gauss-Newton step per fold), ``"refit"`` (per-fold fits to
+        convergence) or ``"prescreen"`` (scored on the short records only).
     heldout_raw : list of ndarray
         Held-out residual [rad] per run.
     fold_x : list of ndarray
@@ -184,6 +199,15 @@ class Scored:
     seconds: float = 0.0
     prescreen_gap: float = math.nan
     unstable: int = 0  # replays MuJoCo found unstable while fitting and scoring it (excluded)
+
+
+def _values(effects: list, x: np.ndarray) -> list[np.ndarray]:
+    """``x`` split into each effect's values."""
+    out, i = [], 0
+    for e in effects:
+        out.append(np.asarray(x[i:i + e.nparam], float))
+        i += e.nparam
+    return out
 
 
 def heldout_replays(rep, models: list, runs: list[ReplayRun], folds: list[Fold]) -> list[np.ndarray]:
@@ -209,21 +233,6 @@ def _heldout(problem: Problem, fold_x: list[np.ndarray], folds: list[Fold]) -> l
     return out
 
 
-def _onestep_folds(problem: Problem, fit: FitResult, folds: list[Fold]) -> list[np.ndarray]:
-    J = fit.jac
-    r = fit.resid
-    rows = np.cumsum([0] + [run.n for run in problem.runs])
-    out = []
-    for fold in folds:
-        keep = np.ones(len(r), bool)
-        for j in fold.runs:
-            keep[rows[j]:rows[j + 1]] &= ~fold.held[j]
-        Js = J[keep] * problem.scale
-        dz, *_ = np.linalg.lstsq(Js, -r[keep], rcond=1e-10)
-        out.append(np.clip(fit.x + dz * problem.scale, problem.lower, problem.upper))
-    return out
-
-
 def _fold_problem(problem: Problem, fold: Fold) -> tuple[Problem, list[int]]:
     """``problem`` restricted to ``fold``'s training samples (its runs with any, masked), and
     those runs' indices in ``problem.runs``."""
@@ -233,10 +242,21 @@ def _fold_problem(problem: Problem, fold: Fold) -> tuple[Problem, list[int]]:
     return pf, idx
 
 
-#: Gauss-Newton iterations of the per-fold refits, from each fold's one-step start (2: the
-#: one-step start is already a Gauss-Newton step from the all-runs optimum; two more steps on
-#: the fold's own training samples take it the rest of the way on a smooth objective).
-REFIT_ITERATIONS = 2
+#: The per-fold refits' convergence test (:func:`_refit_folds`): a fold stops when a step
+#: lowers its training cost by less than :data:`REFIT_FTOL` of it, or its step is below
+#: :data:`REFIT_XTOL` of every parameter's scale, or after :data:`REFIT_MAX_STEPS` steps.  Why
+#: these numbers (fixed before any result was looked at): the held-out gap is reported to 3
+#: digits and a 1e-3 relative change of the training cost moves the gap (its root) by 5e-4;
+#: a step of 1e-3 of a parameter's scale is 50x below the finite-difference step (0.05 of the
+#: scale), below which the Jacobian cannot resolve a change; 8 steps: from a start at the
+#: nominal values (a 2x-off damping or a zero friction) a damped Gauss-Newton on a smooth
+#: objective needs 3-6 steps, and 8 caps the cost at 8 Jacobian batches per fold.
+REFIT_FTOL = 1e-3
+REFIT_XTOL = 1e-3
+REFIT_MAX_STEPS = 8
+#: Gauss-Newton steps of the screen's per-fold fits (a ranking only; the confirmed candidates
+#: are refitted to convergence).
+SCREEN_STEPS = 1
 #: Least-squares evaluations of a confirmed candidate's all-runs fit, from the screening fit's
 #: end point (each evaluation simulates the point and its p perturbations in one batch).
 CONFIRM_NFEV = 10
@@ -244,15 +264,17 @@ CONFIRM_NFEV = 10
 N_CONFIRM = 2
 
 
-def _fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray]) -> list[np.ndarray]:
-    """Each fold's forward-difference Jacobian at ``xs[f]`` on its training samples, in its own
-    weighting, times the parameters' scale: every fold's point and its ``p`` perturbations
-    (:meth:`Problem.steps`) on the fold's training runs in ONE replay batch."""
+def _fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray],
+                    with_jac: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each fold's weighted residual and forward-difference Jacobian (times the parameters'
+    scale) at ``xs[f]`` on its training samples: every fold's point and its ``p``
+    perturbations (:meth:`Problem.steps`) on the fold's training runs in ONE replay batch
+    (``with_jac`` False: the points alone, the Jacobians empty)."""
     runs, p = problem.runs, len(problem.scale)
     points, steps, pairs = [], [], []
     for (_, idx), x in zip(fps, xs):
-        pts, h = problem.perturbed(x)
-        pairs += [(len(points) + m, j) for m in range(p + 1) for j in idx]
+        pts, h = problem.perturbed(x) if with_jac else ([x], [])
+        pairs += [(len(points) + m, j) for m in range(len(pts)) for j in idx]
         points += pts
         steps.append(h)
     th = problem.rep.simulate([problem.model(x) for x in points], runs, pairs)
@@ -260,60 +282,66 @@ def _fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray]) -> list[n
     out, b = [], 0
     for (pf, idx), h in zip(fps, steps):
         raws = []
-        for _ in range(p + 1):
+        for _ in range(len(h) + 1):
             raws.append([th[b + k] - runs[j].theta for k, j in enumerate(idx)])
             b += len(idx)
             problem.unstable += unstable_count(raws[-1])
-        out.append(pf.jacobian(raws, h)[1] * problem.scale)
+        f0, J = pf.jacobian(raws, h)
+        out.append((f0, J * problem.scale if with_jac else J))
     return out
 
 
 def _refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
-                 iterations: int = REFIT_ITERATIONS) -> list[np.ndarray]:
-    """Per-fold refits, all folds in lockstep: each fold's parameters fitted on its own
-    training samples only (the held-out samples never enter its steps).
+                 max_steps: int = REFIT_MAX_STEPS) -> list[np.ndarray]:
+    """Per-fold fits from ``start`` (one point per fold, found without the fold's held-out
+    samples), all folds in lockstep: each fold's parameters fitted on its own training samples
+    only (the held-out samples never enter its steps or its start).
 
-    Each fold takes damped Gauss-Newton steps with its OWN forward-difference Jacobian, taken
-    once at its start (every fold's start and its ``p`` perturbations on the fold's training
-    runs, one batch), then held for the steps (the chord method); each iteration simulates
-    every fold's current parameters on that fold's training runs in one batch.  Why the fold's
-    own and not the all-runs fit's rows of it: on the real servo of examples/real_servo the
-    all-runs Jacobian's refits left the corrections 5 points of held-out gap behind fresh
-    per-fold fits (27 % removed against 32 %); the fold's own Jacobian at its start gives 33 %
-    for 23 % more physics steps (measured on that example).
-    """
-    runs = problem.runs
-    # each fold's training runs (in run order; a run held out whole is not simulated at all)
-    # and its objective on their training samples
+    Each fold takes Levenberg-damped Gauss-Newton steps with its own forward-difference
+    Jacobian at its current point (every active fold's trial point and its ``p``
+    perturbations on the fold's training runs, one batch per step).  A step that does not
+    lower the fold's training cost is undone and the damping raised (x10; lowered /3 after a
+    kept step).  A fold stops on the convergence test of :data:`REFIT_FTOL`,
+    :data:`REFIT_XTOL`, ``max_steps``."""
     fps = [_fold_problem(problem, fold) for fold in folds]
-    train = [idx for _, idx in fps]
-    xs = [np.asarray(x, float).copy() for x in start]
-    Jf = _fold_jacobians(problem, fps, xs)
-    for _ in range(iterations):
-        models = [problem.model(x) for x in xs]
-        pairs = [(f, j) for f in range(len(folds)) for j in train[f]]
-        th = problem.rep.simulate(models, runs, pairs)
-        problem.nsim += len(xs)
-        b = 0
-        for f in range(len(folds)):
-            raw = [th[b + k] - runs[j].theta for k, j in enumerate(train[f])]
-            b += len(train[f])
-            problem.unstable += unstable_count(raw)
-            dz = damped_step(Jf[f], fps[f][0].weighted(raw))
-            xs[f] = np.clip(xs[f] + dz * problem.scale, problem.lower, problem.upper)
-    return xs
+    k = len(folds)
+    x = [np.clip(np.asarray(s, float), problem.lower, problem.upper) for s in start]
+    trial = [xi.copy() for xi in x]
+    cost, f0, J = [math.inf] * k, [None] * k, [None] * k
+    lam, steps, done = [1e-3] * k, [0] * k, [False] * k
+    while not all(done):
+        act = [f for f in range(k) if not done[f]]
+        last = [steps[f] >= max_steps for f in act]
+        evals = _fold_jacobians(problem, [fps[f] for f in act], [trial[f] for f in act], not all(last))
+        for f, (r, Jf) in zip(act, evals):
+            c = float(np.sum(r ** 2))
+            dz_last = (trial[f] - x[f]) / problem.scale
+            small = steps[f] > 0 and float(np.max(np.abs(dz_last), initial=0.0)) < REFIT_XTOL
+            if c < cost[f]:  # kept
+                drop = (cost[f] - c) / cost[f] if math.isfinite(cost[f]) else math.inf
+                x[f], cost[f], f0[f], J[f] = trial[f], c, r, Jf
+                lam[f] = max(lam[f] / 3, 1e-6)
+                small = small or drop < REFIT_FTOL
+            else:  # undone: step again from the kept point, damped more
+                lam[f] *= 10
+            if small or steps[f] >= max_steps or J[f].shape[1] == 0 or not J[f].any():
+                done[f] = True
+                continue
+            dz = damped_step(J[f], f0[f], lam[f])
+            trial[f] = np.clip(x[f] + dz * problem.scale, problem.lower, problem.upper)
+            steps[f] += 1
+    return x
 
 
 def _polish_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray]) -> list[np.ndarray]:
-    """Per-fold fits of a candidate with rough parameters: each fold's training samples, from its
-    one-step start, by :meth:`Problem.polish` (one cycle; the basin's first bracket at its
-    smallest width, as the fold's basin lies near the all-runs one)."""
+    """Per-fold fits of a candidate with rough parameters, estimated like the all-runs fit: on
+    each fold's training samples, a trust-region fit from the fold's start
+    (:data:`CONFIRM_NFEV` evaluations; its own tests ``xtol`` 1e-3, ``ftol`` 1e-4), then
+    :meth:`Problem.polish` (the basin of the rough parameters)."""
     out = []
     for fold, x0 in zip(folds, start):
         pf, _ = _fold_problem(problem, fold)
-        f, J, raw = pf.evaluate(x0)
-        fit = pf.polish(FitResult(list(pf.free), np.asarray(x0, float), np.asarray(x0, float),
-                                  gap(pf.used(raw)), J, f, pf.nsim, raw), cycles=1, basin_start=BASIN_SMALLEST)
+        fit = pf.polish(pf.fit(np.asarray(x0, float), None, max_nfev=CONFIRM_NFEV))
         problem.nsim += pf.nsim
         problem.unstable += pf.unstable
         out.append(fit.x)
@@ -337,7 +365,9 @@ PRESCREEN_ITERATIONS = 3
 
 @dataclass
 class Prescreened:
-    """A candidate fitted on the short records: its free effects, start, end point, gap [rad]."""
+    """A candidate fitted on the short records: its free effects, start, end point (the
+    elementwise median of its folds' points), gap [rad] (the mean of its folds' training gaps)
+    and each fold's point (``fold_x``, found on that fold's training samples only)."""
 
     name: str
     effects: list
@@ -345,33 +375,98 @@ class Prescreened:
     x: np.ndarray
     gap: float
     unstable: int = 0
+    fold_x: list = field(default_factory=list, repr=False)
+
+
+def fold_grid_starts(problem: Problem, folds: list[Fold], starts: list, grid_from: int = 0,
+                     seconds: float = PRESCREEN_S) -> list[np.ndarray]:
+    """Each fold's start with the free effects of ``problem`` from index ``grid_from`` on moved,
+    one after the other, to the best point of their grid (:meth:`Problem.grid_start`, the others
+    held) on the fold's training samples of the first ``seconds`` of each run
+    (:func:`fold_records`): a local fit cannot find a delay or a friction level the data never
+    "feel" at the nominal values, and the fold's held-out samples must not choose its start."""
+    out = []
+    for fold, x0 in zip(folds, starts):
+        runs, masks = fold_records(problem.runs, fold, seconds)
+        pf = Problem(problem.builder, problem.fixed, problem.free, runs, problem.rep, masks=masks)
+        x = np.clip(np.asarray(x0, float), problem.lower, problem.upper)
+        for i in range(grid_from, len(problem.free)):
+            x = pf.grid_start(x, i)
+        problem.nsim += pf.nsim
+        problem.unstable += pf.unstable
+        out.append(x)
+    return out
+
+
+def fold_records(runs: list[ReplayRun], fold: Fold | None, seconds: float) -> tuple[list[ReplayRun], list]:
+    """The prescreen's short records of ``fold``'s training samples: per run with any, the
+    shortest start of the run (a replay always starts at the run's start) that holds
+    ``seconds`` worth of its training samples, and the training mask over it (None: every
+    sample).  ``fold`` None: the first ``seconds`` of every run, all samples used."""
+    if fold is None:
+        return [r.first_seconds(seconds) for r in runs], [None] * len(runs)
+    idx, masks = fold.train()
+    out, out_masks = [], []
+    for j, m in zip(idx, masks):
+        n_s = runs[j].first_seconds(seconds).n
+        if m is None:
+            out.append(runs[j].truncated(n_s))
+            out_masks.append(None)
+            continue
+        end = min(int(np.searchsorted(np.cumsum(m), n_s)) + 1, runs[j].n)
+        out.append(runs[j].truncated(end))
+        out_masks.append(m[:len(out[-1].theta)])
+    return out, out_masks
 
 
 def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
               runs: list[ReplayRun], rep,
               seconds: float = PRESCREEN_S, iterations: int = PRESCREEN_ITERATIONS,
-              log=None, jobs: list | None = None) -> list[Prescreened]:
-    """Fit every candidate coarsely on the first ``seconds`` of each run; best first.
+              log=None, jobs: list | None = None, folds: list | None = None) -> list[Prescreened]:
+    """Fit every candidate coarsely on short records of each fold's training samples; best
+    first (by the mean over folds of the training gap: no held-out sample ranks a candidate).
 
-    All candidates advance together: their grid points form one batch (per group of models
-    that can share one, :meth:`Replayer.simulate_grouped`), then each Gauss-Newton iteration
-    simulates every candidate's point and its finite-difference perturbations in one batch and
-    each candidate takes its own damped step.  A candidate thus costs a few short-record
-    batches, not a full campaign; the best :data:`N_SCREEN` go on to the held-out screening.
+    Per fold (:func:`fold_records`), all candidates advance together: their grid points form
+    one batch (per group of models that can share one, :meth:`Replayer.simulate_grouped`),
+    then each Gauss-Newton iteration simulates every candidate's point and its
+    finite-difference perturbations in one batch and each candidate takes its own damped step.
+    Each fold's point starts the candidate's fits for that fold.  The best :data:`N_SCREEN`
+    go on to the held-out screening.
 
     ``jobs``: (base effects, their values, candidate name) per candidate -- several bases
     scored in one lockstep (the beam of :func:`score_round`); by default every name on
-    ``accepted``.
+    ``accepted``.  A base's values are one array, or a list of one per fold (the base's own
+    fold fits: the fold's start never saw its held-out samples).  ``folds`` None: one pass on
+    the first ``seconds`` of every run.
     """
     t0 = time.perf_counter()
-    short = [r.first_seconds(seconds) for r in runs]
     beam = jobs is not None and not any(n is None for _, _, n in jobs)
     jobs = [(list(accepted), accepted_x, n) for n in names] if jobs is None else jobs
     labels = ["+".join([e.name for e in b] + [n]) if beam and n is not None else (n or NULL)
               for b, _, n in jobs]
+    per_fold = [_prescreen_fold(builder, jobs, rep, fold_records(runs, fold, seconds), f, iterations)
+                for f, fold in enumerate(folds or [None])]
+    out = []
+    for c, name in enumerate(labels):
+        res = [pf[c] for pf in per_fold]  # (effects, x_start, x, gap, unstable) per fold
+        xs = [r[2] for r in res]
+        out.append(Prescreened(name, res[0][0], res[0][1], np.median(xs, axis=0), float(np.mean([r[3] for r in res])),
+                               sum(r[4] for r in res), xs))
+    out.sort(key=lambda c: c.gap)
+    if log:
+        log(f"  prescreen of {len(labels)} candidates on {seconds:g} s records: "
+            f"{time.perf_counter() - t0:.1f} s; best " + ", ".join(f"{c.name} ({c.gap:.2e})" for c in out[:N_SCREEN]))
+    return out
+
+
+def _prescreen_fold(builder, jobs: list, rep, records: tuple, f: int, iterations: int) -> list[tuple]:
+    """The prescreen on one fold's short records (``records``: runs and training masks): per
+    job, ``(effects, start, best point, its training gap, unstable replays)``."""
+    short, masks = records
     probs, x0s, grids, owner = [], [], [], []
     for c, (base, base_x, name) in enumerate(jobs):
-        prob, x0, per_base = _candidate_grid(builder, base, base_x, name, short, rep)
+        bx = base_x[f] if isinstance(base_x, (list, tuple)) else base_x
+        prob, x0, per_base = _candidate_grid(builder, base, bx, name, short, rep, masks)
         x0s.append(x0)
         for pts in per_base:  # one start per base: each is stepped from its own best grid point
             probs.append(prob)
@@ -380,23 +475,20 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
     best_gap, starts = zip(*_grid_minima(rep, probs, grids, short))
     best_x, best_gap = _lockstep_gauss_newton(rep, probs, list(starts), list(best_gap), short, iterations)
     out = []
-    for c, name in enumerate(labels):
+    for c in range(len(jobs)):
         k = min((i for i in range(len(owner)) if owner[i] == c), key=lambda i: best_gap[i])
-        out.append(Prescreened(name, probs[k].free, x0s[c], best_x[k], best_gap[k], probs[k].unstable))
-    out.sort(key=lambda c: c.gap)
-    if log:
-        log(f"  prescreen of {len(labels)} candidates on {seconds:g} s records: "
-            f"{time.perf_counter() - t0:.1f} s; best " + ", ".join(f"{c.name} ({c.gap:.2e})" for c in out[:N_SCREEN]))
+        out.append((probs[k].free, x0s[c], best_x[k], best_gap[k], probs[k].unstable))
     return out
 
 
 def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: list[ReplayRun],
-                    rep) -> tuple[Problem, np.ndarray, list[np.ndarray]]:
+                    rep, masks: list | None = None) -> tuple[Problem, np.ndarray, list[np.ndarray]]:
     """The problem of ``base`` + candidate ``name`` on ``runs``, its start (``base_x``, the
     candidate at its nominal values) and its starting grids, one per base point: the
     candidate's grid with the base at ``base_x`` followed by the start itself, and, when the
     model's own values of the base differ from ``base_x``, the candidate's grid with the base
-    there.  ``name`` None: the base alone (:data:`NULL`), from ``base_x``.
+    there.  ``name`` None: the base alone (:data:`NULL`), from ``base_x``.  ``masks``: the
+    samples of each run the problem's objective uses (:class:`Problem`).
 
     Why a second grid from the model's own values: ``base_x`` holds the corrections fitted
     *without* the candidate, which stand in for it where they can (on the bank's
@@ -406,11 +498,11 @@ def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: li
     the best grid point about the user's values reach the truth (docs/method/discrepancy.md, "Why the
     load law is blended, and why the prescreen starts twice")."""
     if name is None:
-        prob = Problem(builder, [], list(base), runs, rep)
+        prob = Problem(builder, [], list(base), runs, rep, masks=masks)
         x0 = np.clip(np.asarray(base_x, float), prob.lower, prob.upper)
         return prob, x0, [[x0]]
     eff = builder.effect(name)
-    prob = Problem(builder, [], list(base) + [eff], runs, rep)
+    prob = Problem(builder, [], list(base) + [eff], runs, rep, masks=masks)
     x0 = np.clip(np.concatenate([np.asarray(base_x, float), builder.nominal_values(eff)]),
                  prob.lower, prob.upper)
     i0 = len(x0) - eff.nparam
@@ -432,8 +524,8 @@ def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: li
 
 def _grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
                  runs: list[ReplayRun]) -> list[tuple[float, np.ndarray]]:
-    """Each problem's best grid point on ``runs`` and its gap, ``(gap, point)``: every point of
-    every grid simulated together (one batch per group of models that can share one)."""
+    """Each problem's best grid point on ``runs`` and its gap on the problem's samples
+    (:meth:`Problem.used`), ``(gap, point)``: every point of every grid simulated together (one batch per group of models that can share one)."""
     nr = len(runs)
     models, pairs = [], []
     for prob, pts in zip(probs, grids):
@@ -447,7 +539,7 @@ def _grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
         for _ in pts:
             res = [th[m * nr + j] - runs[j].theta for j in range(nr)]
             prob.unstable += unstable_count(res)
-            gaps.append(gap(res))
+            gaps.append(gap(prob.used(res)))
             m += 1
         i = int(np.argmin(gaps))
         out.append((gaps[i], pts[i].copy()))
@@ -480,7 +572,7 @@ def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], 
             raws = [[th[(first + i) * nr + j] - runs[j].theta for j in range(nr)]
                     for i in range(len(h) + 1)]
             prob.unstable += sum(unstable_count(raw) for raw in raws)
-            g0 = gap(raws[0])
+            g0 = gap(prob.used(raws[0]))
             if g0 <= best_gap[c]:
                 best_gap[c], best_x[c] = g0, xs[c].copy()
                 lam[c] = max(lam[c] / 3, 1e-6)
@@ -599,7 +691,7 @@ class Scorer:
     def score_round(self, accepted: list, accepted_x: np.ndarray, gap_start: float, *,
                     candidates: tuple[str, ...] | None = None, bases: list | None = None,
                     n_confirm: int = N_CONFIRM, screen_nfev: int = 4, n_screen: int | None = None,
-                    prescreen_s: float | None = None) -> list[Scored]:
+                    prescreen_s: float | None = None, accepted_fold_x: list | None = None) -> list[Scored]:
         """Fit and score every candidate not yet accepted; best first.
 
         With ``bases`` (a beam: several sets of effects with their fitted values, e.g. the pairs
@@ -611,6 +703,9 @@ class Scorer:
         ----------
         accepted, accepted_x : list of Effect, ndarray
             Effects accepted in earlier rounds and their fitted values (free again in this round).
+        accepted_fold_x : list of ndarray, optional
+            The accepted effects' own fold fits, one per fold: each fold's fits start there
+            (default ``accepted_x`` for every fold, for a set given without fold fits).
         gap_start : float [rad]
             Held-out gap of the model the round starts from.
         candidates : tuple of str, optional
@@ -627,14 +722,16 @@ class Scorer:
             Length of the prescreen's short records (default :data:`PRESCREEN_S`).
         """
         names = [n for n in (candidates or self.builder.names) if n not in [e.name for e in accepted]]
+        acc_x = list(accepted_fold_x) if accepted_fold_x is not None else accepted_x
         jobs = None
         if bases:
             jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or self.builder.names)
                     if n not in [e.name for e in b]]
         if accepted and not bases:  # the set so far, fitted and scored exactly as every candidate
-            jobs = [(list(accepted), accepted_x, n) for n in names] + [(list(accepted), accepted_x, None)]
-        pre = prescreen(self.builder, accepted, accepted_x, names, self.runs, self.rep,
-                        seconds=PRESCREEN_S if prescreen_s is None else prescreen_s, log=self.log, jobs=jobs)
+            jobs = [(list(accepted), acc_x, n) for n in names] + [(list(accepted), acc_x, None)]
+        pre = prescreen(self.builder, accepted, acc_x, names, self.runs, self.rep,
+                        seconds=PRESCREEN_S if prescreen_s is None else prescreen_s, log=self.log, jobs=jobs,
+                        folds=self.folds)
         scored = self._screen_all(pre, gap_start, N_SCREEN if n_screen is None else n_screen,
                                   screen_nfev=screen_nfev, width=36 if bases else 18)
         null = [sc for sc in scored if sc.name == NULL]
@@ -666,7 +763,7 @@ class Scorer:
             # a screening fit only ranks the candidates (the best are confirmed with full fits):
             # the start's Jacobian serves its few steps
             fit = prob.fit(c.x, None, max_nfev=screen_nfev, chord=True)
-            sc = self._screened(c.name, c.effects, prob, fit, gap_start, t0, width=width)
+            sc = self._screened(c.name, c.effects, prob, fit, gap_start, c.fold_x, t0=t0, width=width)
             sc.prescreen_gap = c.gap
             sc.unstable += c.unstable
             scored.append(sc)
@@ -674,12 +771,17 @@ class Scorer:
 
     # -- screening and confirmation --------------------------------------------------------------
     def _screened(self, name: str, effects: list, prob: Problem, fit: FitResult, gap_start: float,
-                  t0: float, *, width: int = 18) -> Scored:
-        """Score an all-runs fit on held-out samples with one Gauss-Newton step per fold."""
-        fold_x = _onestep_folds(prob, fit, self.folds)
+                  starts: list, *, t0: float | None = None, width: int = 18) -> Scored:
+        """Score a set of effects on held-out samples: each fold's parameters by
+        :data:`SCREEN_STEPS` Gauss-Newton steps on its training samples from ``starts[f]``
+        (found without the fold's held-out samples); ``fit`` (all runs) is kept as the set's
+        fitted values, never used for a held-out score; ``t0``: when its scoring began (for its
+        ``seconds``; default now)."""
+        t0 = time.perf_counter() if t0 is None else t0
+        fold_x = _refit_folds(prob, self.folds, starts, max_steps=SCREEN_STEPS)
         raw = _heldout(prob, fold_x, self.folds)
         g = gap(raw)
-        s = Scored(name, effects, fit, g, share_of(g, gap_start), "one-step", raw, fold_x, self.folds,
+        s = Scored(name, effects, fit, g, share_of(g, gap_start), "screen", raw, fold_x, self.folds,
                    time.perf_counter() - t0, unstable=prob.unstable)
         if self.log:
             self.log(f"  {name:{width}s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
@@ -705,7 +807,8 @@ class Scorer:
         # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
         # minimum wherever it started; the basin search moves it to the basin's centre
         s.fit = prob.polish(s.fit)
-        s.fold_x = _onestep_folds(prob, s.fit, self.folds)
+        # each fold goes on from its screening point (never from the all-runs fit, which saw
+        # the fold's held-out samples) to convergence on its training samples
         if rough(s.effects):
             # the folds are estimated the same way (so the jackknife sees the estimator's spread)
             s.fold_x = _polish_folds(prob, self.folds, s.fold_x)
@@ -731,44 +834,51 @@ class Scorer:
         together they explain it down to the noise.  One effect at a time, as
         :meth:`score_round` adds them, cannot find such a pair.  Here every pair starts from the
         best point of the product of the two effects' grids (each thinned to ``grid_points``),
-        all pairs' grid points simulated together on the first ``grid_s`` seconds of each run;
+        all pairs' grid points simulated together on each fold's training samples of the first
+        ``grid_s`` seconds of each run (each fold's fits start from its own grid best);
         the ``n_fit`` best pairs are fitted on all runs and screened on held-out samples like the
         single candidates, and the best ``n_confirm`` are confirmed with exact per-fold refits.
         """
         starts = self._pair_starts(candidates or self.builder.names, grid_s, grid_points, n_fit)
         scored = []
-        for _, a, b, x0 in starts[:n_fit]:
+        for _, a, b, x0, fold_x0 in starts[:n_fit]:
             t0 = time.perf_counter()
             effects = [self.builder.effect(a), self.builder.effect(b)]
             prob = self.problem(effects)
             fit = prob.fit(x0, None, max_nfev=screen_nfev)
-            scored.append(self._screened(f"{a}+{b}", effects, prob, fit, gap_start, t0, width=36))
+            scored.append(self._screened(f"{a}+{b}", effects, prob, fit, gap_start, fold_x0, t0=t0, width=36))
         return self._confirm_best(scored, gap_start, n_confirm)
 
     def _pair_starts(self, names, grid_s: float, grid_points: int, n_fit: int) -> list[tuple]:
-        """Every pair of ``names`` at the best point of its grid on the first ``grid_s`` seconds
-        of each run: ``(gap, a, b, point)``, best first (the ``n_fit`` best logged)."""
+        """Every pair of ``names`` at the best point of its grid on each fold's training samples
+        of the first ``grid_s`` seconds (:func:`fold_records`): ``(mean gap over folds, a, b,
+        median point, each fold's point)``, best first (the ``n_fit`` best logged)."""
         builder = self.builder
-        grid_runs = [r.first_seconds(grid_s) for r in self.runs]
         t0 = time.perf_counter()
         combos = list(itertools.combinations(names, 2))
-        probs, grids = [], []
-        for a, b in combos:
-            effects = [builder.effect(a), builder.effect(b)]
-            prob = self.problem(effects, grid_runs)
-            ga = _thin(effects[0].grid(builder.nominal_values(effects[0])), grid_points)
-            gb = _thin(effects[1].grid(builder.nominal_values(effects[1])), grid_points)
-            x0 = np.concatenate([builder.nominal_values(e) for e in effects])
-            grids.append([np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
-                                                  effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
-                          for u in ga for v in gb] + [np.clip(x0, prob.lower, prob.upper)])
-            probs.append(prob)
-        minima = _grid_minima(self.rep, probs, grids, grid_runs)
-        starts = [(g, a, b, x) for (a, b), (g, x) in zip(combos, minima)]
+        per_fold = []
+        for fold in self.folds:
+            grid_runs, masks = fold_records(self.runs, fold, grid_s)
+            probs, grids = [], []
+            for a, b in combos:
+                effects = [builder.effect(a), builder.effect(b)]
+                prob = Problem(builder, [], effects, grid_runs, self.rep, masks=masks)
+                ga = _thin(effects[0].grid(builder.nominal_values(effects[0])), grid_points)
+                gb = _thin(effects[1].grid(builder.nominal_values(effects[1])), grid_points)
+                x0 = np.concatenate([builder.nominal_values(e) for e in effects])
+                grids.append([np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
+                                                      effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
+                              for u in ga for v in gb] + [np.clip(x0, prob.lower, prob.upper)])
+                probs.append(prob)
+            per_fold.append(_grid_minima(self.rep, probs, grids, grid_runs))
+        starts = []
+        for c, (a, b) in enumerate(combos):
+            xs = [pf[c][1] for pf in per_fold]
+            starts.append((float(np.mean([pf[c][0] for pf in per_fold])), a, b, np.median(xs, axis=0), xs))
         starts.sort(key=lambda t: t[0])
         if self.log:
-            self.log(f"  pair grids: {len(starts)} pairs in {time.perf_counter() - t0:.1f} s; best "
-                     + ", ".join(f"{a}+{b} ({g:.2e})" for g, a, b, _ in starts[:n_fit]))
+            self.log(f"  pair grids: {len(starts)} pairs on {len(self.folds)} folds in {time.perf_counter() - t0:.1f} s; "
+                     "best " + ", ".join(f"{a}+{b} ({g:.2e})" for g, a, b, _, _ in starts[:n_fit]))
         return starts
 
     # -- given sets ------------------------------------------------------------------------------
@@ -779,19 +889,26 @@ class Scorer:
         t0 = time.perf_counter()
         prob = self.problem(effects)
         fit = prob.fit(np.asarray(x0, float), None, max_nfev=8)
-        sc = self._screened(name, effects, prob, fit, gap_start, t0, width=18)
+        # every fold starts from x0 (the user's values: no data seen)
+        sc = self._screened(name, effects, prob, fit, gap_start, [np.asarray(x0, float)] * len(self.folds),
+                            t0=t0)
         self._confirm(sc, gap_start)
         return sc
 
-    def rescore(self, s: Scored, gap_start: float) -> Scored:
-        """``s``'s all-runs fit scored held out on this scorer's folds (exact per-fold refits
-        from one-step starts; the all-runs fit is kept): e.g. the named set under the fold
-        scheme the verdict did not use (:meth:`on`)."""
+    def rescore(self, s: Scored, gap_start: float, starts: list | None = None, grid_from: int = 0) -> Scored:
+        """``s``'s set of effects scored held out on this scorer's folds (per-fold refits to
+        convergence; the all-runs fit is kept): e.g. the named set under the fold scheme the
+        verdict did not use (:meth:`on`).  Each fold starts from ``starts[f]`` (default the
+        builder's nominal values of every effect: no data seen), the effects from index
+        ``grid_from`` on moved to their grid's best point on the fold's training samples
+        (:func:`fold_grid_starts`)."""
         prob = self.problem(s.effects)
-        prob.seed(s.fit)
-        fold_x = _onestep_folds(prob, s.fit, self.folds)
-        fold_x = (_polish_folds(prob, self.folds, fold_x) if rough(s.effects)
-                  else _refit_folds(prob, self.folds, fold_x))
+        if starts is None:
+            x0 = np.clip(np.concatenate([self.builder.nominal_values(e) for e in s.effects]), prob.lower, prob.upper)
+            starts = [x0] * len(self.folds)
+        starts = fold_grid_starts(prob, self.folds, starts, grid_from)
+        fold_x = (_polish_folds(prob, self.folds, starts) if rough(s.effects)
+                  else _refit_folds(prob, self.folds, starts))
         raw = _heldout(prob, fold_x, self.folds)
         g = gap(raw)
         return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, self.folds,
@@ -814,11 +931,14 @@ class Scorer:
                 continue
             effects = [e for i, e in enumerate(best.effects) if i != m]
             x0 = np.concatenate([x for i, (_, x) in enumerate(best.fit.split()) if i != m])
+            # each fold starts from best's own fold fit without the member
+            starts = [np.concatenate([x for i, x in enumerate(_values(best.effects, fx)) if i != m])
+                      for fx in best.fold_x]
             t0 = time.perf_counter()
             prob = scorer.problem(effects)
             fit = prob.fit(x0, None, max_nfev=8)
-            sc = scorer._screened("+".join(e.name for e in effects), effects, prob, fit, gap_start, t0,
-                                  width=36)
+            sc = scorer._screened("+".join(e.name for e in effects), effects, prob, fit, gap_start, starts,
+                                  t0=t0, width=36)
             scorer._confirm(sc, gap_start)
             out.append(sc)
         out.sort(key=lambda s: s.heldout_gap)
