@@ -243,7 +243,7 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
               "replay can judge them): " + ", ".join(f["name"] for f in ev["needs_replay"]) + ".", ""]
     L += ["*This ranking is by equation error: each law fitted to the missing torque at the logged "
           "states, no replays. The closed-loop verdict below (held-out replays) is what names the "
-          "effect.*", ""]
+          "effect.*", ""] + _md_shortlist(rep)
     named = [e["name"] for e in rep["effects"] if e["name"] != "none"]
     fits = {f["name"]: f for f in ev["ranking"]}
     replay = {f["name"]: f["reason"] for f in ev["needs_replay"]}
@@ -263,6 +263,18 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
               f"{EXPLAINED_ENOUGH:.0%} of the missing torque{best}; the maps above show how large it "
               "is and where (against velocity, drive torque, position, time).", ""]
     return L
+
+
+def _md_shortlist(rep: dict) -> list[str]:
+    """Which candidates the closed loop scored: the shortlist by equation error."""
+    st = rep.get("settings", {})
+    short, every = st.get("shortlist"), st.get("candidates", [])
+    if short is None or list(short) == list(every):
+        return []
+    left = [n for n in every if n not in short]
+    return [f"The closed loop scored {len(short)} of the {len(every)} candidates: the {st['n_shape']} "
+            "that explain most of the missing torque and every one this ranking cannot judge; left "
+            f"out: {', '.join(left)}.", ""]
 
 
 def _md_values(f: dict) -> str:
