@@ -43,7 +43,7 @@ class Selection:
         The held-out gap the next round starts from.
     best : Scored or None
         The accepted set of effects (its fit and folds), None before any is accepted.
-    beam : list of (effects, fold values) or None
+    beam : list of (effects, values, fold values) or None
         The pair search's confirmed pairs, grown together in the next round.
     fixed : tuple of str
         The nominal's corrections (accepted before round 1, never removed).
@@ -254,7 +254,7 @@ class Search:
         # compensates the missing armature; the triple grows from Coulomb + delay)
         confirmed = [p for p in pairs if p.method == "refit" and math.isfinite(p.heldout_gap)]
         if len(confirmed) > 1:
-            state.beam = [(p.effects, list(p.fold_x)) for p in confirmed]
+            state.beam = [(p.effects, p.fit.x, list(p.fold_x)) for p in confirmed]
             state.pairs_scored = [p for p in pairs if math.isfinite(p.heldout_gap)]
         return True
 
