@@ -87,9 +87,10 @@ def assemble_report(builder, runs: list[ReplayRun], findings: Findings, settings
     loc_before = localise(runs, nominal.theta, actuator_limit)
     loc_after = localise(runs, theta_after, actuator_limit)
     rounds = selection.rounds
-    # the library's nearest candidates (round 1, held-out share), for a gap left unexplained
+    # the library's nearest candidates (round 1, held-out share: the ones scored held out), for
+    # a gap left unexplained
     nearest = [{"name": c.name, "share": c.share, "confidence": "low"}
-               for c in (rounds[0] if rounds else []) if c.method != "prescreen" and c.name != sel.NULL][:3]
+               for c in (rounds[0] if rounds else []) if c.method == "refit" and c.name != sel.NULL][:3]
     return {
         "effects": effects,
         "corrections": corrections,
