@@ -137,50 +137,53 @@ def fold_problem(problem: Problem, fold: Fold) -> tuple[Problem, list[int]]:
 #: a step of 1e-3 of a parameter's scale is 50x below the finite-difference step (0.05 of the
 #: scale), below which the Jacobian cannot resolve a change; 8 steps: from a start at the
 #: nominal values (a 2x-off damping or a zero friction) a damped Gauss-Newton on a smooth
-#: objective needs 3-6 steps, and 8 caps the cost at 8 Jacobian batches per fold.
+#: objective needs 3-6 steps, and 8 caps the cost at 8 steps per fold.
 REFIT_FTOL = 1e-3
 REFIT_XTOL = 1e-3
 REFIT_MAX_STEPS = 8
 
 
 def fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray],
-                   with_jac: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
+                   with_jac: bool | list[bool] = True) -> list[tuple[np.ndarray, np.ndarray]]:
     """Each fold's weighted residual and forward-difference Jacobian (times the parameters'
     scale) at ``xs[f]`` on its training samples: every fold's point and its ``p``
     perturbations (:meth:`Problem.steps`) on the fold's training runs in ONE replay batch
-    (``with_jac`` False: the points alone, the Jacobians empty)."""
+    (``with_jac`` False, for all folds or per fold: the point alone, its Jacobian empty)."""
     runs = problem.runs
+    jac = [with_jac] * len(fps) if isinstance(with_jac, bool) else list(with_jac)
     points, steps, pairs = [], [], []
-    for (_, idx), x in zip(fps, xs):
-        pts, h = problem.perturbed(x) if with_jac else ([x], [])
+    for (_, idx), x, wj in zip(fps, xs, jac):
+        pts, h = problem.perturbed(x) if wj else ([x], [])
         pairs += [(len(points) + m, j) for m in range(len(pts)) for j in idx]
         points += pts
         steps.append(h)
     th = problem.rep.simulate([problem.model(x) for x in points], runs, pairs)
     problem.nsim += len(points)
     out, b = [], 0
-    for (pf, idx), h in zip(fps, steps):
+    for (pf, idx), h, wj in zip(fps, steps, jac):
         raws = []
         for _ in range(len(h) + 1):
             raws.append([th[b + k] - runs[j].theta for k, j in enumerate(idx)])
             b += len(idx)
             problem.unstable += unstable_count(raws[-1])
         f0, J = pf.jacobian(raws, h)
-        out.append((f0, J * problem.scale if with_jac else J))
+        out.append((f0, J * problem.scale if wj else J))
     return out
 
 
 def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
-                 max_steps: int = REFIT_MAX_STEPS) -> list[np.ndarray]:
+                max_steps: int = REFIT_MAX_STEPS) -> list[np.ndarray]:
     """Per-fold fits from ``start`` (one point per fold, found without the fold's held-out
     samples), all folds in lockstep: each fold's parameters fitted on its own training samples
     only (the held-out samples never enter its steps or its start).
 
     Each fold takes Levenberg-damped Gauss-Newton steps with its own forward-difference
-    Jacobian at its current point (every active fold's trial point and its ``p``
-    perturbations on the fold's training runs, one batch per step).  A step that does not
-    lower the fold's training cost is undone and the damping raised (x10; lowered /3 after a
-    kept step).  A fold stops on the convergence test of :data:`REFIT_FTOL`,
+    Jacobian, taken at its start and kept while steps lower the fold's training cost (the
+    chord method: a step costs one replay of the fold's training runs, not ``p + 1``).  A step
+    that does not lower the cost is undone and the damping raised (x10; lowered /3 after a
+    kept step); if the Jacobian was taken elsewhere, it is taken again at the kept point first.
+    Every active fold's point (and, where due, its ``p`` perturbations) on its training runs is
+    one batch.  A fold stops on the convergence test of :data:`REFIT_FTOL`,
     :data:`REFIT_XTOL`, ``max_steps``."""
     fps = [fold_problem(problem, fold) for fold in folds]
     k = len(folds)
@@ -188,24 +191,39 @@ def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
     trial = [xi.copy() for xi in x]
     cost, f0, J = [math.inf] * k, [None] * k, [None] * k
     lam, steps, done = [1e-3] * k, [0] * k, [False] * k
+    need_jac = [True] * k    # the next evaluation takes the Jacobian too
+    refresh = [False] * k    # the next evaluation is the kept point again, for its Jacobian
+    jac_at_x = [False] * k   # J[f] was taken at x[f]
     while not all(done):
         act = [f for f in range(k) if not done[f]]
-        last = [steps[f] >= max_steps for f in act]
-        evals = fold_jacobians(problem, [fps[f] for f in act], [trial[f] for f in act], not all(last))
+        evals = fold_jacobians(problem, [fps[f] for f in act], [trial[f] for f in act],
+                               [need_jac[f] for f in act])
         for f, (r, Jf) in zip(act, evals):
             c = float(np.sum(r ** 2))
-            dz_last = (trial[f] - x[f]) / problem.scale
-            small = steps[f] > 0 and float(np.max(np.abs(dz_last), initial=0.0)) < REFIT_XTOL
-            if c < cost[f]:  # kept
+            small = False
+            if refresh[f]:  # the kept point again: its Jacobian
+                f0[f], J[f], jac_at_x[f], refresh[f] = r, Jf, True, False
+            elif c < cost[f]:  # kept
+                dz_last = (trial[f] - x[f]) / problem.scale
+                small = steps[f] > 0 and float(np.max(np.abs(dz_last), initial=0.0)) < REFIT_XTOL
                 drop = (cost[f] - c) / cost[f] if math.isfinite(cost[f]) else math.inf
-                x[f], cost[f], f0[f], J[f] = trial[f], c, r, Jf
+                x[f], cost[f], f0[f] = trial[f], c, r
+                if need_jac[f]:
+                    J[f] = Jf
+                jac_at_x[f] = need_jac[f]
                 lam[f] = max(lam[f] / 3, 1e-6)
                 small = small or drop < REFIT_FTOL
             else:  # undone: step again from the kept point, damped more
+                dz_last = (trial[f] - x[f]) / problem.scale
+                small = float(np.max(np.abs(dz_last), initial=0.0)) < REFIT_XTOL
                 lam[f] *= 10
+                if not jac_at_x[f] and not small:  # the chord Jacobian is stale: take it again here
+                    trial[f], need_jac[f], refresh[f] = x[f].copy(), True, True
+                    continue
             if small or steps[f] >= max_steps or J[f].shape[1] == 0 or not J[f].any():
                 done[f] = True
                 continue
+            need_jac[f] = False
             dz = damped_step(J[f], f0[f], lam[f])
             trial[f] = np.clip(x[f] + dz * problem.scale, problem.lower, problem.upper)
             steps[f] += 1
