@@ -171,6 +171,17 @@ def fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray],
     return out
 
 
+def broyden(J: np.ndarray, dz: np.ndarray, df: np.ndarray) -> np.ndarray:
+    """Broyden's rank-one update of a Jacobian ``J`` after a step ``dz`` changed the residual
+    by ``df``: the least change of ``J`` that makes ``J dz = df`` (the secant condition;
+    Levenberg-Marquardt with Broyden updates: Madsen, Nielsen and Tingleff, *Methods for
+    non-linear least squares problems*, 2nd ed., 2004, sect. 3.4)."""
+    dd = float(dz @ dz)
+    if dd == 0.0:
+        return J
+    return J + np.outer(df - J @ dz, dz) / dd
+
+
 def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
                 max_steps: int = REFIT_MAX_STEPS) -> list[np.ndarray]:
     """Per-fold fits from ``start`` (one point per fold, found without the fold's held-out
@@ -178,10 +189,11 @@ def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
     only (the held-out samples never enter its steps or its start).
 
     Each fold takes Levenberg-damped Gauss-Newton steps with its own forward-difference
-    Jacobian, taken at its start and kept while steps lower the fold's training cost (the
-    chord method: a step costs one replay of the fold's training runs, not ``p + 1``).  A step
-    that does not lower the cost is undone and the damping raised (x10; lowered /3 after a
-    kept step); if the Jacobian was taken elsewhere, it is taken again at the kept point first.
+    Jacobian, taken at its start and then updated by Broyden's rank-one formula after every
+    kept step (:func:`broyden`: a step costs one replay of the fold's training runs, not
+    ``p + 1``).  A step that does not lower the cost is undone and the damping raised (x10;
+    lowered /3 after a kept step); if the Jacobian is not a fresh one, it is taken again at
+    the kept point first.
     Every active fold's point (and, where due, its ``p`` perturbations) on its training runs is
     one batch.  A fold stops on the convergence test of :data:`REFIT_FTOL`,
     :data:`REFIT_XTOL`, ``max_steps``."""
@@ -207,9 +219,11 @@ def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
                 dz_last = (trial[f] - x[f]) / problem.scale
                 small = steps[f] > 0 and float(np.max(np.abs(dz_last), initial=0.0)) < REFIT_XTOL
                 drop = (cost[f] - c) / cost[f] if math.isfinite(cost[f]) else math.inf
-                x[f], cost[f], f0[f] = trial[f], c, r
                 if need_jac[f]:
                     J[f] = Jf
+                else:
+                    J[f] = broyden(J[f], dz_last, r - f0[f])
+                x[f], cost[f], f0[f] = trial[f], c, r
                 jac_at_x[f] = need_jac[f]
                 lam[f] = max(lam[f] / 3, 1e-6)
                 small = small or drop < REFIT_FTOL
