@@ -376,7 +376,7 @@ DISCREPANCY_LAYERS = {
     # MuJoCo: the replay, the effect library, the missing torque and its equation-error naming
     "simulation": ("replay", "effects", "smoothing", "torque", "shape", "evidence"),
     "workflow": ("workflow", "search"),  # joins statistics and simulation
-    "truth": ("truth_models", "servo_truth", "hidden", "experiment_set", "bank"),  # hidden effects, the bank
+    "truth": ("truth_models", "servo_truth", "hidden", "experiment_set", "bank", "demo"),  # hidden effects, the bank
 }
 #: The layers each layer may import inside the package (the package's ``__init__`` is exempt).
 DISCREPANCY_ALLOWED = {

@@ -21,7 +21,7 @@ from discrepancy import effects as fx
 ROOT = Path(__file__).resolve().parent.parent
 #: The truth side: the modules that write truth models, hold the hidden cases and their
 #: experiments, judge a report or draw magnitudes.  None may use the effect library.
-TRUTH_SIDE = ("discrepancy.truth_models", "discrepancy.hidden",
+TRUTH_SIDE = ("discrepancy.truth_models", "discrepancy.hidden", "discrepancy.demo",
               "discrepancy.experiment_set", "discrepancy.bank",
               "discrepancy.servo_truth")
 
