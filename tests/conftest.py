@@ -1,4 +1,10 @@
-"""Suite-wide settings: the tests write temporary files only under pytest's own folder.
+"""Suite-wide settings: the validation bank is installed; the tests write temporary files only
+under pytest's own folder.
+
+The suite needs the bank (``bank/``, the distribution ``omni-alpha-bank``) installed, as the
+README's test command does (``pip install -e ".[test]" -e ./bank``): its scripts and studies
+run in processes of their own, where the checkout's root is not on the path.  Without it the
+run stops at once with one line that names the fix.
 
 A fixture of the whole run points ``TMPDIR`` (and :mod:`tempfile`'s cached folder) at a folder
 of ``tmp_path_factory``, in the test processes and every process they start;
@@ -20,6 +26,21 @@ from pathlib import Path
 import pytest
 
 pytest_plugins = ["pytester"]  # tests/test_temp_files.py runs a small suite with this conftest
+
+
+#: The validation bank's distribution (bank/pyproject.toml).
+BANK_DISTRIBUTION = "omni-alpha-bank"
+
+
+def pytest_configure(config):
+    from importlib import metadata
+
+    try:
+        metadata.version(BANK_DISTRIBUTION)
+    except metadata.PackageNotFoundError:
+        raise pytest.UsageError(f"the validation bank ({BANK_DISTRIBUTION}) is not installed: "
+                                'pip install -e ./bank (the README\'s test command, pip install -e ".[test]" '
+                                "-e ./bank, installs it with the project)") from None
 
 
 def _listing(folder: Path) -> set[str]:
