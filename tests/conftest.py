@@ -9,7 +9,7 @@ run stops at once with one line that names the fix.
 A fixture of the whole run points ``TMPDIR`` (and :mod:`tempfile`'s cached folder) at a folder
 of ``tmp_path_factory``, in the test processes and every process they start;
 code that writes to :func:`tempfile.gettempdir` (e.g. the bank's nominal models,
-``discrepancy.hidden``: ``omni_bank_nominals/``; Dask's scratch space) writes there.
+``bank.hidden``: ``omni_bank_nominals/``; Dask's scratch space) writes there.
 At the end it compares the system's temporary folder with its listing at the start and fails
 the run (an error after its last test), naming them, if anything new is there besides pytest's own folder (a path written
 without :mod:`tempfile`, or a process started with ``TMPDIR`` removed).  Another program writing

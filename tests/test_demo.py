@@ -9,7 +9,7 @@ from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim.device import Device
 from discrepancy import demo, experiment_set
-from discrepancy import hidden
+from bank import hidden
 
 
 def test_demo_truth_is_the_bank_case():

@@ -34,10 +34,11 @@ ALLOWED = re.compile("start_new_" + "sess" + "ion=True|scope=\"" + "sess" + "ion
 #: Where the history words are looked for: (folder or file, glob).
 SCANNED = (("README.md", None), ("docs", "**/*"), ("omni_sim", "**/*.py"), ("omni_sim", "**/*.toml"),
            ("omni_app", "**/*.py"), ("omni_studies", "**/*.py"), ("identification", "**/*.py"), ("identification/data", "*.md"),
-           ("tests", "**/*.py"), ("scripts", "*.py"), ("examples", "**/*"), ("models", "**/README.md"))
+           ("tests", "**/*.py"), ("scripts", "*.py"), ("examples", "**/*"), ("models", "**/README.md"),
+           ("discrepancy", "**/*.py"), ("bank", "**/*.py"), ("bank", "**/*.md"))
 #: Repository paths named in backticks in the README and docs/**/*.md (checked to exist): a file
 #: (with a suffix) or a folder (ending in ``/``) under one of the project's top-level folders.
-CODE_PATH = re.compile(r"`((?:omni_sim|omni_app|identification|scripts|tests|models|docs|examples)"
+CODE_PATH = re.compile(r"`((?:omni_sim|omni_app|identification|discrepancy|bank|scripts|tests|models|docs|examples)"
                        r"/[A-Za-z0-9_/-]*(?:\.[A-Za-z0-9_.]+|/))`")
 
 
