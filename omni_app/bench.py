@@ -85,7 +85,7 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
 
     jobs = max(1, jobs or os.cpu_count() or 1)
     if extended or only == "discrepancy_servo":  # its cases, before any measurement
-        load_bank("omni bench's discrepancy figures")
+        load_bank("omni bench")
     if only == "discrepancy_servo":
         return {"cores": os.cpu_count(), "jobs": jobs, "discrepancy_servo": _bench_discrepancy_servo(jobs)}
     if only is not None:
@@ -179,7 +179,7 @@ def _bench_discrepancy_servo(jobs: int) -> dict:
 
     from identification.dataset import write_dataset
 
-    bank = load_bank("omni bench's discrepancy_servo figure")
+    bank = load_bank("omni bench --only discrepancy_servo")
     hidden, st = bank.hidden, bank.servo_truth
 
     case = hidden.case(SERVO_CASE)

@@ -28,7 +28,7 @@ def load(needed_by: str):
     except ModuleNotFoundError as exc:
         if exc.name not in ("bank", "bank.hidden", "bank.servo_truth"):
             raise  # the bank is there, something it imports is not: not ours to explain
-        raise UserError(f"{needed_by} runs the validation bank's cases, and the bank is not "
-                        f"installed: {INSTALL} (from the source checkout; a regular install of "
-                        "omni-alpha does not ship it)") from None
+        raise UserError(f"{needed_by} runs cases of the validation bank, which is not installed "
+                        f"(a regular install of omni-alpha does not ship it): {INSTALL} from the "
+                        "source checkout") from None
     return bank
