@@ -24,7 +24,8 @@ removals and rescoring as methods; :class:`discrepancy.search.Search` holds one)
 side comes in from the caller: ``builder`` (:class:`~discrepancy.effects.ModelBuilder`:
 effects by name, their nominal values, compiled models) and ``rep``
 (:class:`~discrepancy.replay.Replayer`: simulates models on runs); this module only
-fits, scores and compares.
+fits, scores and compares; the folds and the fits on them are in :mod:`.folds`, the prescreen
+and the pairs' starting grids in :mod:`.prescreen`.
 """
 
 from __future__ import annotations
@@ -37,7 +38,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fit import BASIN_SMALLEST, FitResult, Problem, damped_step, gap, rough, unstable_count
+from .fit import FitResult, Problem, gap, rough
+# the folds and the prescreen are named here too, where the search and the studies read them
+from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, REFIT_ITERATIONS, Fold, block_folds,  # noqa: F401
+                    heldout, heldout_replays, make_folds, onestep_folds, polish_folds, refit_folds, run_folds)
+from .prescreen import (N_SCREEN, NULL, PAIR_FITS, PAIR_GRID_POINTS, PAIR_GRID_S, PRESCREEN_ITERATIONS,  # noqa: F401
+                        PRESCREEN_S, Prescreened, grid_minima, prescreen, thin_grid)
 from .runs import ReplayRun
 
 #: Least share of the round's starting held-out gap the best candidate must remove.
@@ -62,77 +68,10 @@ def share_of(g: float, gap_start: float) -> float:
     return 0.0 if g <= 0 else -math.inf
 
 
-@dataclass(frozen=True)
-class Fold:
-    """The samples one fold holds out: ``held[j]`` is run ``j``'s held-out mask (bool, one per
-    sample), or None when the fold holds out nothing of run ``j``.  The fold's parameters are
-    fitted on every other sample and predict the held-out ones (a run is always replayed
-    whole, from its start: a held-out block's prediction runs through the training blocks
-    before it, as the device did)."""
-
-    held: tuple
-
-    @property
-    def runs(self) -> list[int]:
-        """Runs with held-out samples (the ones the held-out replay simulates)."""
-        return [j for j, h in enumerate(self.held) if h is not None]
-
-    def train(self) -> tuple[list[int], list]:
-        """The runs the fold's fit uses (those with any training sample) and their masks."""
-        idx, masks = [], []
-        for j, h in enumerate(self.held):
-            if h is None:
-                idx.append(j)
-                masks.append(None)
-            elif not h.all():
-                idx.append(j)
-                masks.append(~h)
-        return idx, masks
-
-
-#: Fold schemes.  ``blocked``: every run cut into k contiguous time blocks of equal length, fold
-#: f holds out block f of every run, so every fold's fit sees every kind of experiment (four
-#: runs of four different experiments can be scored).  ``runs``: k folds of whole runs
-#: (:func:`run_folds`), each fold fitting some kinds of experiment and predicting others.
-FOLD_SCHEMES = ("blocked", "runs")
-
-
-def run_folds(runs: list[ReplayRun], k: int) -> list[Fold]:
-    """``k`` folds of whole runs, interleaved after sorting by (kind, pose, frequency,
-    amplitude) so every fold holds a mix of the experiment design."""
-    order = sorted(range(len(runs)), key=lambda j: (runs[j].kind, runs[j].gamma_set_deg,
-                                                    runs[j].frequency_hz, runs[j].amplitude_rad,
-                                                    runs[j].name))
-    k = max(2, min(k, len(runs)))
-    out = []
-    for f in range(k):
-        held = set(order[i] for i in range(f, len(order), k))
-        out.append(Fold(tuple(np.ones(runs[j].n, bool) if j in held else None for j in range(len(runs)))))
-    return out
-
-
-def block_folds(runs: list[ReplayRun], k: int) -> list[Fold]:
-    """``k`` folds of time blocks: fold ``f`` holds out samples ``[f n / k, (f + 1) n / k)`` of
-    every run (n its samples)."""
-    k = max(2, k)
-    out = []
-    for f in range(k):
-        held = []
-        for r in runs:
-            h = np.zeros(r.n, bool)
-            h[(f * r.n) // k:((f + 1) * r.n) // k] = True
-            held.append(h)
-        out.append(Fold(tuple(held)))
-    return out
-
-
-def make_folds(runs: list[ReplayRun], k: int, scheme: str = "blocked") -> list[Fold]:
-    """The folds of ``scheme`` (:data:`FOLD_SCHEMES`)."""
-    if scheme == "blocked":
-        return block_folds(runs, k)
-    if scheme == "runs":
-        return run_folds(runs, k)
-    raise ValueError(f"unknown fold scheme {scheme!r} (one of {', '.join(FOLD_SCHEMES)})")
+#: Candidates (best by the screen's held-out gap) confirmed with exact per-fold refits.
+N_CONFIRM = 2
+#: Pairs are searched when the best single candidate removes less than this share of the gap.
+PAIR_SEARCH_SHARE = 0.5
 
 
 def noise_floor(residuals: list[np.ndarray]) -> float:
@@ -184,335 +123,6 @@ class Scored:
     seconds: float = 0.0
     prescreen_gap: float = math.nan
     unstable: int = 0  # replays MuJoCo found unstable while fitting and scoring it (excluded)
-
-
-def heldout_replays(rep, models: list, runs: list[ReplayRun], folds: list[Fold]) -> list[np.ndarray]:
-    """Each run's held-out replay [rad]: every held-out sample from the replay with its own
-    fold's model (``models[f]``), all in one batch."""
-    pairs = [(f, j) for f, fold in enumerate(folds) for j in fold.runs]
-    th = rep.simulate(models, runs, pairs)
-    out = [np.full(r.n, np.nan) for r in runs]
-    for (f, j), t in zip(pairs, th):
-        h = folds[f].held[j]
-        out[j][h] = t[h]
-    return out
-
-
-def _heldout(problem: Problem, fold_x: list[np.ndarray], folds: list[Fold]) -> list[np.ndarray]:
-    """Held-out residuals: each held-out sample from its own fold's parameters, one batch (an
-    unstable replay: NaN over its held-out samples)."""
-    models = [problem.model(x) for x in fold_x]
-    th = heldout_replays(problem.rep, models, problem.runs, folds)
-    problem.nsim += len(folds)
-    out = [t - r.theta for t, r in zip(th, problem.runs)]
-    problem.unstable += sum(1 for o in out if not np.all(np.isfinite(o)))
-    return out
-
-
-def _onestep_folds(problem: Problem, fit: FitResult, folds: list[Fold]) -> list[np.ndarray]:
-    J = fit.jac
-    r = fit.resid
-    rows = np.cumsum([0] + [run.n for run in problem.runs])
-    out = []
-    for fold in folds:
-        keep = np.ones(len(r), bool)
-        for j in fold.runs:
-            keep[rows[j]:rows[j + 1]] &= ~fold.held[j]
-        Js = J[keep] * problem.scale
-        dz, *_ = np.linalg.lstsq(Js, -r[keep], rcond=1e-10)
-        out.append(np.clip(fit.x + dz * problem.scale, problem.lower, problem.upper))
-    return out
-
-
-def _fold_problem(problem: Problem, fold: Fold) -> tuple[Problem, list[int]]:
-    """``problem`` restricted to ``fold``'s training samples (its runs with any, masked), and
-    those runs' indices in ``problem.runs``."""
-    idx, masks = fold.train()
-    pf = Problem(problem.builder, problem.fixed, problem.free, [problem.runs[j] for j in idx], problem.rep,
-                 masks=masks)
-    return pf, idx
-
-
-#: Gauss-Newton iterations of the per-fold refits, from each fold's one-step start (2: the
-#: one-step start is already a Gauss-Newton step from the all-runs optimum; two more steps on
-#: the fold's own training samples take it the rest of the way on a smooth objective).
-REFIT_ITERATIONS = 2
-#: Least-squares evaluations of a confirmed candidate's all-runs fit, from the screening fit's
-#: end point (each evaluation simulates the point and its p perturbations in one batch).
-CONFIRM_NFEV = 10
-#: Candidates (best by the screen's held-out gap) confirmed with exact per-fold refits.
-N_CONFIRM = 2
-
-
-def _fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray]) -> list[np.ndarray]:
-    """Each fold's forward-difference Jacobian at ``xs[f]`` on its training samples, in its own
-    weighting, times the parameters' scale: every fold's point and its ``p`` perturbations
-    (:meth:`Problem.steps`) on the fold's training runs in ONE replay batch."""
-    runs, p = problem.runs, len(problem.scale)
-    points, steps, pairs = [], [], []
-    for (_, idx), x in zip(fps, xs):
-        pts, h = problem.perturbed(x)
-        pairs += [(len(points) + m, j) for m in range(p + 1) for j in idx]
-        points += pts
-        steps.append(h)
-    th = problem.rep.simulate([problem.model(x) for x in points], runs, pairs)
-    problem.nsim += len(points)
-    out, b = [], 0
-    for (pf, idx), h in zip(fps, steps):
-        raws = []
-        for _ in range(p + 1):
-            raws.append([th[b + k] - runs[j].theta for k, j in enumerate(idx)])
-            b += len(idx)
-            problem.unstable += unstable_count(raws[-1])
-        out.append(pf.jacobian(raws, h)[1] * problem.scale)
-    return out
-
-
-def _refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
-                 iterations: int = REFIT_ITERATIONS) -> list[np.ndarray]:
-    """Per-fold refits, all folds in lockstep: each fold's parameters fitted on its own
-    training samples only (the held-out samples never enter its steps).
-
-    Each fold takes damped Gauss-Newton steps with its OWN forward-difference Jacobian, taken
-    once at its start (every fold's start and its ``p`` perturbations on the fold's training
-    runs, one batch), then held for the steps (the chord method); each iteration simulates
-    every fold's current parameters on that fold's training runs in one batch.  Why the fold's
-    own and not the all-runs fit's rows of it: on the real servo of examples/real_servo the
-    all-runs Jacobian's refits left the corrections 5 points of held-out gap behind fresh
-    per-fold fits (27 % removed against 32 %); the fold's own Jacobian at its start gives 33 %
-    for 23 % more physics steps (measured on that example).
-    """
-    runs = problem.runs
-    # each fold's training runs (in run order; a run held out whole is not simulated at all)
-    # and its objective on their training samples
-    fps = [_fold_problem(problem, fold) for fold in folds]
-    train = [idx for _, idx in fps]
-    xs = [np.asarray(x, float).copy() for x in start]
-    Jf = _fold_jacobians(problem, fps, xs)
-    for _ in range(iterations):
-        models = [problem.model(x) for x in xs]
-        pairs = [(f, j) for f in range(len(folds)) for j in train[f]]
-        th = problem.rep.simulate(models, runs, pairs)
-        problem.nsim += len(xs)
-        b = 0
-        for f in range(len(folds)):
-            raw = [th[b + k] - runs[j].theta for k, j in enumerate(train[f])]
-            b += len(train[f])
-            problem.unstable += unstable_count(raw)
-            dz = damped_step(Jf[f], fps[f][0].weighted(raw))
-            xs[f] = np.clip(xs[f] + dz * problem.scale, problem.lower, problem.upper)
-    return xs
-
-
-def _polish_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray]) -> list[np.ndarray]:
-    """Per-fold fits of a candidate with rough parameters: each fold's training samples, from its
-    one-step start, by :meth:`Problem.polish` (one cycle; the basin's first bracket at its
-    smallest width, as the fold's basin lies near the all-runs one)."""
-    out = []
-    for fold, x0 in zip(folds, start):
-        pf, _ = _fold_problem(problem, fold)
-        f, J, raw = pf.evaluate(x0)
-        fit = pf.polish(FitResult(list(pf.free), np.asarray(x0, float), np.asarray(x0, float),
-                                  gap(pf.used(raw)), J, f, pf.nsim, raw), cycles=1, basin_start=BASIN_SMALLEST)
-        problem.nsim += pf.nsim
-        problem.unstable += pf.unstable
-        out.append(fit.x)
-    return out
-
-
-#: The candidate of a round that adds no effect: the set accepted so far, fitted and scored like
-#: every candidate, the reference of the round's shares (:func:`score_round`).
-NULL = "(no new effect)"
-#: Length [s] of the short records on which every candidate is prescreened (1 s: a step edge and
-#: its settling, or 1.5-3.5 cycles of a 1.5-3.5 Hz sine from the start; half of an Omni bank
-#: run, a sixth of a paper-campaign sine, a fifth of a geared-servo bank run).  In seconds, not
-#: logged samples: a log at 50 Hz holds 1 s in 50 samples, and the replay's cost is its control
-#: periods.
-PRESCREEN_S = 1.0
-#: Candidates (best on the short records) that go on to the held-out screening on all samples.
-N_SCREEN = 4
-#: Lockstep Gauss-Newton iterations of the prescreen.
-PRESCREEN_ITERATIONS = 3
-
-
-@dataclass
-class Prescreened:
-    """A candidate fitted on the short records: its free effects, start, end point, gap [rad]."""
-
-    name: str
-    effects: list
-    x_start: np.ndarray
-    x: np.ndarray
-    gap: float
-    unstable: int = 0
-
-
-def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
-              runs: list[ReplayRun], rep,
-              seconds: float = PRESCREEN_S, iterations: int = PRESCREEN_ITERATIONS,
-              log=None, jobs: list | None = None) -> list[Prescreened]:
-    """Fit every candidate coarsely on the first ``seconds`` of each run; best first.
-
-    All candidates advance together: their grid points form one batch (per group of models
-    that can share one, :meth:`Replayer.simulate_grouped`), then each Gauss-Newton iteration
-    simulates every candidate's point and its finite-difference perturbations in one batch and
-    each candidate takes its own damped step.  A candidate thus costs a few short-record
-    batches, not a full campaign; the best :data:`N_SCREEN` go on to the held-out screening.
-
-    ``jobs``: (base effects, their values, candidate name) per candidate -- several bases
-    scored in one lockstep (the beam of :func:`score_round`); by default every name on
-    ``accepted``.
-    """
-    t0 = time.perf_counter()
-    short = [r.first_seconds(seconds) for r in runs]
-    beam = jobs is not None and not any(n is None for _, _, n in jobs)
-    jobs = [(list(accepted), accepted_x, n) for n in names] if jobs is None else jobs
-    labels = ["+".join([e.name for e in b] + [n]) if beam and n is not None else (n or NULL)
-              for b, _, n in jobs]
-    probs, x0s, grids, owner = [], [], [], []
-    for c, (base, base_x, name) in enumerate(jobs):
-        prob, x0, per_base = _candidate_grid(builder, base, base_x, name, short, rep)
-        x0s.append(x0)
-        for pts in per_base:  # one start per base: each is stepped from its own best grid point
-            probs.append(prob)
-            grids.append(pts)
-            owner.append(c)
-    best_gap, starts = zip(*_grid_minima(rep, probs, grids, short))
-    best_x, best_gap = _lockstep_gauss_newton(rep, probs, list(starts), list(best_gap), short, iterations)
-    out = []
-    for c, name in enumerate(labels):
-        k = min((i for i in range(len(owner)) if owner[i] == c), key=lambda i: best_gap[i])
-        out.append(Prescreened(name, probs[k].free, x0s[c], best_x[k], best_gap[k], probs[k].unstable))
-    out.sort(key=lambda c: c.gap)
-    if log:
-        log(f"  prescreen of {len(labels)} candidates on {seconds:g} s records: "
-            f"{time.perf_counter() - t0:.1f} s; best " + ", ".join(f"{c.name} ({c.gap:.2e})" for c in out[:N_SCREEN]))
-    return out
-
-
-def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: list[ReplayRun],
-                    rep) -> tuple[Problem, np.ndarray, list[np.ndarray]]:
-    """The problem of ``base`` + candidate ``name`` on ``runs``, its start (``base_x``, the
-    candidate at its nominal values) and its starting grids, one per base point: the
-    candidate's grid with the base at ``base_x`` followed by the start itself, and, when the
-    model's own values of the base differ from ``base_x``, the candidate's grid with the base
-    there.  ``name`` None: the base alone (:data:`NULL`), from ``base_x``.
-
-    Why a second grid from the model's own values: ``base_x`` holds the corrections fitted
-    *without* the candidate, which stand in for it where they can (on the bank's
-    load_friction_nominal_off runs the torque gain drops 11 % to mimic the gearbox's drive
-    losses); from there every grid point of the missing effect is worse than none and the
-    prescreen's Gauss-Newton steps point its coefficient below its bound, while the steps from
-    the best grid point about the user's values reach the truth (docs/method/discrepancy.md, "Why the
-    load law is blended, and why the prescreen starts twice")."""
-    if name is None:
-        prob = Problem(builder, [], list(base), runs, rep)
-        x0 = np.clip(np.asarray(base_x, float), prob.lower, prob.upper)
-        return prob, x0, [[x0]]
-    eff = builder.effect(name)
-    prob = Problem(builder, [], list(base) + [eff], runs, rep)
-    x0 = np.clip(np.concatenate([np.asarray(base_x, float), builder.nominal_values(eff)]),
-                 prob.lower, prob.upper)
-    i0 = len(x0) - eff.nparam
-    bases = [x0]
-    own = np.clip(np.concatenate([builder.nominal_values(e) for e in base] + [x0[i0:]]), prob.lower, prob.upper)
-    if not np.array_equal(own, x0):
-        bases.append(own)
-    grids = []
-    for b in bases:
-        pts = []
-        for g in eff.grid(x0[i0:]):
-            xp = b.copy()
-            xp[i0:] = eff.clip(np.asarray(g, float))
-            pts.append(xp)
-        grids.append(pts)
-    grids[0].append(x0)
-    return prob, x0, grids
-
-
-def _grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
-                 runs: list[ReplayRun]) -> list[tuple[float, np.ndarray]]:
-    """Each problem's best grid point on ``runs`` and its gap, ``(gap, point)``: every point of
-    every grid simulated together (one batch per group of models that can share one)."""
-    nr = len(runs)
-    models, pairs = [], []
-    for prob, pts in zip(probs, grids):
-        for x in pts:
-            models.append(prob.model(x))
-            pairs += [(len(models) - 1, j) for j in range(nr)]
-    th = rep.simulate_grouped(models, runs, pairs)
-    out, m = [], 0
-    for prob, pts in zip(probs, grids):
-        gaps = []
-        for _ in pts:
-            res = [th[m * nr + j] - runs[j].theta for j in range(nr)]
-            prob.unstable += unstable_count(res)
-            gaps.append(gap(res))
-            m += 1
-        i = int(np.argmin(gaps))
-        out.append((gaps[i], pts[i].copy()))
-    return out
-
-
-def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], best_gap: list[float],
-                           runs: list[ReplayRun], iterations: int) -> tuple[list, list]:
-    """Damped Gauss-Newton from each candidate's start (its best grid point, gap ``best_gap``),
-    all candidates in lockstep: each iteration evaluates every candidate's point and its
-    perturbations in one batch; a step that made the gap worse is undone and the damping
-    raised.  Returns each candidate's best point and its gap."""
-    nr = len(runs)
-    xs = [x.copy() for x in starts]
-    best_x = [x.copy() for x in starts]
-    lam = [1e-3] * len(xs)
-    for it in range(iterations + 1):
-        last = it == iterations  # the last pass only scores the last step's end points
-        models, pairs, spans = [], [], []
-        for c, x in enumerate(xs):
-            pts, h = ([x], []) if last else probs[c].perturbed(x)
-            first = len(models)
-            for xp in pts:
-                models.append(probs[c].model(xp))
-                pairs += [(len(models) - 1, j) for j in range(nr)]
-            spans.append((first, h))
-        th = rep.simulate_grouped(models, runs, pairs)
-        for c, (first, h) in enumerate(spans):
-            prob = probs[c]
-            raws = [[th[(first + i) * nr + j] - runs[j].theta for j in range(nr)]
-                    for i in range(len(h) + 1)]
-            prob.unstable += sum(unstable_count(raw) for raw in raws)
-            g0 = gap(raws[0])
-            if g0 <= best_gap[c]:
-                best_gap[c], best_x[c] = g0, xs[c].copy()
-                lam[c] = max(lam[c] / 3, 1e-6)
-            else:
-                lam[c] *= 10
-            if last:
-                continue
-            if g0 > best_gap[c]:  # this point is worse: step again from the best one, damped more
-                xs[c] = best_x[c].copy()
-                continue
-            f0, J = prob.jacobian(raws, h)
-            dz = damped_step(J * prob.scale, f0, lam[c])
-            xs[c] = np.clip(xs[c] + dz * prob.scale, prob.lower, prob.upper)
-    return best_x, best_gap
-
-
-#: Length [s] of the records on which the pairs' starting grids are evaluated (a coarse start
-#: only; 0.7 s, 700 samples of the Omni's 1 kHz log).
-PAIR_GRID_S = 0.7
-#: Pairs (best by their grid) fitted and screened; the best ``n_confirm`` of them confirmed.
-PAIR_FITS = 8
-#: Points per effect of a pair's starting grid (each effect's grid thinned to this many).
-PAIR_GRID_POINTS = 5
-#: Pairs are searched when the best single candidate removes less than this share of the gap.
-PAIR_SEARCH_SHARE = 0.5
-
-
-def _thin(grid: np.ndarray, m: int) -> np.ndarray:
-    """At most ``m`` points of a starting grid, spread over it (ends kept)."""
-    if len(grid) <= m:
-        return grid
-    return grid[np.unique(np.round(np.linspace(0, len(grid) - 1, m)).astype(int))]
 
 
 def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> list[tuple[str | None, float]]:
@@ -676,8 +286,8 @@ class Scorer:
     def _screened(self, name: str, effects: list, prob: Problem, fit: FitResult, gap_start: float,
                   t0: float, *, width: int = 18) -> Scored:
         """Score an all-runs fit on held-out samples with one Gauss-Newton step per fold."""
-        fold_x = _onestep_folds(prob, fit, self.folds)
-        raw = _heldout(prob, fold_x, self.folds)
+        fold_x = onestep_folds(prob, fit, self.folds)
+        raw = heldout(prob, fold_x, self.folds)
         g = gap(raw)
         s = Scored(name, effects, fit, g, share_of(g, gap_start), "one-step", raw, fold_x, self.folds,
                    time.perf_counter() - t0, unstable=prob.unstable)
@@ -705,13 +315,13 @@ class Scorer:
         # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
         # minimum wherever it started; the basin search moves it to the basin's centre
         s.fit = prob.polish(s.fit)
-        s.fold_x = _onestep_folds(prob, s.fit, self.folds)
+        s.fold_x = onestep_folds(prob, s.fit, self.folds)
         if rough(s.effects):
             # the folds are estimated the same way (so the jackknife sees the estimator's spread)
-            s.fold_x = _polish_folds(prob, self.folds, s.fold_x)
+            s.fold_x = polish_folds(prob, self.folds, s.fold_x)
         else:
-            s.fold_x = _refit_folds(prob, self.folds, s.fold_x)
-        s.heldout_raw = _heldout(prob, s.fold_x, self.folds)
+            s.fold_x = refit_folds(prob, self.folds, s.fold_x)
+        s.heldout_raw = heldout(prob, s.fold_x, self.folds)
         s.heldout_gap = gap(s.heldout_raw)
         s.share = share_of(s.heldout_gap, gap_start)
         s.method = "refit"
@@ -756,14 +366,14 @@ class Scorer:
         for a, b in combos:
             effects = [builder.effect(a), builder.effect(b)]
             prob = self.problem(effects, grid_runs)
-            ga = _thin(effects[0].grid(builder.nominal_values(effects[0])), grid_points)
-            gb = _thin(effects[1].grid(builder.nominal_values(effects[1])), grid_points)
+            ga = thin_grid(effects[0].grid(builder.nominal_values(effects[0])), grid_points)
+            gb = thin_grid(effects[1].grid(builder.nominal_values(effects[1])), grid_points)
             x0 = np.concatenate([builder.nominal_values(e) for e in effects])
             grids.append([np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
                                                   effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
                           for u in ga for v in gb] + [np.clip(x0, prob.lower, prob.upper)])
             probs.append(prob)
-        minima = _grid_minima(self.rep, probs, grids, grid_runs)
+        minima = grid_minima(self.rep, probs, grids, grid_runs)
         starts = [(g, a, b, x) for (a, b), (g, x) in zip(combos, minima)]
         starts.sort(key=lambda t: t[0])
         if self.log:
@@ -789,10 +399,10 @@ class Scorer:
         scheme the verdict did not use (:meth:`on`)."""
         prob = self.problem(s.effects)
         prob.seed(s.fit)
-        fold_x = _onestep_folds(prob, s.fit, self.folds)
-        fold_x = (_polish_folds(prob, self.folds, fold_x) if rough(s.effects)
-                  else _refit_folds(prob, self.folds, fold_x))
-        raw = _heldout(prob, fold_x, self.folds)
+        fold_x = onestep_folds(prob, s.fit, self.folds)
+        fold_x = (polish_folds(prob, self.folds, fold_x) if rough(s.effects)
+                  else refit_folds(prob, self.folds, fold_x))
+        raw = heldout(prob, fold_x, self.folds)
         g = gap(raw)
         return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, self.folds,
                       unstable=prob.unstable)
