@@ -14,11 +14,11 @@ Modules:
   :mod:`.report` (the content of ``report.json``, from what the search found);
 * :mod:`.search` (the search: one :class:`~.search.Search` through all its stages) and
   :mod:`.workflow` (all of it, step by step: load, prepare, search, report);
-* hidden effects, written independently of the library: :mod:`.truth_models` (the truth
-  writers), :mod:`.hidden` (the cases, their data, the pass criteria; used by the demo,
-  ``omni bench`` and ``omni sweep``), :mod:`.experiment_set` (the compact experiment set and
-  its measurement noise) and :mod:`.bank` (what only the validation uses: the coverage
-  study's ranges; imported by no module of the application).
+* hidden effects, written independently of the library: :mod:`.experiment_set` (the compact
+  experiment set of the hidden-effect cases and its measurement noise) and :mod:`.demo`
+  (``omni discrepancy --demo``'s hidden loop delay and its runs).  The validation bank's
+  truths, cases and studies are not part of the library: they are the package ``bank`` of
+  the source checkout, a distribution of its own (``bank/README.md``).
 """
 
 from .effects import LIBRARY, NAMES

@@ -1,6 +1,6 @@
-"""The compact experiment set of the hidden-effect cases and their measurement: where the
-"measured" runs of :mod:`.hidden` come from (the demo, ``omni sweep``'s discrepancy pipeline,
-the bank and the coverage study use it).
+"""The compact experiment set of the hidden-effect cases and their measurement: where their
+"measured" runs come from (the demo, :mod:`.demo`; the validation bank's cases, ``bank.hidden``,
+with ``omni sweep``'s discrepancy pipeline and the bank's studies).
 
 16 runs of 2 s by default: sines at 2 amplitudes x 3 frequencies (below, near and above the
 ~3.4 Hz resonance) plus square waves of 2 sizes, at a folded and a stretched arm pose; the

@@ -12,14 +12,16 @@ from identification.dataset import atomic_output_dir, check_output_dir, read_dat
 from identification.errors import UserError
 
 from omni_sim import model as om
-from discrepancy import experiment_set, hidden
+from discrepancy import demo as demo_truth
+from discrepancy import experiment_set
 from discrepancy.workflow import run_discrepancy
 
 from . import discrepancy_report as rp
 from .inputs import check_run_poses, require_run_poses
 
-#: The effect hidden by ``--demo``: a 4 ms loop delay (USB Omnis run their loop at 700-900 Hz).
-DEMO_CASE = "time_delay"
+#: The effect hidden by ``--demo``: a 4 ms loop delay (USB Omnis run their loop at 700-900 Hz;
+#: :mod:`discrepancy.demo`, the validation bank's case of the same name).
+DEMO_CASE = demo_truth.CASE
 
 
 class Progress:
@@ -171,17 +173,17 @@ def _summary(outcome, out: Path) -> None:
           f"(x{rep['shrink_factor']:.1f}); report in {out}/report.md")
 
 
-def demo(out: Path, force: bool = False, case_name: str = DEMO_CASE, log=None) -> int:
-    """Hide an effect in a copy of the virtual Omni, generate "measured" data, find it."""
+def demo(out: Path, force: bool = False, log=None) -> int:
+    """Hide an effect in a copy of the virtual Omni (:mod:`discrepancy.demo`), generate
+    "measured" data, find it."""
     out = Path(out)
     check_output_dir(out, force)
-    case = hidden.case(case_name)
-    runs = hidden.generate(case)
+    runs = demo_truth.generate()
     outcome = run_discrepancy(runs, None, log=log, progress=getattr(log, "stage", None))
-    outcome.report["hidden"] = {"case": case.name, "effects": {n: list(v) for n, v in case.effects},
-                                "note": case.note}
-    intro = (f"Demo: the virtual Omni with a hidden effect -- **{case.name}** "
-             f"({case.note}) -- generated the 'measured' runs in `measured/` (encoder quantised to "
+    outcome.report["hidden"] = {"case": demo_truth.CASE, "effects": {n: list(v) for n, v in demo_truth.EFFECTS},
+                                "note": demo_truth.NOTE}
+    intro = (f"Demo: the virtual Omni with a hidden effect -- **{demo_truth.CASE}** "
+             f"({demo_truth.NOTE}) -- generated the 'measured' runs in `measured/` (encoder quantised to "
              f"15000 counts/rev plus {experiment_set.NOISE_RAD:g} rad noise); the workflow saw only those "
              f"runs and the unmodified model.")
     with atomic_output_dir(out, force=force) as tmp:
@@ -193,7 +195,7 @@ def demo(out: Path, force: bool = False, case_name: str = DEMO_CASE, log=None) -
     return 0
 
 
-def bench_discrepancy(case_name: str = DEMO_CASE, jobs: int | None = None) -> dict:
+def bench_discrepancy(jobs: int | None = None) -> dict:
     """Time the workflow on a representative case (the demo's: 16 runs, 32 s of data).
 
     Returns
@@ -203,8 +205,7 @@ def bench_discrepancy(case_name: str = DEMO_CASE, jobs: int | None = None) -> di
         ``discrepancy_samples`` (measured samples), ``discrepancy_named`` (names found) and
         ``discrepancy_correct`` (they match the hidden effect).
     """
-    case = hidden.case(case_name)
-    runs = hidden.generate(case, jobs=jobs)
+    runs = demo_truth.generate(jobs=jobs)
     t0 = time.perf_counter()
     outcome = run_discrepancy(runs, None, jobs=jobs)
     wall = time.perf_counter() - t0
@@ -213,7 +214,7 @@ def bench_discrepancy(case_name: str = DEMO_CASE, jobs: int | None = None) -> di
             "discrepancy_steps_per_s": outcome.report["timings"]["steps_per_s"],
             "discrepancy_samples": int(sum(len(r.t) for r in runs)),
             "discrepancy_named": named,
-            "discrepancy_correct": sorted(named) == sorted(case.expect)}
+            "discrepancy_correct": named == [demo_truth.CASE]}
 
 
 #: The case hidden by the campaign benchmark (``omni bench --discrepancy-campaign``).
@@ -223,8 +224,8 @@ CAMPAIGN_CASE = "viscous_damping"
 def bench_discrepancy_campaign(case_name: str = CAMPAIGN_CASE, jobs: int | None = None,
                                log=None) -> dict:
     """Time the workflow on the whole paper campaign (106 runs, 686 s at 1 kHz) with the
-    whole library: the truth is the hidden case ``case_name`` (:mod:`discrepancy.hidden`,
-    independent of the library), measured with the quantised, noisy encoder of the compact
+    whole library: the truth is the validation bank's hidden case ``case_name`` (``bank.hidden``,
+    independent of the library; the bank must be installed: :mod:`omni_studies.bank_link`), measured with the quantised, noisy encoder of the compact
     experiment set (:mod:`discrepancy.experiment_set`).
 
     Returns
@@ -235,7 +236,9 @@ def bench_discrepancy_campaign(case_name: str = CAMPAIGN_CASE, jobs: int | None 
     """
     from omni_sim import experiments as ex
     from discrepancy import effects as fx
+    from omni_studies.bank_link import load as load_bank
 
+    hidden = load_bank("the discrepancy campaign benchmark").hidden
     case = hidden.case(case_name)
     runs = hidden.generate(case, exps=ex.campaign("paper"), jobs=jobs)
     t0 = time.perf_counter()

@@ -33,7 +33,7 @@ MODELS_DIR = _models_dir()
 #: calibration records and the provenance of its numbers (``README.md``).
 OMNI_DIR = MODELS_DIR / "omni"
 #: The geared-servo pendulum's folder (not the Omni: the nominal model of the hidden-effect
-#: bank's geared-servo case, :mod:`discrepancy.servo_truth`).
+#: bank's geared-servo case, :mod:`bank.servo_truth`).
 SERVO_PENDULUM_DIR = MODELS_DIR / "servo_pendulum"
 #: The geared-servo pendulum's model file (joint ``pivot``, actuator ``servo``).
 SERVO_PENDULUM = SERVO_PENDULUM_DIR / "servo_pendulum.xml"

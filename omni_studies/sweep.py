@@ -16,11 +16,11 @@ Pipelines:
 * ``reproduce``: the reproduce job's stages in memory (generate the campaign, identify, validate
   both models, inertia against MuJoCo's mass matrix) with the variant's run settings; the
   summary figures.
-* ``discrepancy``: "measured" data of the variant with a hidden effect of
-  :mod:`discrepancy.hidden` (the compact experiment set of
-  :mod:`discrepancy.experiment_set`, quantised, noisy encoder), the discrepancy
-  workflow with the variant as the nominal model; the effects it names, whether the bank's
-  criteria (:func:`discrepancy.hidden.assess`) pass, the gap's shrink factor.
+* ``discrepancy``: "measured" data of the variant with a hidden effect of the validation
+  bank's cases, ``bank.hidden`` (installed from the source checkout: :mod:`.bank_link`; the
+  compact experiment set of :mod:`discrepancy.experiment_set`, quantised, noisy encoder), the
+  discrepancy workflow with the variant as the nominal model; the effects it names, whether the
+  bank's criteria (``bank.hidden.assess``) pass, the gap's shrink factor.
 * ``simulate``: the campaign only; tracking errors (cheap: for checking a study file).
 """
 
@@ -76,7 +76,7 @@ class DiscrepancyFigures(Record):
     """The ``discrepancy`` pipeline's figures of one variant (from its ``report.json``)."""
 
     effects: str  #: the effects named, joined by "+" ("": none)
-    passed: int  #: 1 when the bank's criteria pass (:func:`discrepancy.hidden.assess`), else 0
+    passed: int  #: 1 when the bank's criteria pass (``bank.hidden.assess``), else 0
     assessment: str  #: why, in words
     shrink_factor: float  #: held-out gap before / after [-]
     gap_before_rad: float  #: the nominal model's replay gap [rad]
@@ -375,9 +375,11 @@ def _parse_base(doc: dict, source: str, base_dir: Path) -> tuple[dict, object]:
 
 def _parse_pipeline(doc: dict, source: str, base_dir: Path) -> dict:
     """``[pipeline]``: reproduce or simulate a campaign, or the discrepancy workflow on a
-    hidden case."""
+    hidden case of the validation bank (which must be installed: :mod:`.bank_link`)."""
     from omni_sim import experiments as ex
-    from discrepancy import experiment_set, hidden
+    from discrepancy import experiment_set
+
+    from .bank_link import load as load_bank
 
     p = doc.get("pipeline")
     if not isinstance(p, dict):
@@ -407,6 +409,10 @@ def _parse_pipeline(doc: dict, source: str, base_dir: Path) -> dict:
             raise _err(source, "pipeline.campaign", str(exc)) from None
         pipe.update(campaign_text=ctext, campaign_source=csource)
     else:
+        try:
+            hidden = load_bank("omni sweep's discrepancy pipeline").hidden
+        except UserError as exc:
+            raise _err(source, "pipeline", str(exc)) from None
         case_name = p.get("hidden", "viscous_damping")
         # the sweep writes a case's truth on the study's Omni variants: the Omni's cases only
         # (a geared-servo case simulates a device of its own)
@@ -573,9 +579,12 @@ def _discrepancy(spec, model, values, settings, pipe) -> tuple[DiscrepancyFigure
 
     from omni_sim import experiments as ex
     from omni_sim.device import Device
-    from discrepancy import experiment_set, hidden
+    from discrepancy import experiment_set
     from discrepancy.workflow import run_discrepancy
 
+    from .bank_link import load as load_bank
+
+    hidden = load_bank("omni sweep's discrepancy pipeline").hidden
     case = hidden.case(pipe["hidden"])
     amp = values.get("amplitude_rad")
     exps = experiment_set.experiments(amplitudes_rad=experiment_set.AMPLITUDES_RAD if amp is None else (amp,),

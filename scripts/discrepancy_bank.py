@@ -1,20 +1,20 @@
 """Run the hidden-effect bank through ``omni discrepancy`` and write docs/studies/discrepancy/bank.md.
 
-For every case of :data:`discrepancy.hidden.CASES` a truth model (the virtual Omni
-with the effect written by :mod:`discrepancy.truth_models` with MuJoCo's own features,
+For every case of :data:`bank.hidden.CASES` a truth model (the virtual Omni
+with the effect written by :mod:`bank.omni_truths` with MuJoCo's own features,
 independently of the effect library)
 generates quantised, noisy "measured" runs (exact ones for ``none_exact``); the workflow sees
 only those runs and the nominal model.  The table lists the hidden and the named effects, the
 parameters (truth vs fitted ± 95 % uncertainty), the held-out gap before/after, the runner-up,
-the margin and the verdict of :func:`discrepancy.hidden.assess`.  Beside the table, a
+the margin and the verdict of :func:`bank.hidden.assess`.  Beside the table, a
 JSON (same name, ``.json``) holds the run's settings (commit, dates, machine load) and every
 case's full workflow report; it is rewritten after each case, so a stopped run keeps what it
 did.  A worked example with figures is written to docs/studies/discrepancy/example/ (``--no-example``:
 not).
 
 A case with a truth of its own (``truth="servo"``: the geared-servo pendulum of
-:mod:`discrepancy.servo_truth`) is given its own nominal model and target
-(:func:`discrepancy.hidden.nominal`: ``models/servo_pendulum/servo_pendulum.xml``, ``pivot``/``servo``).
+:mod:`bank.servo_truth`) is given its own nominal model and target
+(:func:`bank.hidden.nominal`: ``models/servo_pendulum/servo_pendulum.xml``, ``pivot``/``servo``).
 ``--merge`` runs the given cases and puts them into the existing JSON in the bank's order (the
 other cases kept as they are); each merged entry records its own commit and dates.
 
@@ -22,8 +22,8 @@ other cases kept as they are); each merged entry records its own commit and date
 (``tests/test_discrepancy_bank.py`` checks that docs/method/discrepancy.md holds exactly that).
 
 ``--gear-efficiency`` runs the case whose truth is written in another form than the library's
-law (:func:`discrepancy.servo_truth.generate_efficiency`: a gear efficiency law with a
-smooth sign; judged by :func:`~discrepancy.servo_truth.assess_efficiency`), writes its
+law (:func:`bank.servo_truth.generate_efficiency`: a gear efficiency law with a
+smooth sign; judged by :func:`~bank.servo_truth.assess_efficiency`), writes its
 record to ``bank_gear_efficiency.json`` beside the table and the table's page with its section
 (rendered from that record whenever the page is written).
 
@@ -43,8 +43,8 @@ import sys
 import time
 from pathlib import Path
 
-from omni_app import bank_report as report
-from omni_studies import discrepancy_bank as study
+from bank.writers import bank_report as report
+from bank.studies import discrepancy_bank as study
 
 DEFAULT_OUT = report.DEFAULT_OUT
 

@@ -2,7 +2,7 @@
 
 ``--n`` random magnitudes per effect in its realistic range, each fitted by the workflow on
 runs of the independent truth model; a parameter is covered when the truth lies inside the
-reported 95 % interval (the method: :mod:`omni_studies.discrepancy_coverage`).
+reported 95 % interval (the method: :mod:`bank.studies.discrepancy_coverage`).
 
 Writes ``coverage.json`` (every draw, per-effect and overall coverage with Wilson 95 % intervals,
 the median width of the intervals relative to the truth) and ``coverage.png`` to ``--out``;
@@ -21,8 +21,8 @@ import time
 from pathlib import Path
 
 from identification.errors import UserError
-from omni_app import bank_report as report
-from omni_studies import discrepancy_coverage as cov
+from bank.writers import bank_report as report
+from bank.studies import discrepancy_coverage as cov
 
 ROOT = Path(__file__).resolve().parent.parent
 CONDITIONS = cov.CONDITIONS
@@ -30,7 +30,7 @@ CONDITIONS = cov.CONDITIONS
 
 def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
-                                 epilog="Ranges of the random magnitudes: discrepancy/bank.py RANGES.")
+                                 epilog="Ranges of the random magnitudes: bank/ranges.py RANGES.")
     ap.add_argument("--effects", nargs="*", default=None,
                     help="library effects to study (default: every effect with a range)")
     ap.add_argument("--n", type=int, default=20, help="random magnitudes per effect (default 20)")

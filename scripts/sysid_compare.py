@@ -6,8 +6,8 @@ its optional requirements with the extra::
 
     pip install "mujoco[sysid]==4.0.0"      # the installed MuJoCo's version
 
-The study (cases, methods) is :mod:`omni_studies.sysid_compare`, the page
-:mod:`omni_app.sysid_report`; this is its command line.  Writes ``sysid_compare.json`` and
+The study (cases, methods) is :mod:`bank.studies.sysid_compare`, the page
+:mod:`bank.writers.sysid_report`; this is its command line.  Writes ``sysid_compare.json`` and
 ``sysid.md`` (rendered from the JSON) to ``--out``.
 
 Usage: python scripts/sysid_compare.py [--out docs/studies/discrepancy] [--cases ...] [--jobs 1]
@@ -22,8 +22,8 @@ import sys
 from pathlib import Path
 
 from omni_app.provenance import git_commit, uncommitted
-from omni_app.sysid_report import JSON_NAME, MD_NAME, render
-from omni_studies import sysid_compare as sc
+from bank.writers.sysid_report import JSON_NAME, MD_NAME, render
+from bank.studies import sysid_compare as sc
 
 OUT = sc.ROOT / "docs" / "studies" / "discrepancy"
 

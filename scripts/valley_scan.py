@@ -6,7 +6,7 @@ library holds it (``blend``: the coefficient passes from mu_back to mu_drive ove
 of tau*w, mu_back at rest: the blend speed set to 0, in the engine and in the case's truth
 alike, so the truth's runs change with it).
 
-The study is :mod:`omni_studies.valley_scan` (what the record holds, per law); this is its
+The study is :mod:`bank.studies.valley_scan` (what the record holds, per law); this is its
 command line.  Writes ``valley_scan.json`` (``--out``, default docs/studies/discrepancy).
 Deterministic (the case's seed); a few minutes on 2 cores.
 
@@ -19,7 +19,7 @@ import argparse
 import json
 from pathlib import Path
 
-from omni_studies import valley_scan as vs
+from bank.studies import valley_scan as vs
 
 
 def main(argv=None) -> int:

@@ -1,9 +1,15 @@
-"""Suite-wide settings: the tests write temporary files only under pytest's own folder.
+"""Suite-wide settings: the validation bank is installed; the tests write temporary files only
+under pytest's own folder.
+
+The suite needs the bank (``bank/``, the distribution ``omni-alpha-bank``) installed, as the
+README's test command does (``pip install -e ".[test]" -e ./bank``): its scripts and studies
+run in processes of their own, where the checkout's root is not on the path.  Without it the
+run stops at once with one line that names the fix.
 
 A fixture of the whole run points ``TMPDIR`` (and :mod:`tempfile`'s cached folder) at a folder
 of ``tmp_path_factory``, in the test processes and every process they start;
 code that writes to :func:`tempfile.gettempdir` (e.g. the bank's nominal models,
-``discrepancy.hidden``: ``omni_bank_nominals/``; Dask's scratch space) writes there.
+``bank.hidden``: ``omni_bank_nominals/``; Dask's scratch space) writes there.
 At the end it compares the system's temporary folder with its listing at the start and fails
 the run (an error after its last test), naming them, if anything new is there besides pytest's own folder (a path written
 without :mod:`tempfile`, or a process started with ``TMPDIR`` removed).  Another program writing
@@ -20,6 +26,21 @@ from pathlib import Path
 import pytest
 
 pytest_plugins = ["pytester"]  # tests/test_temp_files.py runs a small suite with this conftest
+
+
+#: The validation bank's distribution (bank/pyproject.toml).
+BANK_DISTRIBUTION = "omni-alpha-bank"
+
+
+def pytest_configure(config):
+    from importlib import metadata
+
+    try:
+        metadata.version(BANK_DISTRIBUTION)
+    except metadata.PackageNotFoundError:
+        raise pytest.UsageError(f"the validation bank ({BANK_DISTRIBUTION}) is not installed: "
+                                'pip install -e ./bank (the README\'s test command, pip install -e ".[test]" '
+                                "-e ./bank, installs it with the project)") from None
 
 
 def _listing(folder: Path) -> set[str]:

@@ -1,7 +1,8 @@
 """Layering of the five packages: omni_app -> omni_studies -> discrepancy -> omni_sim ->
 identification, no
 import cycles, and scripts that are thin mains (no script imports another, a private name or
-edits ``sys.path``).
+edits ``sys.path``); the validation bank (``bank/``, a distribution of its own) above them all,
+which no module of the five imports but the one door, ``omni_studies/bank_link.py``.
 
 The import graph is read from the source with :mod:`ast` (never by importing), including
 imports inside functions, ``if TYPE_CHECKING:`` blocks and ``importlib.import_module("...")``
@@ -20,6 +21,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("identification", "omni_sim", "discrepancy", "omni_studies", "omni_app")
+#: The validation bank (bank/pyproject.toml: its own distribution, never installed with the five):
+#: its modules are walked with theirs, it may import them all, and none of them imports it.
+BANK = "bank"
 #: Never imported by the method layer, directly or through a dependency.
 METHOD_FORBIDDEN = ("matplotlib", "argparse", "mujoco", "omni_sim", "omni_app", "numba")
 #: Must not appear in ``sys.modules`` after importing every identification module (numba: the
@@ -35,11 +39,14 @@ def _module_name(path: Path) -> str:
 
 
 def _modules() -> dict[str, Path]:
-    """Every module of the three packages: dotted name -> source file."""
+    """Every module of the five packages and of the bank: dotted name -> source file."""
     out = {}
-    for pkg in PACKAGES:
+    for pkg in PACKAGES + (BANK,):
         for path in sorted((ROOT / pkg).rglob("*.py")):
-            out[_module_name(path)] = path
+            # a subpackage's folder has an __init__.py (not, say, the bank's build/ of an install)
+            folders = path.parent.relative_to(ROOT / pkg).parts
+            if all((ROOT / pkg / Path(*folders[:i + 1]) / "__init__.py").is_file() for i in range(len(folders))):
+                out[_module_name(path)] = path
     return out
 
 
@@ -153,6 +160,7 @@ def test_cycle_finder_finds_a_cycle_and_a_self_import():
 
 def test_relative_imports_resolve():
     assert _resolve_relative("discrepancy.bank", False, 1, "fit") == "discrepancy.fit"
+    assert _resolve_relative("bank.studies.discrepancy_bank", False, 2, "hidden") == "bank.hidden"
     assert _resolve_relative("discrepancy.effects.base", False, 2, None) == "discrepancy"
     assert _resolve_relative("discrepancy", True, 1, "bank") == "discrepancy.bank"
     assert _resolve_relative("discrepancy.effects", True, 2, "fit") == "discrepancy.fit"
@@ -161,10 +169,10 @@ def test_relative_imports_resolve():
 
 
 def test_every_package_was_walked():
-    least = {"identification": 8, "omni_sim": 8, "discrepancy": 8, "omni_studies": 2, "omni_app": 8}
-    for pkg in PACKAGES:   # (omni_app has no __init__.py: a namespace package)
+    least = {"identification": 8, "omni_sim": 8, "discrepancy": 8, "omni_studies": 2, "omni_app": 8, BANK: 8}
+    for pkg in PACKAGES + (BANK,):   # (omni_app has no __init__.py: a namespace package)
         assert sum(m.startswith(pkg + ".") for m in MODULES) >= least[pkg], pkg
-    assert "discrepancy.bank" in MODULES and "omni_app.report" in MODULES
+    assert "bank.hidden" in MODULES and "bank.studies.discrepancy_bank" in MODULES and "omni_app.report" in MODULES
 
 
 # -- the rules -----------------------------------------------------------------------------------
@@ -214,7 +222,7 @@ def private_uses(source: str, package: str) -> list[str]:
     """Uses in ``source`` (a module of ``package``) of a private name of another of our packages:
     ``from pkg.mod import _x``, an import from or of a private module (``pkg._mod``), and
     ``alias._x`` (or ``alias.sub._x``) where ``alias`` is bound to another package's module."""
-    others = set(PACKAGES) - {package}
+    others = set(PACKAGES + (BANK,)) - {package}
     bound = {}  # local name -> the other package's dotted name it is bound to
     out = []
     for node in ast.walk(ast.parse(source)):
@@ -264,8 +272,8 @@ def test_private_use_finder_finds_them():
 
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_no_private_name_crosses_a_package(module):
-    """No module uses a private name (``_x``) of another of the five packages: what one package
-    needs of another is public there."""
+    """No module uses a private name (``_x``) of another of the five packages or of the bank:
+    what one package needs of another is public there."""
     bad = private_uses(MODULES[module].read_text(), module.split(".")[0])
     assert not bad, f"{module}: {bad}"
 
@@ -278,7 +286,7 @@ def script_problems(path: Path) -> list[str]:
     """What makes a script more than a thin main: an import of another script (``scripts``),
     a private name of a package (``from pkg import _x``, ``module._x``), a ``sys.path`` edit."""
     tree = ast.parse(path.read_text(), filename=str(path))
-    ours = set(PACKAGES)
+    ours = set(PACKAGES + (BANK,))
     modules = {}  # local name -> our module it is bound to
     out = []
     for node in ast.walk(tree):
@@ -311,9 +319,10 @@ def script_problems(path: Path) -> list[str]:
 def test_script_checker_finds_what_it_forbids(tmp_path):
     bad = tmp_path / "bad.py"
     bad.write_text("import sys\nfrom scripts import other\nfrom omni_sim.device import _numeric\n"
-                   "from omni_studies import calibration as cal\nsys.path.insert(0, '.')\ncal._fmt(1)\n")
+                   "from omni_studies import calibration as cal\nsys.path.insert(0, '.')\ncal._fmt(1)\n"
+                   "from bank.writers import bank_report as rep\nrep._named({})\n")
     found = script_problems(bad)
-    assert len(found) == 4, found
+    assert len(found) == 5, found
     good = tmp_path / "good.py"
     good.write_text("import sys\nfrom omni_studies import calibration as cal\ncal.fmt(1)\nprint(sys.argv)\n")
     assert script_problems(good) == []
@@ -334,17 +343,19 @@ def test_scripts_are_thin_mains(path):
     assert not found, f"{path.name}: {found}"
 
 
-@pytest.mark.parametrize("module", sorted(m for m in MODULES if m.split(".")[0] == "omni_studies"))
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if m.split(".")[0] == "omni_studies"
+                                           or m.startswith(BANK + ".studies")))
 def test_studies_draw_no_figures(module):
-    """A study computes and returns; its figures are the application's (omni_app)."""
+    """A study computes and returns; its figures are the application's (omni_app; the bank's
+    studies': bank.writers)."""
     bad = [f"line {line}: {name}" for name, line in imports_of(module)
            if name.split(".")[0] == "matplotlib"]
     assert not bad, f"{module} imports matplotlib: {bad}"
 
 
 def test_the_architecture_page_names_every_room():
-    """docs/reference/architecture.md draws the house: every module of the four packages and
-    every script is named on it (by its file name, without .py)."""
+    """docs/reference/architecture.md draws the house: every module of the five packages and of
+    the bank and every script is named on it (by its file name, without .py)."""
     page = (ROOT / "docs" / "reference" / "architecture.md").read_text()
     rooms = [m.rsplit(".", 1)[-1] for m in MODULES]  # a package: its folder's name
     rooms += [p.stem for p in SCRIPTS]
@@ -376,7 +387,7 @@ DISCREPANCY_LAYERS = {
     # MuJoCo: the replay, the effect library, the missing torque and its equation-error naming
     "simulation": ("replay", "effects", "smoothing", "torque", "shape", "evidence"),
     "workflow": ("workflow", "search"),  # joins statistics and simulation
-    "truth": ("truth_models", "servo_truth", "hidden", "experiment_set", "bank"),  # hidden effects, the bank
+    "truth": ("experiment_set", "demo"),  # hidden effects: the demo's; the bank's cases are bank/
 }
 #: The layers each layer may import inside the package (the package's ``__init__`` is exempt).
 DISCREPANCY_ALLOWED = {
@@ -388,11 +399,6 @@ DISCREPANCY_ALLOWED = {
 }
 #: The statistics: no MuJoCo, directly or through the modules they import.
 STATISTICS = [f"{DISCREPANCY}.{m}" for m in DISCREPANCY_LAYERS["runs"] + DISCREPANCY_LAYERS["statistics"]]
-#: The validation fixture (the coverage study's ranges) no command of ``omni`` may reach.
-BANK = f"{DISCREPANCY}.bank"
-#: The bank's own studies, run by scripts and tests: the only modules of the packages that may
-#: import the bank, directly or through others; no ``omni_app`` module may reach them.
-BANK_STUDIES = ("omni_studies.discrepancy_bank", "omni_studies.discrepancy_coverage")
 
 
 def reach(module: str, graph: dict[str, set[str]]) -> dict[str, list[str]]:
@@ -437,9 +443,9 @@ def layer_violations(graph: dict[str, set[str]]) -> list[str]:
 def test_layer_check_finds_a_wrong_direction():
     g = {f"{DISCREPANCY}.fit": {f"{DISCREPANCY}.replay", f"{DISCREPANCY}.runs"},
          f"{DISCREPANCY}.replay": {f"{DISCREPANCY}.runs"}, f"{DISCREPANCY}.runs": set(),
-         f"{DISCREPANCY}.hidden": {f"{DISCREPANCY}.effects.friction"}, f"{DISCREPANCY}.effects.friction": set()}
-    assert layer_violations(g) == [f"{DISCREPANCY}.fit (statistics) imports {DISCREPANCY}.replay (simulation)",
-                                   f"{DISCREPANCY}.hidden (truth) imports {DISCREPANCY}.effects.friction (simulation)"]
+         f"{DISCREPANCY}.demo": {f"{DISCREPANCY}.effects.friction"}, f"{DISCREPANCY}.effects.friction": set()}
+    assert layer_violations(g) == [f"{DISCREPANCY}.demo (truth) imports {DISCREPANCY}.effects.friction (simulation)",
+                                   f"{DISCREPANCY}.fit (statistics) imports {DISCREPANCY}.replay (simulation)"]
     assert reach(f"{DISCREPANCY}.fit", g) == {f"{DISCREPANCY}.replay": [f"{DISCREPANCY}.fit", f"{DISCREPANCY}.replay"],
                                               f"{DISCREPANCY}.runs": [f"{DISCREPANCY}.fit", f"{DISCREPANCY}.runs"]}
 
@@ -447,8 +453,8 @@ def test_layer_check_finds_a_wrong_direction():
 def test_discrepancy_layers():
     """Inside the discrepancy package the statistics import only each other and the runs, the
     simulation side (replay, effect library) only itself and the runs, the workflow both, and
-    the truth side (truth models, hidden cases, experiment set, bank) only itself; every module
-    of the package has a layer."""
+    the truth side (the experiment set of hidden cases, the demo's truth) only itself; every
+    module of the package has a layer."""
     graph = import_graph()
     unplaced = [m for m in MODULES if m.startswith(DISCREPANCY + ".") and discrepancy_layer(m) is None]
     assert not unplaced, f"modules without a layer: {unplaced}"
@@ -474,25 +480,104 @@ def test_statistics_walk_follows_their_imports():
         reach(f"{DISCREPANCY}.uncertainty", import_graph()))
 
 
-def test_no_runtime_import_of_the_bank():
-    """No command of the ``omni`` CLI reaches the bank, directly or through others, at the top or
-    inside a function: only the bank's own studies import it, and no ``omni_app`` module (nothing
-    the CLI imports) reaches the bank or those studies."""
-    # The bank's ranges are a validation fixture: they judge the workflow and are no part of it.
-    # The studies that draw from them (the hidden-effect bank, the coverage study) compute on the
-    # study floor and run from scripts and tests; the CLI's floor must not reach them.
+# -- the validation bank: above the five packages, imported by none of them -----------------------
+#: The one module of the five packages that imports the bank, inside a function only: the door
+#: of the commands that run the bank's cases (omni bench's discrepancy figures, omni sweep's
+#: discrepancy pipeline), which refuse in one line when the bank is not installed.
+BANK_DOOR = "omni_studies.bank_link"
+#: The bank's parts and what each may import of the bank and of the five packages: the truths
+#: (the cases, the truth writers, the servo truth, the coverage ranges) sit on the library;
+#: the studies compute on them (as omni_studies does); the writers present the studies (as
+#: omni_app does); the test half was written without reading the library, and imports none of it.
+BANK_PARTS = {
+    "truths": ({"identification", "omni_sim", "discrepancy"}, {"truths"}),
+    "studies": ({"identification", "omni_sim", "discrepancy", "omni_studies"}, {"truths", "studies"}),
+    "writers": (set(PACKAGES), {"truths", "studies", "writers"}),
+    "test_half": ({"identification"}, {"test_half"}),
+}
+
+
+def bank_part(module: str) -> str | None:
+    """The part of the bank a module belongs to (None: not a module of the bank, or its
+    ``__init__``)."""
+    parts = module.split(".")
+    if parts[0] != BANK or len(parts) == 1:
+        return None
+    return parts[1] if parts[1] in ("studies", "writers", "test_half") else "truths"
+
+
+def bank_imports(source: str) -> list[tuple[int, str, bool]]:
+    """Every import of the bank in ``source``: ``(line, name, inside a function)``; ``import``,
+    ``from ... import`` and ``importlib.import_module("...")`` with a literal name."""
+    tree = ast.parse(source)
+    in_function = {id(sub) for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+                   for sub in ast.walk(node)}
+    out = []
+    for node in ast.walk(tree):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            names = [node.module]
+        elif (isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant)
+              and isinstance(node.args[0].value, str)
+              and ((isinstance(node.func, ast.Attribute) and node.func.attr == "import_module")
+                   or (isinstance(node.func, ast.Name) and node.func.id in ("import_module", "__import__")))):
+            names = [node.args[0].value]
+        out += [(node.lineno, n, id(node) in in_function) for n in names if n.split(".")[0] == BANK]
+    return out
+
+
+def test_the_bank_import_finder_finds_them():
+    code = ("import bank\nfrom bank.studies import discrepancy_bank\nimport banking\n"
+            "def f():\n    import bank.hidden\n    return importlib.import_module('bank.ranges')\n"
+            "from . import bank\n")
+    assert sorted(bank_imports(code)) == [(1, "bank", False), (2, "bank.studies", False),
+                                          (5, "bank.hidden", True), (6, "bank.ranges", True)]
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if m.split(".")[0] in PACKAGES))
+def test_no_installed_module_imports_the_bank(module):
+    """No module of the five packages imports the bank (a distribution a regular install does
+    not have): only :data:`BANK_DOOR` does, inside its function, where a missing bank becomes
+    one line naming the fix."""
+    found = bank_imports(MODULES[module].read_text())
+    if module == BANK_DOOR:
+        assert found and all(inside for _, _, inside in found), found
+    else:
+        assert not found, f"{module} imports the bank: {found} (go through {BANK_DOOR})"
+
+
+def test_the_five_packages_reach_the_bank_only_through_its_door():
+    """Whatever a module of the five packages reaches of the bank, directly or through others,
+    passes through :data:`BANK_DOOR`, and is the bank's cases and truths: never its studies,
+    writers, coverage ranges or test half."""
     graph = import_graph()
-    assert set(BANK_STUDIES) <= set(MODULES), BANK_STUDIES
-    bad = [" -> ".join([m] + reach(m, graph)[BANK][1:]) for m in sorted(MODULES)
-           if m != BANK and m not in BANK_STUDIES and BANK in reach(m, graph)]
+    bad = []
+    for m in sorted(x for x in MODULES if x.split(".")[0] in PACKAGES):
+        for t, chain in reach(m, graph).items():
+            if t.split(".")[0] == BANK and (BANK_DOOR not in [m] + chain
+                                            or bank_part(t) != "truths" or t == "bank.ranges"):
+                bad.append(" -> ".join([m] + chain[1:]))
     assert not bad, bad
-    app = [" -> ".join([m] + reach(m, graph)[t][1:]) for m in sorted(MODULES) if m.split(".")[0] == "omni_app"
-           for t in (BANK, *BANK_STUDIES) if t in reach(m, graph)]
-    assert not app, app
-    # the walk follows imports inside functions: the sweep's discrepancy pipeline imports the
-    # hidden cases lazily; and it sees the coverage study's import of the bank
-    assert f"{DISCREPANCY}.hidden" in reach("omni_studies.sweep", graph)
-    assert BANK in reach("omni_studies.discrepancy_coverage", graph)
+    # the walk sees the door's imports inside its function (a walk that found nothing would pass)
+    for m in ("omni_studies.sweep", "omni_app.bench", "omni_app.discrepancy"):
+        assert {"bank.hidden", "bank.servo_truth"} <= set(reach(m, graph)), m
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if bank_part(m)))
+def test_bank_parts(module):
+    """Each part of the bank imports only what :data:`BANK_PARTS` allows it: of the five
+    packages, and of the bank's own parts (every module of the bank has a part)."""
+    packages, parts = BANK_PARTS[bank_part(module)]
+    bad = []
+    for name, line in imports_of(module):
+        top = name.split(".")[0]
+        if top in PACKAGES and top not in packages:
+            bad.append(f"line {line}: {name}")
+        elif top == BANK and name != BANK and bank_part(_internal_target(name) or name) not in parts:
+            bad.append(f"line {line}: {name} ({bank_part(_internal_target(name) or name)})")
+    assert not bad, f"{module} ({bank_part(module)}) imports: {bad}"
 
 
 #: Process-global machinery the packages do without: forking a process that may

@@ -14,7 +14,8 @@ from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim.device import Device
 from omni_app.cli import main
-from discrepancy import experiment_set, hidden
+from bank import hidden
+from discrepancy import experiment_set
 from discrepancy import effects as fx
 from discrepancy.localise import command_lag
 from discrepancy.replay import Replayer, ReplayRun, prepare_runs

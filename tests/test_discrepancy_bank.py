@@ -1,5 +1,6 @@
 """The hidden-effect bank: its truth models are independent of the effect library (a syntax
-check of the truth side's modules -- truth models, cases, experiment set, bank -- and their
+check of the truth side's modules -- truth models, cases, ranges, experiment set, the demo's
+truth -- and their
 imports followed through the project; the compiled truth models read field by field), the
 whole bank through the workflow (slow) and the coverage study's script (slow, small)."""
 
@@ -15,15 +16,14 @@ import numpy as np
 import pytest
 
 from omni_sim import model as om
-from discrepancy import bank, hidden, truth_models
+from bank import hidden, omni_truths, ranges
 from discrepancy import effects as fx
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The truth side: the modules that write truth models, hold the hidden cases and their
 #: experiments, judge a report or draw magnitudes.  None may use the effect library.
-TRUTH_SIDE = ("discrepancy.truth_models", "discrepancy.hidden",
-              "discrepancy.experiment_set", "discrepancy.bank",
-              "discrepancy.servo_truth")
+TRUTH_SIDE = ("bank.omni_truths", "bank.hidden", "bank.ranges", "bank.servo_truth",
+              "discrepancy.experiment_set", "discrepancy.demo")
 
 
 def _source(module: str) -> str:
@@ -35,7 +35,7 @@ def _source(module: str) -> str:
 WRITERS = ("apply", "compile_with", "write", "nominal_values")
 #: The project's top-level packages: imports into them are followed, others (numpy, mujoco,
 #: the standard library) are not.
-PROJECT_PACKAGES = ("omni_sim", "discrepancy", "omni_studies", "identification", "omni_app")
+PROJECT_PACKAGES = ("omni_sim", "discrepancy", "omni_studies", "identification", "omni_app", "bank")
 EFFECTS = "discrepancy.effects"
 
 
@@ -183,9 +183,9 @@ def test_truth_side_reaches_no_effect_library_through_other_modules(module):
     """Each truth-side module's imports, followed through the project's packages (omni_sim,
     identification, omni_app), never reach the effect library (the package
     ``discrepancy/effects/``, any of its modules), nor any module of the discrepancy
-    package outside the truth side.
+    package or of the bank outside the truth side.
 
-    What ``hidden`` reaches today: ``truth_models`` and ``experiment_set``,
+    What ``hidden`` reaches today: ``omni_truths`` and ``experiment_set``,
     ``identification.dataset`` (the ``Run`` it returns), ``omni_sim.model`` and
     ``omni_sim.experiments`` (the nominal scene's path, the device's closed loop that makes the
     data) and what those import (``omni_sim.device``, ``identification.errors``,
@@ -197,12 +197,12 @@ def test_truth_side_reaches_no_effect_library_through_other_modules(module):
     reached = reachable(_source(module), module)
     library = library_modules(reached)
     assert not library, " -> ".join(reached[library[0]])
-    others = [m for m in reached if m.startswith("discrepancy") and m not in TRUTH_SIDE]
+    others = [m for m in reached if m.split(".")[0] in ("discrepancy", "bank") and m not in TRUTH_SIDE]
     assert not others, [" -> ".join(reached[m]) for m in others]
-    if module == "discrepancy.hidden":
+    if module == "bank.hidden":
         # the walk does follow the imports (a walk that found nothing would pass trivially)
         assert {"identification.dataset", "omni_sim.experiments", "omni_sim.device",
-                "discrepancy.truth_models", "discrepancy.experiment_set"} <= set(reached)
+                "bank.omni_truths", "discrepancy.experiment_set"} <= set(reached)
 
 
 @pytest.mark.parametrize("src", [
@@ -216,7 +216,14 @@ def test_truth_side_reaches_no_effect_library_through_other_modules(module):
 def test_the_import_check_follows_other_modules(src):
     """A truth-side module that imports (at any depth) a module that imports the library fails
     the walk."""
-    assert library_modules(reachable(src, "discrepancy.hidden"))
+    assert library_modules(reachable(src, "discrepancy.demo"))
+
+
+def test_the_import_check_follows_the_bank():
+    """... and a module of the bank that imports one of the bank's studies (which use the
+    library) fails it too: the walk follows the bank's own imports."""
+    assert library_modules(reachable("from .studies import valley_scan\n", "bank.hidden"))
+    assert not library_modules(reachable("from . import servo_truth\n", "bank.hidden"))
 
 
 def test_the_import_check_follows_a_chain(tmp_path):
@@ -295,7 +302,7 @@ def compiled_values(name: str, m: mujoco.MjModel, nominal: mujoco.MjModel) -> li
     # cogging (amplitude, periods, phase) to biasprm[0:3] (layout checked in tests/test_effects_library.py)
     extra = list(range(nominal.nactuator, m.nactuator))  # actuators the truth added
     if name == "cogging":
-        found = [i for i in extra if m.actuator_biasprm[i, 1] == truth_models.COGGING_PERIODS_PER_TURN]
+        found = [i for i in extra if m.actuator_biasprm[i, 1] == omni_truths.COGGING_PERIODS_PER_TURN]
         assert len(found) == 1 and found[0] >= m.nu  # passive: no control
         return [m.actuator_biasprm[found[0], 0], m.actuator_biasprm[found[0], 2]]
     if name == "presliding_friction":
@@ -306,7 +313,7 @@ def compiled_values(name: str, m: mujoco.MjModel, nominal: mujoco.MjModel) -> li
     if name == "stribeck_friction":
         found = [i for i in extra if m.actuator_dynprm[i, 5] > 0]
         assert len(found) == 1 and found[0] >= m.nu
-        assert tuple(m.actuator_dynprm[found[0], 5:7]) == truth_models.STRIBECK_SIGMA
+        assert tuple(m.actuator_dynprm[found[0], 5:7]) == omni_truths.STRIBECK_SIGMA
         return list(m.actuator_biasprm[found[0], 3:6])
     if name in ("drive_compliance", "backlash"):
         t = _cable(m)
@@ -347,17 +354,17 @@ def _cable(m):
     raise AssertionError("no cable tendon yaw - yaw_output")
 
 
-#: The Omni's cases with library effects written by :mod:`truth_models` (the geared-servo cases'
+#: The Omni's cases with library effects written by :mod:`omni_truths` (the geared-servo cases'
 #: truth is a per-step law of its own, tests/test_servo_truth.py).
 LIBRARY_CASES = [c for c in hidden.CASES if c.effects and not c.outside and c.truth == "omni"]
 #: Library effects whose truth is a simulation of its own, not a model written by
-#: :mod:`truth_models` (the servo pendulum's load-dependent and direction-dependent gearbox
+#: :mod:`omni_truths` (the servo pendulum's load-dependent and direction-dependent gearbox
 #: friction).
 SIMULATED = {n for c in hidden.CASES if c.truth != "omni" for n, _ in c.effects}
 
 
 @pytest.mark.parametrize("case_name", [c.name for c in LIBRARY_CASES])
-def test_truth_models_hold_the_stated_values(case_name, nominal):
+def test_omni_truths_hold_the_stated_values(case_name, nominal):
     case = hidden.case(case_name)
     m = hidden.truth_spec(case).compile()
     for name, values in case.effects:
@@ -384,8 +391,8 @@ def test_bank_covers_the_library():
     singles = {c.effects[0][0] for c in hidden.CASES if len(c.effects) == 1 and not c.outside}
     assert set(fx.NAMES) <= singles
     written = set(fx.NAMES) - SIMULATED  # the rest have a truth simulation of their own
-    assert written <= set(truth_models.TRUTH) and written <= set(bank.RANGES)
-    assert SIMULATED == {"load_friction", "asymmetric_friction"} and not SIMULATED & set(truth_models.TRUTH)
+    assert written <= set(omni_truths.TRUTH) and written <= set(ranges.RANGES)
+    assert SIMULATED == {"load_friction", "asymmetric_friction"} and not SIMULATED & set(omni_truths.TRUTH)
     assert {c.name for c in hidden.CASES if c.expect == ("none",)} >= {"none", "none_exact"}
     assert hidden.case("none_exact").exact and not hidden.case("none").exact
     assert any(len(c.effects) == 2 for c in hidden.CASES) and any(len(c.effects) == 3 for c in hidden.CASES)
@@ -429,10 +436,10 @@ def effect_state(name: str, m: mujoco.MjModel) -> tuple:
         f = m.actuator("yaw_friction").id
         return (*m.actuator_dynprm[f], *m.actuator_biasprm[f])
     if name == "cogging":  # every actuator with a cogging term of the bank's period count
-        return tuple(v for i in range(m.nactuator) if m.actuator_biasprm[i, 1] == truth_models.COGGING_PERIODS_PER_TURN
+        return tuple(v for i in range(m.nactuator) if m.actuator_biasprm[i, 1] == omni_truths.COGGING_PERIODS_PER_TURN
                      for v in (i, *m.actuator_biasprm[i, :3]))
     if name == "stribeck_friction":  # every actuator with the bank's stiff Stribeck bristle
-        return tuple(v for i in range(m.nactuator) if tuple(m.actuator_dynprm[i, 5:7]) == truth_models.STRIBECK_SIGMA
+        return tuple(v for i in range(m.nactuator) if tuple(m.actuator_dynprm[i, 5:7]) == omni_truths.STRIBECK_SIGMA
                      for v in (i, *m.actuator_dynprm[i, 5:7], *m.actuator_biasprm[i, 3:6]))
     if name in ("drive_compliance", "backlash"):
         if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "yaw_output") < 0:
@@ -442,7 +449,7 @@ def effect_state(name: str, m: mujoco.MjModel) -> tuple:
             return (m.tendon_limited[t], *m.tendon_range[t], *m.tendon_solref_lim[t], *m.tendon_solimp_lim[t])
         return (m.tendon_stiffness[t], m.tendon_damping[t], *m.body_inertia[m.body("truth_rotor").id])
     if name == "arm_mass":
-        return tuple(v for b in truth_models.ARM_LINKS for v in (m.body_mass[m.body(b).id], *m.body_inertia[m.body(b).id]))
+        return tuple(v for b in omni_truths.ARM_LINKS for v in (m.body_mass[m.body(b).id], *m.body_inertia[m.body(b).id]))
     raise KeyError(name)
 
 
@@ -478,7 +485,7 @@ def test_truth_changes_the_physics(nominal):
     8 effects the nominal model lacks: the element is absent or at its default in the nominal
     model and present in the truth), and in no field another effect writes (a writer that
     touched a second field would show)."""
-    base = {n: effect_state(n, nominal) for n in truth_models.TRUTH}
+    base = {n: effect_state(n, nominal) for n in omni_truths.TRUTH}
     for n, lacks in NOMINAL_LACKS.items():
         assert lacks(base[n]), (n, base[n])
     assert set(base) == set(fx.NAMES) - SIMULATED
@@ -634,7 +641,7 @@ def test_bank_gear_efficiency():
     (another form than the engine's law the library fits): a correct workflow names load_friction
     first, with mu_back > mu_drive, and shrinks the held-out gap >= 3x
     (servo_truth.GEAR_EFFICIENCY_CASE, stated before the run)."""
-    from discrepancy import servo_truth
+    from bank import servo_truth
     from discrepancy.workflow import run_discrepancy
     rep = run_discrepancy(servo_truth.generate_efficiency(), servo_truth.model_path(),
                           target=servo_truth.target()).report
@@ -646,8 +653,8 @@ def test_docs_gear_efficiency_section_is_the_record():
     """docs/studies/discrepancy/bank.md ends with the gear_efficiency section rendered from its record;
     the record's verdict is what assess_efficiency says of its report, its case is the truth's
     as the code states it now, and the slow test's expected outcome is the record's."""
-    from discrepancy import servo_truth
-    from omni_app import bank_report
+    from bank import servo_truth
+    from bank.writers import bank_report
     rec = json.loads(bank_report.EFFICIENCY_JSON.read_text())
     assert servo_truth.assess_efficiency(rec["report"]) == (rec["pass"], rec["why"])
     assert rec["case"] == json.loads(json.dumps(servo_truth.GEAR_EFFICIENCY_CASE))
@@ -677,7 +684,7 @@ def test_docs_gear_efficiency_section_is_the_record():
 def test_coverage_script_small(tmp_path):
     """The coverage study runs end to end on 3 draws of 2 effects (noisy data, the small
     experiment set) and writes its JSON and figure."""
-    from omni_studies import discrepancy_coverage as cov
+    from bank.studies import discrepancy_coverage as cov
     rc = _coverage_script("--effects", "time_delay", "coulomb_friction", "--n", "3", "--conditions", "noisy",
                           "--experiments", "small", "--out", str(tmp_path)).returncode
     res = json.loads((tmp_path / "coverage.json").read_text())
@@ -685,7 +692,7 @@ def test_coverage_script_small(tmp_path):
     assert len(res["draws"]) == 6
     for d in res["draws"]:
         assert d["named"] == [d["effect"]] and len(d["covered"]) == len(d["truth"])
-        lo, hi = bank.RANGES[d["effect"]][0][:2]
+        lo, hi = ranges.RANGES[d["effect"]][0][:2]
         assert lo <= d["truth"][0] <= hi
     cov_noisy = res["overall"]["noisy"]
     assert cov_noisy["parameters_checked"] == 6
@@ -740,7 +747,7 @@ def _sci(x: float) -> str:
 def test_docs_coverage_figures_are_the_json():
     """The coverage study's section of docs/method/discrepancy.md says what docs/studies/discrepancy/coverage.json holds:
     the experiment set (and its size), the table's figures, the fit times, the lowest effect."""
-    from omni_studies import discrepancy_coverage as cov
+    from bank.studies import discrepancy_coverage as cov
     res = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "coverage.json").read_text())
     sec = _flat(_section("## Uncertainty that holds", "## Your own robot"))
     kind = res["settings"]["experiments"]
@@ -777,7 +784,7 @@ def test_docs_bank_table_is_the_json():
     """docs/method/discrepancy.md's bank table is exactly what ``discrepancy_bank.py --table`` makes from
     docs/studies/discrepancy/bank.json; the JSON's verdicts are what bank.assess says of its reports;
     the bank section links the table's current location and no stale one."""
-    from omni_app import bank_report
+    from bank.writers import bank_report
     data = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "bank.json").read_text())
     assert list(data["cases"]) == [c.name for c in hidden.CASES]  # every case, in the bank's order
     for name, c in data["cases"].items():

@@ -17,7 +17,7 @@ from omni_app.cli import main
 from omni_sim import model as om
 from omni_sim.device import Device, Engine, run_p_loop
 from discrepancy import effects as fx
-from discrepancy import hidden
+from bank import hidden
 from discrepancy import select as sel
 from discrepancy.fit import UNSTABLE_PENALTY_RAD, Problem, gap
 from discrepancy.replay import Replayer

@@ -7,10 +7,10 @@ An effect's facts live in two places:
   (unit, bounds, typical scale), its read/write/grid functions; the registry
   (``discrepancy/effects/__init__.py``, :data:`~discrepancy.effects.LIBRARY`) lists it;
 * the validation bank, written independently of the library: a single-effect case
-  (``discrepancy/hidden.py``, :data:`~discrepancy.hidden.CASES`, with its note), a truth that
-  hides it (a writer in :data:`discrepancy.truth_models.TRUTH`, or a truth simulation of its
-  own, :data:`discrepancy.servo_truth.SIMULATED`), and for a written truth a realistic range
-  for the coverage study (:data:`discrepancy.bank.RANGES`);
+  (``bank/hidden.py``, :data:`~bank.hidden.CASES`, with its note), a truth that
+  hides it (a writer in :data:`bank.omni_truths.TRUTH`, or a truth simulation of its
+  own, :data:`bank.servo_truth.SIMULATED`), and for a written truth a realistic range
+  for the coverage study (:data:`bank.ranges.RANGES`);
 * its line in the method's page (``docs/method/discrepancy.md``, the library's paragraph and
   table).
 
@@ -26,7 +26,7 @@ import math
 import re
 from pathlib import Path
 
-from discrepancy import bank, hidden, servo_truth, truth_models
+from bank import hidden, omni_truths, ranges, servo_truth
 from discrepancy import effects as fx
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -42,8 +42,8 @@ def library_section(page: str) -> str:
     return page[start:end if end >= 0 else len(page)]
 
 
-def missing_facts(effects, *, cases=hidden.CASES, truths=truth_models.TRUTH,
-                  simulated=servo_truth.SIMULATED, ranges=bank.RANGES,
+def missing_facts(effects, *, cases=hidden.CASES, truths=omni_truths.TRUTH,
+                  simulated=servo_truth.SIMULATED, ranges=ranges.RANGES,
                   doc: str | None = None) -> list[str]:
     """What each effect of ``effects`` lacks, one line per missing fact (``NAME: what, where``);
     empty when every effect has all its facts.
@@ -79,7 +79,7 @@ def missing_facts(effects, *, cases=hidden.CASES, truths=truth_models.TRUTH,
         # the bank
         case = singles.get(n)
         if case is None:
-            out.append(f"{n}: no single-effect bank case (HiddenCase in discrepancy/hidden.py CASES)")
+            out.append(f"{n}: no single-effect bank case (HiddenCase in bank/hidden.py CASES)")
         else:
             if not case.note.strip():
                 out.append(f"{n}: its bank case {case.name!r} has no note (provenance of the magnitude)")
@@ -88,10 +88,10 @@ def missing_facts(effects, *, cases=hidden.CASES, truths=truth_models.TRUTH,
                            f"the effect has {e.nparam} parameters")
         if n not in simulated:
             if n not in truths:
-                out.append(f"{n}: no truth writer (discrepancy/truth_models.py TRUTH) and no truth "
-                           "simulation of its own (discrepancy/servo_truth.py SIMULATED)")
+                out.append(f"{n}: no truth writer (bank/omni_truths.py TRUTH) and no truth "
+                           "simulation of its own (bank/servo_truth.py SIMULATED)")
             if n not in ranges:
-                out.append(f"{n}: no coverage range (discrepancy/bank.py RANGES)")
+                out.append(f"{n}: no coverage range (bank/ranges.py RANGES)")
             elif len(ranges[n]) != e.nparam:
                 out.append(f"{n}: its coverage range has {len(ranges[n])} entries, the effect has "
                            f"{e.nparam} parameters")
@@ -122,23 +122,23 @@ def test_a_new_effect_without_its_facts_is_listed():
     parameter without bounds."""
     gremlin = dataclasses.replace(fx.get("cogging"), name="gremlin_torque")
     assert missing_facts([gremlin]) == [
-        "gremlin_torque: no single-effect bank case (HiddenCase in discrepancy/hidden.py CASES)",
-        "gremlin_torque: no truth writer (discrepancy/truth_models.py TRUTH) and no truth "
-        "simulation of its own (discrepancy/servo_truth.py SIMULATED)",
-        "gremlin_torque: no coverage range (discrepancy/bank.py RANGES)",
+        "gremlin_torque: no single-effect bank case (HiddenCase in bank/hidden.py CASES)",
+        "gremlin_torque: no truth writer (bank/omni_truths.py TRUTH) and no truth "
+        "simulation of its own (bank/servo_truth.py SIMULATED)",
+        "gremlin_torque: no coverage range (bank/ranges.py RANGES)",
         "gremlin_torque: no line in docs/method/discrepancy.md's library section",
     ]
     # given a case, a writer, a range and a doc line of the right sizes, it lacks nothing
     case = hidden.HiddenCase("gremlin_torque", (("gremlin_torque", (0.003, 0.5)),),
                              expect=("gremlin_torque",), note="a stated magnitude")
-    complete = dict(cases=hidden.CASES + (case,), truths={**truth_models.TRUTH, "gremlin_torque": None},
-                    ranges={**bank.RANGES, "gremlin_torque": ((0.001, 0.005, False), (-1, 1, False))},
+    complete = dict(cases=hidden.CASES + (case,), truths={**omni_truths.TRUTH, "gremlin_torque": None},
+                    ranges={**ranges.RANGES, "gremlin_torque": ((0.001, 0.005, False), (-1, 1, False))},
                     doc="| `gremlin_torque` | a torque | `amplitude_nm`, `phase_rad` |")
     assert missing_facts([gremlin], **complete) == []
     # sizes that do not match the effect's parameters, a case without a note
     short = dict(complete, cases=hidden.CASES + (dataclasses.replace(case, effects=(("gremlin_torque", (0.003,)),),
                                                                      note=""),),
-                 ranges={**bank.RANGES, "gremlin_torque": ((0.001, 0.005, False),)})
+                 ranges={**ranges.RANGES, "gremlin_torque": ((0.001, 0.005, False),)})
     assert missing_facts([gremlin], **short) == [
         "gremlin_torque: its bank case 'gremlin_torque' has no note (provenance of the magnitude)",
         "gremlin_torque: its bank case 'gremlin_torque' gives 1 values, the effect has 2 parameters",

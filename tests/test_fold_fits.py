@@ -13,7 +13,8 @@ import numpy as np
 from omni_sim import model as om
 from omni_sim.device import Device
 from discrepancy import effects as fx
-from discrepancy import experiment_set, hidden
+from bank import hidden
+from discrepancy import experiment_set
 from discrepancy.fit import Problem
 from discrepancy.folds import block_folds, refit_folds
 from discrepancy.replay import Replayer, prepare_runs

@@ -171,7 +171,7 @@ def test_model_files_in_their_device_folders():
     """One folder per device: the Omni's files in ``OMNI_DIR`` (the default scene, each
     family's scene, the robot, the stage), the servo pendulum in its own folder; the built-in
     scenes are recognised by their paths there."""
-    from discrepancy import servo_truth
+    from bank import servo_truth
 
     assert om.OMNI_DIR == om.MODELS_DIR / "omni" and omni_sim.OMNI_DIR == om.OMNI_DIR
     assert om.DEFAULT_SCENE == om.OMNI_DIR / "scene.xml" == om.scene_path() == om.model_path()

@@ -53,7 +53,7 @@ def test_the_name_index_is_built_by_the_device_and_the_loader_only():
 
 #: The geared-servo bank case's truth: a servo loop written independently of the device (it
 #: must not use it, tests/test_discrepancy_bank.py), so it reads the gear itself.
-INDEPENDENT_TRUTH = "discrepancy/servo_truth.py"
+INDEPENDENT_TRUTH = "bank/servo_truth.py"
 
 
 def test_the_gear_is_read_in_one_place():

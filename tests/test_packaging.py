@@ -73,6 +73,30 @@ def test_every_package_is_listed():
     assert _setuptools()["package-dir"]["omni_sim.models"] == "models"
 
 
+def _bank_setuptools():
+    return tomllib.loads((ROOT / "bank" / "pyproject.toml").read_text())["tool"]["setuptools"]
+
+
+def test_the_bank_is_a_distribution_of_its_own():
+    """The bank (``bank/``) is its own distribution: its pyproject maps the folder as the package
+    ``bank`` and lists every subpackage of it; the project's lists none of it (a regular install
+    of the library ships no bank), and the bank depends on the project."""
+    cfg = _bank_setuptools()
+    assert cfg["package-dir"] == {"bank": "."}
+    found = {".".join(("bank",) + p.parent.relative_to(ROOT / "bank").parts)
+             for p in (ROOT / "bank").rglob("__init__.py")
+             if not {"build", "__pycache__"} & set(p.relative_to(ROOT / "bank").parts)}
+    assert set(cfg["packages"]) == found, sorted(found ^ set(cfg["packages"]))
+    assert not [p for p in _setuptools()["packages"] if p.split(".")[0] == "bank"]
+    assert "bank" not in _setuptools().get("package-dir", {})
+    project = tomllib.loads((ROOT / "bank" / "pyproject.toml").read_text())["project"]
+    main = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert main["name"] in project["dependencies"]
+    data = [f for f in (ROOT / "bank" / "test_half").iterdir() if f.is_file() and f.suffix not in (".py", ".pyc")]
+    pats = cfg["package-data"]["bank.test_half"]
+    assert data and all(any(f.match(pat) for pat in pats) for f in data), data
+
+
 def test_package_data_covers_the_data_files():
     data = _setuptools()["package-data"]
     covered = {(pkg, pat) for pkg, pats in data.items() for pat in pats}
@@ -138,14 +162,13 @@ import sys, sysconfig
 from pathlib import Path
 import omni_sim
 from omni_sim import model as om
-from discrepancy import servo_truth
 site = Path(sys.argv[1]).resolve()
-for p in (Path(omni_sim.__file__), om.MODELS_DIR, om.DEFAULT_SCENE, servo_truth.model_path()):
+for p in (Path(omni_sim.__file__), om.MODELS_DIR, om.DEFAULT_SCENE, om.SERVO_PENDULUM):
     assert site in p.resolve().parents, f"{p} is not in {site}"
 for fam in om.FRICTION_FAMILIES:
     om.load_model(friction=fam)
 om.load_model()
-om.load_model(servo_truth.model_path(), target=servo_truth.target())
+om.load_model(om.SERVO_PENDULUM, target=om.Target("pivot", "servo"))
 print("ok")
 """
 
@@ -153,8 +176,9 @@ print("ok")
 @pytest.mark.slow
 def test_wheel_ships_the_device_folders(tmp_path):
     """A wheel built as ``pip wheel .`` builds it (from a copy: the build writes into the tree)
-    holds every model file in its device folder, and unpacked as a regular install it loads
-    every built-in scene and the servo pendulum from its own files (~20 s)."""
+    holds every model file in its device folder and no file of the bank, and unpacked as a
+    regular install it loads every built-in scene and the servo pendulum from its own files
+    (~20 s)."""
     import shutil
 
     src = tmp_path / "src"
@@ -174,6 +198,7 @@ def test_wheel_ships_the_device_folders(tmp_path):
         assert want <= names, sorted(want - names)
         assert not [n for n in names if n.startswith("omni_sim/models/") and n.count("/") == 2
                     and not n.endswith((".py", ".md"))]  # none left outside a device folder
+        assert not [n for n in names if n.split("/")[0] == "bank"]  # the bank ships apart
         site = tmp_path / "site"
         z.extractall(site)
     env = dict(os.environ, PYTHONPATH=str(site))

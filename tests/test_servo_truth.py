@@ -1,4 +1,4 @@
-"""The geared-servo truth (discrepancy/servo_truth.py): its load-dependent and
+"""The geared-servo truth (bank/servo_truth.py): its load-dependent and
 direction-dependent friction law step by step, the nominal model when the asymmetry and both
 coefficients are 0 (bit for bit, and the device's own loop on regular times), self-locking,
 energy in free swing, where a free fall stops with an asymmetry, and the host's log (irregular
@@ -13,8 +13,8 @@ import pytest
 from identification.dataset import write_run
 from omni_sim import model as om
 from omni_sim.device import Device, run_p_loop
-from discrepancy import hidden
-from discrepancy import servo_truth as st
+from bank import hidden
+from bank import servo_truth as st
 
 DT = st.CONTROL_PERIOD_S
 

@@ -1,5 +1,5 @@
-"""mujoco.sysid beside the discrepancy fit (omni_studies/sysid_compare.py, its page
-omni_app/sysid_report.py, scripts/sysid_compare.py).  The page is the record rendered; the record
+"""mujoco.sysid beside the discrepancy fit (bank/studies/sysid_compare.py, its page
+bank/writers/sysid_report.py, scripts/sysid_compare.py).  The page is the record rendered; the record
 holds every case and method with figures that agree with each other, with the models (truths,
 bounds, start) and with a replay of two of its estimates; mujoco.sysid stays out of the project's
 dependencies.  The study itself (minutes of fits, and mujoco.sysid's extra) is not rerun here."""
@@ -15,10 +15,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from omni_app import sysid_report as sr
-from discrepancy import servo_truth
+from bank.writers import sysid_report as sr
+from bank import servo_truth
 from discrepancy.replay import Replayer
-from omni_studies import sysid_compare as sc
+from bank.studies import sysid_compare as sc
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORD = json.loads((ROOT / "docs/studies/discrepancy" / sr.JSON_NAME).read_text())

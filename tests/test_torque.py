@@ -13,7 +13,7 @@ import pytest
 from identification.dataset import Run
 from identification.errors import UserError
 from omni_sim.device import Device
-from discrepancy import servo_truth as st
+from bank import servo_truth as st
 from discrepancy import shape
 from discrepancy import torque as tq
 from discrepancy.replay import prepare_runs

@@ -24,7 +24,7 @@ LOAD_FRICTION = "load_friction"
 #: The speed [rad/s] over which :data:`LOAD_FRICTION`'s coefficient passes from ``mu_back``
 #: to ``mu_drive`` (a smooth sign, ``tanh(sign(tau) w / w_b)``): 0.05 rad/s.  An ESTIMATE, a
 #: modelling choice like any regularised Coulomb law's transition speed: the speed the bank's
-#: gear-efficiency truth uses for its smooth sign (discrepancy/servo_truth.py,
+#: gear-efficiency truth uses for its smooth sign (bank/servo_truth.py,
 #: 0.5 % of the geared servo's no-load speed), 0.12 of one encoder count per 1 ms period on
 #: the Omni (0.42 rad/s), so no log resolves it within one period.  Why not a switch on
 #: ``sign(tau w)`` (mu_back at rest): the training error is jagged in the coefficients and a

@@ -36,7 +36,7 @@ Methods:
 
 The study computes the record (:func:`record_header`, :func:`run_case` per case);
 ``scripts/sysid_compare.py`` is its command line, writing ``sysid_compare.json``;
-:mod:`omni_app.sysid_report` renders ``sysid.md`` from it.  ``mujoco.sysid`` is imported by
+:mod:`bank.writers.sysid_report` renders ``sysid.md`` from it.  ``mujoco.sysid`` is imported by
 :func:`load_sysid` only, so importing this module needs no extra.  The Feetech case reads
 ``examples/real_servo`` of the checkout (:data:`ROOT`): the study runs from one.
 """
@@ -57,16 +57,16 @@ import numpy as np
 from identification.dataset import read_dataset
 from omni_sim.device import Device
 from discrepancy import effects as fx
-from discrepancy import hidden
 from discrepancy import select as sel
-from discrepancy import servo_truth
 from discrepancy import uncertainty as un
 from discrepancy.fit import Problem, gap, jacobian_se
 from discrepancy.replay import Replayer, control_period_of, prepare_runs
 from omni_sim.model import Target
 
+from bank import hidden, servo_truth
+
 #: The checkout the study runs in (examples/real_servo, the truth models' paths in the record).
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 CASES = ("servo_off", "servo_load", "servo_load_mjcf", "feetech")
 #: The MJCF constants of a nominal (library effects, one parameter each).
@@ -475,8 +475,9 @@ def run_case(sysid, cid: str, jobs: int, feetech_data: Path | None, log, commit:
 
 
 #: What the study imports or reads (checked for uncommitted changes at its start).
-CODE_PATHS = ("omni_sim", "identification", "models", "examples/real_servo", "omni_studies/sysid_compare.py",
-              "omni_app/sysid_report.py", "omni_app/provenance.py", "scripts/sysid_compare.py")
+CODE_PATHS = ("omni_sim", "identification", "discrepancy", "models", "examples/real_servo",
+              "bank/hidden.py", "bank/servo_truth.py", "bank/studies/sysid_compare.py",
+              "bank/writers/sysid_report.py", "omni_app/provenance.py", "scripts/sysid_compare.py")
 
 
 def load_sysid():

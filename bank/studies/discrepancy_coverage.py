@@ -1,10 +1,10 @@
 """Coverage study of ``omni discrepancy``'s 95 % intervals on data with a known hidden truth
-(``scripts/discrepancy_coverage.py`` is the command; :mod:`omni_app.bank_report` draws its
+(``scripts/discrepancy_coverage.py`` is the command; :mod:`bank.writers.bank_report` draws its
 figure and prints its summary).
 
 For every effect asked for, ``n`` random magnitudes are drawn uniformly in the effect's
-realistic range (:data:`discrepancy.bank.RANGES`, stated in the record); for each, the
-independent truth model (:mod:`discrepancy.truth_models`, written without the effect
+realistic range (:data:`bank.ranges.RANGES`, stated in the record); for each, the
+independent truth model (:mod:`bank.omni_truths`, written without the effect
 library) generates "measured" runs, with the encoder's quantisation and noise ("noisy") and/or
 exactly ("exact": no noise, no quantisation), and the workflow fits them.  To keep the cost down
 the workflow's candidates are restricted to the true effect: this measures the interval, not the
@@ -26,7 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from identification.errors import UserError
-from discrepancy import bank, experiment_set, hidden
+from discrepancy import experiment_set
+
+from bank import hidden, ranges
 
 CONDITIONS = ("noisy", "exact")
 #: Target coverage of the nominal 95 % intervals.
@@ -119,17 +121,17 @@ def summarise(draws: list[dict]) -> dict:
 def effects_of(names: list[str] | None) -> list[str]:
     """The effects to study: ``names``, or every effect with a range (None or empty); a name
     without a range is a :class:`UserError`."""
-    effects = names or list(bank.RANGES)
-    bad = [e for e in effects if e not in bank.RANGES]
+    effects = names or list(ranges.RANGES)
+    bad = [e for e in effects if e not in ranges.RANGES]
     if bad:
-        raise UserError(f"--effects: no range for {', '.join(bad)} (known: {', '.join(bank.RANGES)})")
+        raise UserError(f"--effects: no range for {', '.join(bad)} (known: {', '.join(ranges.RANGES)})")
     return effects
 
 
 def study_settings(effects: list[str], n: int, seed: int, experiments: str) -> dict:
     """The record's settings: draws, seed, experiment set, the ranges of ``effects``."""
     return {"n": n, "seed": seed, "experiments": experiments,
-            "ranges": {e: bank.RANGES[e] for e in effects}, "range_centre": bank.RANGE_CENTRE,
+            "ranges": {e: ranges.RANGES[e] for e in effects}, "range_centre": ranges.RANGE_CENTRE,
             "noise_rad": experiment_set.NOISE_RAD, "candidates": "the true effect only"}
 
 
@@ -176,7 +178,7 @@ def plan(effects: list[str], done: set, *, n: int, seed: int, conditions, summar
     values = {}
     for eff in effects:
         rng = np.random.default_rng([seed, sum(map(ord, eff))])
-        values[eff] = [bank.draw(eff, rng) for _ in range(n)]
+        values[eff] = [ranges.draw(eff, rng) for _ in range(n)]
     out = []
     for i in range(0 if summarise_only else n):
         for eff in effects:

@@ -2,17 +2,17 @@
 then the gear_efficiency case's section), the bank table of docs/method/discrepancy.md and the
 writing of the records.
 
-The bank's records (:mod:`omni_studies.discrepancy_bank` makes them, ``scripts/discrepancy_bank.py``
+The bank's records (:mod:`bank.studies.discrepancy_bank` makes them, ``scripts/discrepancy_bank.py``
 is the command): ``bank.json`` beside the table holds the run's settings (commit, dates, machine
 load) and every case's full workflow report; ``bank_gear_efficiency.json`` the gear_efficiency
 case's (a truth written in another form than the library's law).  The page and the tables are
 rendered from them alone (``--markdown``, ``--table``; ``tests/test_discrepancy_bank.py`` checks
 that the committed pages are exactly that).
 
-The coverage study's record ``coverage.json`` (:mod:`omni_studies.discrepancy_coverage` makes it,
+The coverage study's record ``coverage.json`` (:mod:`bank.studies.discrepancy_coverage` makes it,
 ``scripts/discrepancy_coverage.py`` is the command) is written by :func:`write_coverage`, its
-figure drawn by :func:`coverage_figure`.  No module here imports the bank's studies: their ranges
-(:mod:`discrepancy.bank`) are a validation fixture no command of ``omni`` reaches.
+figure drawn by :func:`coverage_figure`.  The writers import none of the bank's studies: the
+scripts hand them the studies' results.
 """
 
 from __future__ import annotations
@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from omni_app.provenance import git_commit, uncommitted
-from discrepancy import hidden
+from bank import hidden
 
 #: The checkout this module runs from.
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: Where the bank's table and its JSON live (docs/method/discrepancy.md links them).
 DEFAULT_OUT = ROOT / "docs" / "studies" / "discrepancy" / "bank.md"
@@ -41,8 +41,8 @@ def checkout_commit() -> str:
     """The checkout's commit, with the code paths that differ from it (others' work in progress
     is part of what ran)."""
     head = git_commit(short=True)
-    dirty = uncommitted(("omni_sim", "identification", "omni_studies", "omni_app", "models",
-                         "scripts/discrepancy_bank.py"))
+    dirty = uncommitted(("omni_sim", "identification", "discrepancy", "omni_studies", "omni_app", "bank",
+                         "models", "scripts/discrepancy_bank.py"))
     if head is None or dirty is None:
         return "unknown (not a git checkout)"
     return head + (f" with uncommitted changes in {', '.join(dirty)}" if dirty else "")
@@ -91,7 +91,7 @@ def _other_truths(cases: dict) -> str:
         verb = "is" if len(servo) == 1 else "are"
         text += (f" Not the Omni: {', '.join(servo)} {verb} a pendulum on a geared servo (nominal model "
                  "`models/servo_pendulum/servo_pendulum.xml`, `--joint pivot --actuator servo`) whose truth "
-                 "`discrepancy/servo_truth.py` simulates the hidden drive friction (load-"
+                 "`bank/servo_truth.py` simulates the hidden drive friction (load-"
                  "dependent, or direction-dependent) step by step; 12 runs of 5 s logged as a host logs a servo (~200 Hz with "
                  "jitter, the goal held between writes, torque-off spans, 4096-count encoder, servo loop "
                  "1 kHz).")
@@ -118,10 +118,10 @@ def bank_markdown(data: dict) -> str:
         f"`{meta['json']}` beside this file (the bank table of docs/method/discrepancy.md is made from it: "
         "`python scripts/discrepancy_bank.py --table`).", "",
         "Each truth model is the virtual Omni (`models/omni/scene.xml`) with effects written by "
-        "`discrepancy/truth_models.py` with MuJoCo's own features, independently of the "
+        "`bank/omni_truths.py` with MuJoCo's own features, independently of the "
         "effect library the workflow searches (a test checks that the truth models and the cases do "
         "not use it, directly or through another module), at realistic magnitudes (see each case's "
-        "note in `discrepancy/hidden.py` for the "
+        "note in `bank/hidden.py` for the "
         f"values and their provenance). It generates {meta['runs']} runs of {meta['run_s']:g} s "
         f"(sines at {meta['frequencies_hz']} Hz x {meta['amplitudes_rad']} rad and square waves of "
         f"{meta['step_amplitudes_rad']} rad at poses {meta['poses_deg']} deg) through "
@@ -273,7 +273,7 @@ def efficiency_section(rec: dict) -> str:
         "## A truth of another form: the gear's efficiency law (`gear_efficiency`)", "",
         "The geared-servo cases above hide the device engine's own law (a Coulomb level "
         "`Fc + mu |tau|` of the transmitted torque `tau = g u`, set into MuJoCo's `frictionloss`: "
-        "a hard stick). This case's truth (`discrepancy/servo_truth.py`, "
+        "a hard stick). This case's truth (`bank/servo_truth.py`, "
         "`simulate_efficiency`) writes the same servo's gearbox losses in another form, in plain "
         "code of its own: the mesh torque `tau_m = g u - c_e w - J_r a` (the winding's torque less "
         "its back-EMF `c_e = kt g` and its rotor's inertia `J_r`, the model's armature, times the "

@@ -1,12 +1,11 @@
-"""The hidden-effect bank's own parts: what only the validation uses.
+"""The coverage study's random magnitudes: a realistic range of each library effect's
+parameters.
 
-The bank is the set of hidden-effect cases (:data:`discrepancy.hidden.CASES`: truth
-models written independently of the effect library, :mod:`.truth_models`) run through the
-workflow by ``scripts/discrepancy_bank.py`` and the tests, each judged by
-:func:`~discrepancy.hidden.assess`.  The cases themselves live in :mod:`.hidden`
-because the application hides them too (``omni discrepancy --demo``, ``omni bench``,
-``omni sweep``); this module holds the coverage study's random magnitudes
-(``scripts/discrepancy_coverage.py``) and is imported by no module of the application.
+The bank is the set of hidden-effect cases (:data:`bank.hidden.CASES`: truth models written
+independently of the effect library, :mod:`.omni_truths`) run through the workflow by
+``scripts/discrepancy_bank.py`` and the tests, each judged by :func:`~bank.hidden.assess`.
+The coverage study (:mod:`bank.studies.discrepancy_coverage`, ``scripts/discrepancy_coverage.py``)
+hides each effect at magnitudes drawn from these ranges instead of the cases' fixed ones.
 """
 
 from __future__ import annotations

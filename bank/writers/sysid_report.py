@@ -1,4 +1,4 @@
-"""The page of the ``mujoco.sysid`` comparison (:mod:`omni_studies.sysid_compare`): the verdict
+"""The page of the ``mujoco.sysid`` comparison (:mod:`bank.studies.sysid_compare`): the verdict
 per method and case (:func:`judge`) and ``sysid.md`` rendered from the record ``sysid_compare.json``
 (:func:`render`)."""
 

@@ -1,18 +1,18 @@
 """The hidden-effect bank through ``omni discrepancy``'s workflow: each case's record entry, the
-bank's settings, the gear_efficiency case's record (:mod:`omni_app.bank_report` renders and
+bank's settings, the gear_efficiency case's record (:mod:`bank.writers.bank_report` renders and
 writes them; ``scripts/discrepancy_bank.py`` is the command).
 
-For every case of :data:`discrepancy.hidden.CASES` a truth model (the virtual Omni
-with the effect written by :mod:`discrepancy.truth_models` with MuJoCo's own features,
+For every case of :data:`bank.hidden.CASES` a truth model (the virtual Omni
+with the effect written by :mod:`bank.omni_truths` with MuJoCo's own features,
 independently of the effect library) generates quantised, noisy "measured" runs (exact ones for
 ``none_exact``); the workflow sees only those runs and the nominal model, and
-:func:`discrepancy.hidden.assess` gives the verdict.  A case with a truth of its own
-(``truth="servo"``: the geared-servo pendulum of :mod:`discrepancy.servo_truth`) is
-given its own nominal model and target (:func:`discrepancy.hidden.nominal`).
+:func:`bank.hidden.assess` gives the verdict.  A case with a truth of its own
+(``truth="servo"``: the geared-servo pendulum of :mod:`bank.servo_truth`) is
+given its own nominal model and target (:func:`bank.hidden.nominal`).
 
 The gear_efficiency case's truth is written in another form than the library's law
-(:func:`discrepancy.servo_truth.generate_efficiency`: a gear efficiency law with a
-smooth sign; judged by :func:`~discrepancy.servo_truth.assess_efficiency`).
+(:func:`bank.servo_truth.generate_efficiency`: a gear efficiency law with a
+smooth sign; judged by :func:`~bank.servo_truth.assess_efficiency`).
 """
 
 from __future__ import annotations
@@ -23,10 +23,12 @@ import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from discrepancy import experiment_set, hidden, servo_truth
+from discrepancy import experiment_set
+
+from bank import hidden, servo_truth
 
 #: The checkout this module runs from (a case's nominal model is named relative to it).
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: The settings the gear_efficiency record keeps of :func:`bank_meta`'s.
 EFFICIENCY_META = ("commit", "started", "cpus", "load_start", "nice", "jobs", "command", "note")
 

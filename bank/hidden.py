@@ -1,15 +1,19 @@
-"""Hidden-effect cases: truth models (the virtual Omni plus effects, :mod:`.truth_models`) and
+"""Hidden-effect cases: truth models (the virtual Omni plus effects, :mod:`.omni_truths`) and
 their "measured" data, and whether a report found what was hidden.
 
-Used by ``omni discrepancy --demo``, ``omni bench``, ``omni sweep``'s discrepancy pipeline, the
-bank (``scripts/discrepancy_bank.py``, the tests) and the coverage study.  Like the truth
-models it imports nothing of the effect library (``tests/test_discrepancy_bank.py``).
+Used by the bank's studies (:mod:`bank.studies`: the bank's run, ``scripts/discrepancy_bank.py``;
+the coverage study), the tests, and the commands that run a case: ``omni bench``'s discrepancy
+figures and ``omni sweep``'s discrepancy pipeline, which import it through
+:mod:`omni_studies.bank_link` only when asked to run one.  ``omni discrepancy --demo`` hides the
+``time_delay`` case's delay with a truth of its own (:mod:`discrepancy.demo`, the same model and
+runs).  Like the truth models it imports nothing of the effect library
+(``tests/test_discrepancy_bank.py``).
 
 Data
 ----
 :func:`generate` runs the truth model through :func:`omni_sim.experiments.simulate` (the
 device's closed-loop engine, the reference path) on the compact experiment set
-(:mod:`.experiment_set`) with the encoder's quantisation (15000 counts/rev) and white noise of
+(:mod:`discrepancy.experiment_set`) with the encoder's quantisation (15000 counts/rev) and white noise of
 :data:`~discrepancy.experiment_set.NOISE_RAD` that the controller sees, as on the
 device; the case ``none_exact`` has neither.  The workflow sees only these runs and the nominal
 model.
@@ -39,8 +43,10 @@ from identification.dataset import Run
 from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim.device import Device
-from . import experiment_set, servo_truth
-from .truth_models import OUTSIDE, TRUTH
+from discrepancy import experiment_set
+
+from . import servo_truth
+from .omni_truths import OUTSIDE, TRUTH
 
 
 @dataclass(frozen=True)
@@ -53,7 +59,7 @@ class HiddenCase:
     effects : tuple of (str, tuple of float)
         Library effects hidden in the truth model and their values (absolute, library units).
     outside : tuple of (str, tuple of float)
-        Effects outside the library (:data:`~.truth_models.OUTSIDE`) and their values.
+        Effects outside the library (:data:`~.omni_truths.OUTSIDE`) and their values.
     expect : tuple of str
         Names the workflow should report (``("none",)`` for the null cases); for an outside
         effect, the names acceptable for it: ``"none"`` and the library's nearest stand-ins,
@@ -65,7 +71,7 @@ class HiddenCase:
     gap_lives : str
         For outside effects: where their gap should show (runs, amplitudes, position band).
     truth : str
-        ``"omni"``: the virtual Omni with the effects written by :mod:`.truth_models`, run
+        ``"omni"``: the virtual Omni with the effects written by :mod:`.omni_truths`, run
         through the device's loop on the compact experiment set; ``"servo"``: the geared-servo
         pendulum of :mod:`.servo_truth` (its own nominal model and target, :func:`nominal`).
     nominal_joint : tuple of (str, float)

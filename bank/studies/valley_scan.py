@@ -23,7 +23,7 @@ parameters at those corrections and at the nominal's own values, and where the p
 
 The training gap is :func:`discrepancy.fit.gap` on all runs.  Deterministic (the
 case's seed); a few minutes on 2 cores.  The scan sets the blend speed of
-:mod:`omni_sim.device.laws` and :mod:`discrepancy.servo_truth` for the switch and restores
+:mod:`omni_sim.device.laws` and :mod:`bank.servo_truth` for the switch and restores
 it before it returns.
 """
 
@@ -37,9 +37,11 @@ from omni_sim import model as om
 from omni_sim.device import Device
 from discrepancy import effects as fx
 from discrepancy import fit as fitm
-from discrepancy import hidden, select, servo_truth
+from discrepancy import select
 from discrepancy import workflow as wf
 from discrepancy.replay import Replayer, control_period_of, prepare_runs
+
+from bank import hidden, servo_truth
 
 CASE = "load_friction_nominal_off"
 #: The point CI reported at 66d9989 with the switch (the failing test's message).

@@ -381,7 +381,7 @@ def _logged_run(e: Experiment, run, seed: int, exact: bool, law: str) -> Run:
             "encoder_quantized": not exact, "encoder_step_rad": step, "encoder_noise_rad": noise_rad,
             "units": {"r": "rad", "theta": "rad", "v": "V (motor voltage command)", "kp": "V/rad",
                       "command_limit": "V", "enabled": "torque enable (0: 0 V)"},
-            "device": f"pendulum on a geared servo ({law}, discrepancy/servo_truth.py)"}
+            "device": f"pendulum on a geared servo ({law}, bank/servo_truth.py)"}
     return Run(e.name, t_log, r, theta, v, meta, {"enabled": en})
 
 
