@@ -347,13 +347,8 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
     def per_run(x):
         return np.broadcast_to(np.asarray(x, dtype=float), (R,)).copy()
 
-    def derivative(x, base):
-        if x is None:
-            return [np.gradient(b, dt, edge_order=2) for b in base]
-        return [np.broadcast_to(np.asarray(d, dtype=float), b.shape) for d, b in zip(x, base)]
-
-    rds = derivative(r_dot, rs)
-    rdds = derivative(r_ddot, rds)
+    rds = _derivatives(r_dot, rs, dt)
+    rdds = _derivatives(r_ddot, rds, dt)
     grp = np.zeros(R, dtype=np.int64) if groups is None else np.asarray(groups).astype(np.int64)
     # longest runs first: the runs still going at step k are a prefix
     order = np.argsort(-lens, kind="stable")
@@ -365,21 +360,12 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
     grp = grp[order]
     invI_ = 1.0 / I_
     breaks, c_inv, b0, b1, a0, a1, b_slope, b_floor, clamp = _model_constants(model)
-    # outputs (n, R) indexed [step, run], stored run-major so that each run's result is a
-    # contiguous view (no copies)
-    names = ("theta", "phi", "v", "alpha", "C", "beta_tilde", "n_iter")
+    names = _OUTPUTS
     keep = set(names) if keep is None else set(keep)
     if keep - set(names):
         raise ValueError(f"keep: unknown arrays {sorted(keep - set(names))}; known: {names}")
-
-    def output(name, dtype=float):
-        if name in keep:
-            return np.zeros((R, n), dtype=dtype).T
-        # not kept: every element is one scratch value (zero strides; written, never read)
-        return np.lib.stride_tricks.as_strided(np.zeros(1, dtype=dtype), (n, R), (0, 0))
-
-    out_th, out_ph, out_v, out_a, out_C, out_b = (output(k) for k in names[:6])
-    out_it = output("n_iter", np.int32)
+    out_th, out_ph, out_v, out_a, out_C, out_b, out_it = (
+        _output(k in keep, R, n, np.int32 if k == "n_iter" else float) for k in names)
     not_conv = np.zeros(R, dtype=np.int64)
     bracketed = np.zeros(R, dtype=np.int64)
     alive = np.searchsorted(-lens_s, -np.arange(n), side="left")  # runs with length > k
@@ -396,6 +382,27 @@ def simulate_alpha_batch(model: AlphaModel, I, r, dt, kp, *, C_linear, beta_tild
         results[o] = SimResult(**arrays, n_not_converged=int(not_conv[j]),
                                n_bracketed=int(bracketed[j]))
     return results
+
+
+#: The arrays of a :class:`SimResult` the time loop writes, in the loop's order.
+_OUTPUTS = ("theta", "phi", "v", "alpha", "C", "beta_tilde", "n_iter")
+
+
+def _derivatives(x, base: list, dt: float) -> list:
+    """The derivatives ``x`` of the runs ``base`` as arrays of each run's shape, or, with
+    ``x`` None, numerical ones (second-order central differences)."""
+    if x is None:
+        return [np.gradient(b, dt, edge_order=2) for b in base]
+    return [np.broadcast_to(np.asarray(d, dtype=float), b.shape) for d, b in zip(x, base)]
+
+
+def _output(kept: bool, R: int, n: int, dtype) -> np.ndarray:
+    """One output array of the time loop, (n, R) indexed [step, run], stored run-major so that
+    each run's result is a contiguous view (no copies); not ``kept``: every element is one
+    scratch value (zero strides; written, never read)."""
+    if kept:
+        return np.zeros((R, n), dtype=dtype).T
+    return np.lib.stride_tricks.as_strided(np.zeros(1, dtype=dtype), (n, R), (0, 0))
 
 
 def _padded(rows, n: int) -> np.ndarray:

@@ -81,8 +81,6 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
     ``discrepancy_campaign``: also time the discrepancy workflow on the whole paper campaign
     with the whole library (minutes: off by default).
     """
-    from identification.dataset import write_dataset
-
     jobs = max(1, jobs or os.cpu_count() or 1)
     if extended or only == "discrepancy_servo":  # its cases, before any measurement
         load_bank("omni bench")
@@ -91,40 +89,10 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
     if only is not None:
         raise ValueError(f"unknown figure {only!r} (one of {', '.join(ONLY)})")
     model = om.load_model(friction=friction)
-    exps = ex.campaign("paper")
-    sim_time = sum(len(e.r) for e in exps) * ex.CONTROL_PERIOD_S
-    steps = sum(len(e.r) for e in exps) * ex.substeps(model, ex.CONTROL_PERIOD_S)
-    t_sim, t_all, ceiling = [], [], []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        runs = ex.simulate(Device(model), exps, jobs=jobs)  # built each time, as a command does
-        t1 = time.perf_counter()
-        with tempfile.TemporaryDirectory() as tmp:
-            write_dataset(runs, os.path.join(tmp, "ds"), force=False)
-        t2 = time.perf_counter()
-        t_sim.append(t1 - t0)
-        t_all.append(t2 - t0)
-        nstep = max(len(e.r) for e in exps)
-        ceiling.append(_rollout_ceiling(model, len(exps), nstep, jobs))
-    best_sim, best_all = min(t_sim), min(t_all)
-    ceil = max(ceiling)
-    figures = {
-        "cores": os.cpu_count(),
-        "friction": friction or om.DEFAULT_FRICTION,
-        "jobs": jobs,
-        "paper_campaign": {
-            "runs": len(exps),
-            "simulated_time_s": round(sim_time, 3),
-            "physics_steps": steps,
-            "simulate_wall_s": round(best_sim, 3),
-            "generate_wall_s": round(best_all, 3),
-            "simulate_rtf": round(sim_time / best_sim, 1),
-            "generate_rtf": round(sim_time / best_all, 1),
-            "steps_per_s": round(steps / best_sim),
-            "rollout_ceiling_steps_per_s": round(ceil),
-            "rollout_ratio": round(steps / best_sim / ceil, 3),
-        },
-    }
+    campaign, ceil = _bench_campaign(model, jobs, repeats)
+    steps = campaign["physics_steps"]
+    figures = {"cores": os.cpu_count(), "friction": friction or om.DEFAULT_FRICTION, "jobs": jobs,
+               "paper_campaign": campaign}
     if extended:
         from identification.simulate import bench_simulation
 
@@ -151,6 +119,43 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
                             "variants_per_s_2_workers": round(two, 4),
                             "speedup_2_workers": round(two / one, 3)}
     return figures
+
+
+def _bench_campaign(model: mujoco.MjModel, jobs: int, repeats: int) -> tuple[dict, float]:
+    """The paper campaign's figures on ``model`` (:func:`run_bench`'s ``paper_campaign``: the
+    best of ``repeats`` simulations and dataset writes) and the raw rollout ceiling
+    [steps/s] they are compared with."""
+    from identification.dataset import write_dataset
+
+    exps = ex.campaign("paper")
+    sim_time = sum(len(e.r) for e in exps) * ex.CONTROL_PERIOD_S
+    steps = sum(len(e.r) for e in exps) * ex.substeps(model, ex.CONTROL_PERIOD_S)
+    t_sim, t_all, ceiling = [], [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        runs = ex.simulate(Device(model), exps, jobs=jobs)  # built each time, as a command does
+        t1 = time.perf_counter()
+        with tempfile.TemporaryDirectory() as tmp:
+            write_dataset(runs, os.path.join(tmp, "ds"), force=False)
+        t2 = time.perf_counter()
+        t_sim.append(t1 - t0)
+        t_all.append(t2 - t0)
+        nstep = max(len(e.r) for e in exps)
+        ceiling.append(_rollout_ceiling(model, len(exps), nstep, jobs))
+    best_sim, best_all = min(t_sim), min(t_all)
+    ceil = max(ceiling)
+    return {
+        "runs": len(exps),
+        "simulated_time_s": round(sim_time, 3),
+        "physics_steps": steps,
+        "simulate_wall_s": round(best_sim, 3),
+        "generate_wall_s": round(best_all, 3),
+        "simulate_rtf": round(sim_time / best_sim, 1),
+        "generate_rtf": round(sim_time / best_all, 1),
+        "steps_per_s": round(steps / best_sim),
+        "rollout_ceiling_steps_per_s": round(ceil),
+        "rollout_ratio": round(steps / best_sim / ceil, 3),
+    }, ceil
 
 
 #: Runs argv[2:] and writes its wall time and peak RSS (with its children's) to argv[1].

@@ -80,13 +80,20 @@ def add_hand(model: mujoco.MjModel, device: Device, hand: dict, rest_rad: float)
 class WallTask:
     """A virtual wall at ``wall_rad`` on the yaw of ``device`` (whose model holds the hand).
 
-    The settings are those of :class:`omni_sim.wall_env.OmniWallEnv` (checked there:
-    :func:`check_wall_settings`); ``T`` is the servo period [s], ``kt`` the motor's torque
-    constant [N*m/V], ``vlim`` the drive's limit [V] and ``n`` the episode's length in periods.
+    The settings and their defaults are those of :class:`omni_sim.wall_env.OmniWallEnv`
+    (checked there: :func:`check_wall_settings`): the renderer's ``stiffness`` K [N*m/rad] and
+    ``damping`` B [N*m*s/rad], the wall at ``wall_rad`` [rad], the hand's rest ``push_rad``
+    [rad] behind it, the encoder's rounding (``quantize``), the loop's ``delay`` [periods], the
+    episode's ``duration_s`` [s], the start angle ``start_rad`` (None: wall - 0.005) and the
+    arm's set points ``gamma_set`` (γ1, γ2) [deg].  ``hand`` is the grasp put into the model
+    (:func:`grasp_impedance`, :func:`add_hand`).  ``T`` is the servo period [s], ``kt`` the
+    motor's torque constant [N*m/V], ``vlim`` the drive's limit [V] and ``n`` the episode's
+    length in periods.
     """
 
-    def __init__(self, device: Device, hand: dict, stiffness, damping, wall_rad, push_rad,
-                 quantize, delay, duration_s, start_rad, gamma_set):
+    def __init__(self, device: Device, hand: dict, stiffness=5.0, damping=0.002, wall_rad=0.0,
+                 push_rad=0.02, quantize=True, delay=0, duration_s=1.0, start_rad=None,
+                 gamma_set=(65.0, 90.0)):
         self.device, self.hand = device, hand
         self.wall_rad, self.push_rad = float(wall_rad), float(push_rad)
         self.K, self.B = float(stiffness), float(damping)

@@ -323,8 +323,9 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
     periods = [int(m) for m in probe_periods]
     P = len(periods)
     k_row, b_row = np.tile(KK.ravel(), P), np.tile(BB.ravel(), P)
-    W, S, bad, rec = _run_rows(device, k_row, b_row, periods, torque_limit, quantize, delay,
-                               probe_speed, duration_s, gamma_set_deg, nthread, record, progress)
+    run = _Probing(tuple(periods), probe_speed, duration_s, torque_limit, quantize, delay,
+                   gamma_set_deg)
+    W, S, bad, rec = _run_rows(device, k_row, b_row, run, nthread, record, progress)
     with np.errstate(invalid="ignore", divide="ignore"):
         index = np.where(S > 0, W / np.where(S > 0, S, 1.0), 0.0)
     index[bad] = -1.0
@@ -335,11 +336,26 @@ def passivity_map(device, stiffness, damping, torque_limit=math.inf, quantize=Fa
                         diverged=diverged, probe_periods=tuple(periods), trace=rec)
 
 
-def _run_rows(device, k_row, b_row, periods, torque_limit, quantize, delay, probe_speed,
-              duration_s, gamma_set_deg, nthread, record, progress):
-    """Run the rows (cell x probe) of a map: returns the hand's work ``W`` over the energy
-    window less the energy stored at its ends, the viscous dissipation ``S`` [J], the rows that
-    diverged or left the yaw's range, and the traces (with ``record``)."""
+@dataclass(frozen=True)
+class _Probing:
+    """How the rows of a map run (:func:`passivity_map`'s settings, checked by
+    :func:`check_map`): the probes' half-periods [servo periods] and speed [rad/s], the run's
+    length [s], the drive's torque limit [N*m], the encoder's quantisation, the loop delay
+    [servo periods] and the arm's set points [deg]."""
+    periods: tuple[int, ...]
+    probe_speed: float
+    duration_s: float
+    torque_limit: float
+    quantize: bool
+    delay: int
+    gamma_set_deg: tuple[float, float]
+
+
+def _run_rows(device, k_row, b_row, run: _Probing, nthread, record, progress):
+    """Run the rows (cell x probe) of a map, stiffness ``k_row`` and damping ``b_row`` (the
+    cells repeated probe by probe): returns the hand's work ``W`` over the energy window less
+    the energy stored at its ends, the viscous dissipation ``S`` [J], the rows that diverged or
+    left the yaw's range, and the traces (with ``record``)."""
     from tqdm import tqdm
 
     from omni_sim.device import ENCODER_STEP_RAD, Engine, encoder_reader
@@ -352,23 +368,23 @@ def _run_rows(device, k_row, b_row, periods, torque_limit, quantize, delay, prob
     theta0 = wall + START_PENETRATION
     jid = device.joint_id
     lo, hi = device.model.jnt_range[jid] if device.model.jnt_limited[jid] else (-math.inf, math.inf)
-    n = int(round(duration_s / T))
+    n = int(round(run.duration_s / T))
     k0 = int(round(SETTLE_FRACTION * n))
-    read = encoder_reader(ENCODER_STEP_RAD if quantize else 0.0)
+    read = encoder_reader(ENCODER_STEP_RAD if run.quantize else 0.0)
     push = k_row * START_PENETRATION
     # probe m: a torque impulse over the first physics step of every m-th servo period that
     # reverses the yaw's velocity, so the velocity is a square wave of half-period m T and the
     # position a triangle with its corners at samples; the first impulse is half (the velocity
     # alternates about zero)
-    inertia = device.inertia(*device.equilibrium(*gamma_set_deg))
-    J = 2.0 * probe_speed * inertia
-    imp_row = np.repeat(_probe_impulses(periods, n, J / h), n_rows // len(periods), axis=0)
+    inertia = device.inertia(*device.equilibrium(*run.gamma_set_deg))
+    J = 2.0 * run.probe_speed * inertia
+    imp_row = np.repeat(_probe_impulses(run.periods, n, J / h), n_rows // len(run.periods), axis=0)
     bphys = physical_damping(device)
-    eng = Engine([device] * n_rows, [theta0] * n_rows, [gamma_set_deg] * n_rows, nthread=nthread)
+    eng = Engine([device] * n_rows, [theta0] * n_rows, [run.gamma_set_deg] * n_rows, nthread=nthread)
     bar = tqdm(total=n, desc="zwidth", unit="period", disable=not progress, leave=False)
     try:
         y_prev = read(np.full(n_rows, theta0), 0.0)
-        queue = [np.zeros(n_rows)] * delay
+        queue = [np.zeros(n_rows)] * run.delay
         W = np.zeros(n_rows)  # the hand's work (probe and push) over the window
         S = np.zeros(n_rows)
         bad = np.zeros(n_rows, dtype=bool)
@@ -381,9 +397,9 @@ def _run_rows(device, k_row, b_row, periods, torque_limit, quantize, delay, prob
             if k == k0:
                 x_start, v_start = th.copy(), eng.yaw_velocity()
             y = read(th, 0.0)
-            tau = wall_torque(y, y_prev, wall, k_row, b_row, T, torque_limit)
+            tau = wall_torque(y, y_prev, wall, k_row, b_row, T, run.torque_limit)
             y_prev = y
-            if delay:
+            if run.delay:
                 queue.append(tau)
                 tau = queue.pop(0)
             # a command per physics step: the wall's torque and the push held, the probe's

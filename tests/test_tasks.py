@@ -140,3 +140,21 @@ def test_wall_command_is_the_spring_and_damper_inside_only():
     assert task.wall_command()[0] == np.float32(tau / device.torque_constant)
     task._y, task._y_prev = -0.01, 0.0
     assert task.wall_command()[0] == 0.0
+
+
+def test_wall_task_defaults_are_the_environments():
+    """WallTask's settings default to OmniWallEnv's (one set of documented defaults)."""
+    import inspect
+
+    from omni_sim.wall_env import OmniWallEnv
+
+    task = inspect.signature(WallTask).parameters
+    env = inspect.signature(OmniWallEnv).parameters
+    shared = [name for name in task if name in env]
+    assert len(shared) == 8  # stiffness ... start_rad (a renamed setting would drop out)
+    for name in shared:
+        assert task[name].default == env[name].default, name
+    assert task["gamma_set"].default == (env["gamma1_set_deg"].default,
+                                         env["gamma2_set_deg"].default)
+    device, _ = _wall()
+    assert WallTask(device, grasp_impedance("medium")).n == 1000  # 1 s of 1 ms periods

@@ -206,6 +206,18 @@ def _verdict(cases: list, verdicts: dict) -> list[str]:
          f"A method does the job of ours on a case when its estimate's closed-loop gap is within "
          f"{g(100 * GAP_TOL)} % of ours and, where the truth is known, its 95 % intervals hold at least as "
          "many truths as ours (1.96 x Jacobian se).", ""]
+    L += _per_method(cases, verdicts)
+    L.append("")
+    L += _intervals(cases, verdicts)
+    L += _stand_in(cases, verdicts)
+    L += _cannot(cases, verdicts)
+    return L + [""]
+
+
+def _per_method(cases: list, verdicts: dict) -> list[str]:
+    """One bullet per sysid variant: on which cases it does the job of ours, and each case's
+    gap, truths inside, steps and wall time against ours."""
+    L = []
     for k in SYSID_METHODS:
         parts, same = [], []
         for c in cases:
@@ -226,7 +238,13 @@ def _verdict(cases: list, verdicts: dict) -> list[str]:
                 same.append(c["id"])
         L.append(f"* **{SHORT[k]}** does the job on {len(same)} of {len(cases)} cases"
                  + (f" ({', '.join(same)})" if same else "") + ": " + "; ".join(parts) + ".")
-    L.append("")
+    return L
+
+
+def _intervals(cases: list, verdicts: dict) -> list[str]:
+    """How many truths the workflow's intervals hold and the widths against ours; how far
+    apart sysid's two closed-loop fits end, in their own half-widths."""
+    L = []
     wf = [(c["id"], verdicts[c["id"]]["ours_workflow"].get("inside")) for c in cases
           if "inside" in verdicts[c["id"]].get("ours_workflow", {})]
     if wf:
@@ -251,6 +269,13 @@ def _verdict(cases: list, verdicts: dict) -> list[str]:
               "estimate lies outside the other's interval)."
               + (f" On {', '.join(wide)} its intervals, `s^2 (J'J)^-1` over independent samples, are narrower "
                  "than the spread of its own optimum." if wide else ""), ""]
+    return L
+
+
+def _stand_in(cases: list, verdicts: dict) -> list[str]:
+    """For each sysid variant that does the same job on every case: what it could stand in for
+    and why it is not used; else that none does."""
+    L = []
     everywhere = [k for k in SYSID_METHODS if all(verdicts[c["id"]][k].get("same_job") for c in cases)]
     for k in everywhere:
         steps = [c["methods"][k]["physics_steps"] / c["methods"]["ours"]["physics_steps"] for c in cases]
@@ -276,6 +301,12 @@ def _verdict(cases: list, verdicts: dict) -> list[str]:
                  "none of our code: the open-loop rollout cannot hold the engine's laws nor the torque switch "
                  "and drifts on a P-controlled joint, and the closed-loop variants run on our replay, leaving "
                  "only the optimizer and the interval to compare (figures above).")
+    return L
+
+
+def _cannot(cases: list, verdicts: dict) -> list[str]:
+    """What sysid as shipped cannot do on these cases."""
+    L = []
     not_open = [c["id"] for c in cases if not verdicts[c["id"]]["sysid_open"]["holds"]]
     default_off = [c["id"] for c in cases if verdicts[c["id"]]["sysid_closed"]["holds"]
                    and not verdicts[c["id"]]["sysid_closed"]["same_job"]]
@@ -295,4 +326,4 @@ def _verdict(cases: list, verdicts: dict) -> list[str]:
                    if all(verdicts[cid]["sysid_closed_scaled"].get("same_job") for cid in default_off) else "")
                 if default_off else "")
              + "; and its intervals take the logged samples of a closed loop as independent.")
-    return L + [""]
+    return L

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import os
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -346,7 +347,6 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     """
     B, n = r.shape
     kp = np.broadcast_to(np.asarray(kp, dtype=float), (B,))
-    exact = noise is None and not np.any(np.asarray(quantum_rad) > 0)
     theta = np.empty((B, n))
     v = np.empty((B, n))
     if record_arm:
@@ -356,12 +356,11 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     if command_limit is not None:
         vmax = np.minimum(vmax, np.broadcast_to(np.asarray(command_limit, dtype=float), (B,)))
     on = None if enabled is None else np.broadcast_to(np.asarray(enabled, dtype=bool), (B, n))
+    loop = _PLoop(r, kp, noise, quantum_rad, vmax, on)
     if engine.data is None:  # a batch: the same steps as below, without the per-call overheads
-        _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v,
-                      (q1, q2) if record_arm else None, vmax, on)
+        _batch_p_loop(engine, loop, theta, v, (q1, q2) if record_arm else None)
     else:
-        _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v,
-                        (q1, q2) if record_arm else None, vmax, on)
+        _one_row_p_loop(engine, loop, theta, v, (q1, q2) if record_arm else None)
     if not np.all(np.isfinite(theta[~engine.unstable])):
         raise RuntimeError("simulation diverged (non-finite yaw angle)")
     out = {"theta": theta, "v": v, "unstable": engine.unstable.copy()}
@@ -370,10 +369,31 @@ def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = Non
     return out
 
 
-def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm, vmax, on) -> None:
-    n = r.shape[1]
-    read = encoder_reader(quantum_rad)
-    for k in range(n):
+@dataclass(frozen=True)
+class _PLoop:
+    """What :func:`run_p_loop`'s loops read, row by row (see its parameters): the references
+    ``r`` (B, n) [rad], the gains ``kp`` (B,) [V/rad], the encoder's ``noise`` (B, n) or None
+    and rounding step ``quantum_rad``, the P law's limit ``vmax`` (B,) [V] and the drive's
+    ``on`` (B, n) or None (always on)."""
+    r: np.ndarray
+    kp: np.ndarray
+    noise: np.ndarray | None
+    quantum_rad: float | np.ndarray
+    vmax: np.ndarray
+    on: np.ndarray | None
+
+    @property
+    def exact(self) -> bool:
+        """The controller sees the true yaw (no noise, no rounding)."""
+        return self.noise is None and not np.any(np.asarray(self.quantum_rad) > 0)
+
+
+def _one_row_p_loop(engine, loop: _PLoop, theta, v, arm) -> None:
+    """:func:`run_p_loop` on a one-row engine, writing the measured yaw ``theta``, the applied
+    command ``v`` and, unless ``arm`` is None, the arm angles ``arm`` (q1, q2), all (B, n)."""
+    read = encoder_reader(loop.quantum_rad)
+    exact, noise, on = loop.exact, loop.noise, loop.on
+    for k in range(loop.r.shape[1]):
         if arm is not None:
             q = engine.qpos()
             th, arm[0][:, k], arm[1][:, k] = q[:, 0], q[:, 1], q[:, 2]
@@ -381,22 +401,22 @@ def _one_row_p_loop(engine, r, kp, noise, quantum_rad, exact, theta, v, arm, vma
             th = engine.yaw()
         y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
         theta[:, k] = y
-        v[:, k] = engine.apply(p_law(kp, r[:, k], y, vmax), None if on is None else on[:, k])
+        v[:, k] = engine.apply(p_law(loop.kp, loop.r[:, k], y, loop.vmax),
+                               None if on is None else on[:, k])
 
 
-def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm, vmax, on) -> None:
-    """:func:`run_p_loop` on a batch engine: the same encoder and P law, reading the state and
-    advancing the batch directly (no per-period copies; :meth:`Engine.apply`'s second clip
-    would leave the clipped command as it is)."""
-    n = r.shape[1]
+def _batch_p_loop(engine, loop: _PLoop, theta, v, arm) -> None:
+    """:func:`run_p_loop` on a batch engine (the outputs as :func:`_one_row_p_loop`'s): the same
+    encoder and P law, reading the state and advancing the batch directly (no per-period
+    copies; :meth:`Engine.apply`'s second clip would leave the clipped command as it is)."""
     qa = engine._qadr
     if arm is not None and not engine.has_arm:
         arm[0][:] = np.nan
         arm[1][:] = np.nan
         arm = None
-    exact = noise is None and not np.any(np.asarray(quantum_rad) > 0)
-    read = encoder_reader(quantum_rad)
-    for k in range(n):
+    read = encoder_reader(loop.quantum_rad)
+    exact, noise, on = loop.exact, loop.noise, loop.on
+    for k in range(loop.r.shape[1]):
         x = engine.x
         th = x[:, qa[0]]
         if arm is not None:
@@ -404,7 +424,7 @@ def _batch_p_loop(engine, r, kp, noise, quantum_rad, theta, v, arm, vmax, on) ->
             arm[1][:, k] = x[:, qa[2]]
         y = th if exact else read(th, 0.0 if noise is None else noise[:, k])
         theta[:, k] = y
-        u = p_law(kp, r[:, k], y, vmax)
+        u = p_law(loop.kp, loop.r[:, k], y, loop.vmax)
         if on is not None:
             u = np.where(on[:, k], u, 0.0)
         v[:, k] = u
