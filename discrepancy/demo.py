@@ -1,7 +1,7 @@
 """The demo's hidden effect (``omni discrepancy --demo``): a 4 ms loop delay written into a
 copy of the virtual Omni with MuJoCo's own actuator delay, and its "measured" runs.
 
-The truth and the data are those of the validation bank's ``time_delay`` case (``bank/cases.py``
+The truth and the data are those of the validation bank's ``time_delay`` case (``bank/hidden.py``
 of the source checkout, a separate distribution that a plain install does not have): the same
 model, written the same way as the bank's truth writer writes it (``bank/omni_truths.py``), and
 the same runs (the compact experiment set of :mod:`.experiment_set`, quantised, noisy encoder,
