@@ -7,7 +7,7 @@ numba compiles the α loop for the host CPU, and OpenBLAS picks its kernels for 
 outputs of `omni reproduce` are the same bytes on the same machine (test_reproduce), not on
 every machine.  This test runs the command twice, natively and with numpy's dispatch cut to
 its baseline and numba compiling for a generic CPU (:func:`baseline_env`, the setting
-`.ci/run` runs the whole suite with), and checks that the headline scores (the inertia fit,
+`.ci/run` runs the default suite with), and checks that the headline scores (the inertia fit,
 Table 8's sine scores, Table 11's step scores) agree to half a unit of the last printed digit.
 """
 
