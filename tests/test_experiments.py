@@ -127,6 +127,7 @@ def test_determinism_and_round_trip(tmp_path):
     assert not np.array_equal(other.theta, run.theta)
 
 
+@pytest.mark.slow  # 10 s CPU: the whole paper campaign generated; its counts also in test_reproduce's outputs
 def test_paper_campaign_files(tmp_path):
     out = tmp_path / "ds"
     assert main(["generate", "--campaign", "paper", "--out", str(out)]) == 0

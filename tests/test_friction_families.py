@@ -358,6 +358,7 @@ def test_reproduce_all_cli(tmp_path):
 
 
 # -- the friction study ---------------------------------------------------------------------------
+@pytest.mark.slow  # 14 s CPU: three reproductions of the tiny campaign (the study end to end)
 def test_friction_study_two_levels(campaigns, tmp_path):
     out = tmp_path / "study"
     friction_report.write_outputs(out, friction_study.study(["lugre"], [0.0, 1.0],
