@@ -12,6 +12,7 @@ calls with a literal name; relative imports are resolved against the importing m
 from __future__ import annotations
 
 import ast
+import functools
 import re
 import subprocess
 import sys
@@ -68,6 +69,11 @@ def imports_of(module: str) -> list[tuple[str, int]]:
 
     ``from X import a`` yields ``X.a`` when that is one of our modules, otherwise ``X``.
     """
+    return list(_imports_of(module))
+
+
+@functools.cache  # each module's source parsed once for all the tests (the graph is built often)
+def _imports_of(module: str) -> tuple[tuple[str, int], ...]:
     path = MODULES[module]
     tree = ast.parse(path.read_text(), filename=str(path))
     is_package = path.name == "__init__.py"
@@ -86,7 +92,7 @@ def imports_of(module: str) -> list[tuple[str, int]]:
               and ((isinstance(node.func, ast.Attribute) and node.func.attr == "import_module")
                    or (isinstance(node.func, ast.Name) and node.func.id in ("import_module", "__import__")))):
             found.append((node.args[0].value, node.lineno))
-    return found
+    return tuple(found)
 
 
 def _internal_target(name: str) -> str | None:

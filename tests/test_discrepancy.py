@@ -113,6 +113,7 @@ def test_fast_masking_pair():
         assert {"name", "parameters", "uncertainty", "runner_up", "margin"} <= set(e)
 
 
+@pytest.mark.slow  # 15 s CPU: the workflow end to end on a hidden case outside the library
 def test_fast_unexplained_gap_is_flagged(tmp_path):
     """An effect outside the (here restricted) library leaves a large gap: ``none`` is named and
     report.json/report.md say the gap is unexplained, not that the model is fine."""

@@ -54,6 +54,7 @@ def _report(tmp_path, runs, candidates):
     return json.loads((tmp_path / "report.json").read_text()), (tmp_path / "model.xml").read_text()
 
 
+@pytest.mark.slow  # 9 s CPU: the workflow, its export and replay end to end (the native export stays by default)
 def test_exported_model_with_the_runtime_reproduces_its_gap(tmp_path):
     """A hidden load_friction (mu_drive 0.2, mu_back 1.2): named, so model.xml needs the
     runtime.  Its plain replay with the header's runtime gives report.json's

@@ -205,6 +205,7 @@ def test_the_alpha_code_list_names_real_functions():
         assert any("alpha" in k for k in paper.table(name)[0]), name
 
 
+@pytest.mark.slow  # 14 s CPU: the whole evaluation again in a fresh process, under a profiler (end to end)
 def test_no_alpha_model_output_enters_any_residual(evaluation, tmp_path):
     """With Tables 8 and 11's alpha columns nonsense in the data files and a profiler watching,
     the table-level evaluation runs none of the alpha model's code, imports no compiled alpha
@@ -339,6 +340,7 @@ def test_matched_scene_is_both_families_on_the_shared_robot():
     assert "matched" in om.FRICTION_FAMILIES and om.builtin_family(om.scene_path("matched")) == "matched"
 
 
+@pytest.mark.slow  # 12 s CPU: the matched scene's calibration record re-measured end to end
 def test_matched_scene_meets_its_record(matched):
     """The matched scene, re-measured here with the table-level targets, gives its record's
     figures (tolerance: 1 % of each figure or 0.2 mrad; the record was measured on one CPU, and

@@ -336,10 +336,14 @@ def test_comparison_paper_column():
     assert p["resonance_hz_65_90"] == pytest.approx(3.4, abs=0.05)  # Table 9 / the paper's text
 
 
-def test_reproduce_all_refuses_a_non_empty_folder(compared):
-    res = _cli(["reproduce", "--friction", "all", "--out", str(compared)], compared.parent)
+def test_reproduce_all_refuses_a_non_empty_folder(tmp_path):
+    out = tmp_path / "cmp"
+    out.mkdir()
+    (out / "comparison.json").write_text("{}")  # what a finished run leaves there, and no more
+    res = _cli(["reproduce", "--friction", "all", "--out", str(out)], tmp_path)
     _one_line_error(res)
-    assert (compared / "comparison.json").is_file()
+    assert [p.name for p in out.iterdir()] == ["comparison.json"]
+    assert (out / "comparison.json").read_text() == "{}"
 
 
 @pytest.mark.slow
@@ -354,7 +358,8 @@ def test_reproduce_all_cli(tmp_path):
 
 
 # -- the friction study ---------------------------------------------------------------------------
-def test_friction_study_two_levels(campaigns, compared, tmp_path):
+@pytest.mark.slow  # 14 s CPU: three reproductions of the tiny campaign (the study end to end)
+def test_friction_study_two_levels(campaigns, tmp_path):
     out = tmp_path / "study"
     friction_report.write_outputs(out, friction_study.study(["lugre"], [0.0, 1.0],
                                                             str(campaigns / "tiny.toml"), 1))
@@ -374,12 +379,12 @@ def test_friction_study_two_levels(campaigns, compared, tmp_path):
             assert abs(r["inertia_worst_signed_rel_error"]) == pytest.approx(r["inertia_max_rel_error"])
         else:
             assert r["reason"]
-    # the scale-1 level is the family's own reproduction on the same campaign (`compared`)
-    own = json.loads((compared / "lugre" / "summary.json").read_text())
+    # the scale-1 level is the family's own reproduction on the same campaign (the one
+    # `reproduce --friction all` runs for it, on the unscaled built-in device)
+    own = study_rp.run_reproduce(Device.load(friction="lugre"), 1, str(campaigns / "tiny.toml")).summary
     assert rows[1]["ok"]
-    assert rows[1]["step_ratio_of_medians_whole_record"] == pytest.approx(
-        own["step"]["ratio_of_medians"], rel=1e-12)
-    assert rows[1]["inertia_max_rel_error"] == pytest.approx(own["inertia"]["max_rel_error"], rel=1e-12)
+    assert rows[1]["step_ratio_of_medians_whole_record"] == pytest.approx(own.step.ratio_of_medians, rel=1e-12)
+    assert rows[1]["inertia_max_rel_error"] == pytest.approx(own.inertia.max_rel_error, rel=1e-12)
     # dry friction matters: without it the identified sines are far closer to linear
     assert rows[0]["sine_phase_p90_linear_deg"] < rows[1]["sine_phase_p90_linear_deg"]
 

@@ -14,6 +14,7 @@ they are not what this test is about.
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -27,6 +28,7 @@ SOURCES = sorted(p for d in ("omni_sim", "omni_studies", "omni_app", "identifica
                  for p in (ROOT / d).rglob("*.py"))
 
 
+@functools.cache  # each file parsed once for all the searches of this module
 def _code(path: Path) -> str:
     """The file's code without docstrings and comments (mentions are not uses)."""
     tree = ast.parse(path.read_text())

@@ -1,6 +1,5 @@
 """omni reproduce / omni validate: outputs, summary consistent with the predictions, errors."""
 
-import csv
 import json
 import subprocess
 import sys
@@ -20,9 +19,13 @@ def reproduced(tmp_path_factory):
 
 
 def _pred(folder, name):
-    with open(folder / "predictions" / f"{name}.csv") as fh:
-        rows = list(csv.DictReader(fh))
-    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+    """A prediction file's columns by their header's names (numpy's reader: the same floats as
+    Python's ``float`` of each field, at a fraction of csv.DictReader's time)."""
+    path = folder / "predictions" / f"{name}.csv"
+    with open(path) as fh:
+        names = fh.readline().strip().split(",")
+    cols = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return {k: cols[:, i] for i, k in enumerate(names)}
 
 
 def test_outputs(reproduced):

@@ -61,6 +61,7 @@ def _tracked_reference(train, case) -> np.ndarray:
     return np.array(refs[:-1])
 
 
+@pytest.mark.slow  # 10 s CPU: 24 whole episodes stepped through the env (end to end)
 def test_held_out_episodes_are_many_distinct_and_unlike_training(train):
     cases = train.held_out_cases()
     assert len(cases) >= 20

@@ -144,6 +144,7 @@ def test_variant_attributes_reach_the_model():
 
 
 # -- running -------------------------------------------------------------------------------
+@pytest.mark.slow  # 29 s CPU: 16 variant runs on Dask clusters of one and two workers (end to end)
 def test_one_vs_two_workers_resume_and_failed_variant(tmp_path):
     text = GRID.replace('noise_rad = [0.0, 1e-4]', 'noise_rad = [0.0, 1e-4]\n"body.upper_arm.mass" = [0.07, -1.0]')
     study = sw.parse_study(text, "s", tmp_path)

@@ -78,6 +78,7 @@ def _inertia_errors(m):
     return [r["rel_error"] for r in res], [r["true_kg_m2"] for r in res]
 
 
+@pytest.mark.slow  # 15 s CPU: two whole sine campaigns simulated and identified (end-to-end physics)
 def test_dry_friction_biases_the_inertia_by_its_kind():
     """The paper's method sees dry friction as a change of beta_data, so the identified inertia
     is biased -- and the sign tells the friction's kind.  A hard stick (``frictionloss`` +
