@@ -1,27 +1,23 @@
 """Held-out folds of a search's runs and the fits on them.
 
 A :class:`Fold` says which samples it holds out; the fold's parameters are fitted on every
-other sample (:func:`refit_folds`, :func:`polish_folds`), each from a start found without its
+other sample (:func:`fit_folds`), each from a start found without its
 held-out samples (:func:`fold_grid_starts`), and predict the held-out ones
 (:func:`heldout`, :func:`heldout_replays`).  Used by :class:`discrepancy.select.Scorer`.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .fit import Problem, damped_step, unstable_count
+from .fit import Problem
 from .runs import ReplayRun
 
 #: Short records [s] on which a fold's start is moved to its grid's best point (the prescreen's
 #: length, :data:`discrepancy.prescreen.PRESCREEN_S`).
 START_GRID_S = 1.0
-#: Least-squares evaluations of a fold's trust-region fit of rough parameters (as the
-#: confirmed candidates' all-runs fit, :data:`discrepancy.select.CONFIRM_NFEV`).
-POLISH_NFEV = 10
 
 
 @dataclass(frozen=True)
@@ -129,130 +125,23 @@ def fold_problem(problem: Problem, fold: Fold) -> tuple[Problem, list[int]]:
     return pf, idx
 
 
-#: The per-fold refits' convergence test (:func:`refit_folds`): a fold stops when a step
-#: lowers its training cost by less than :data:`REFIT_FTOL` of it, or its step is below
-#: :data:`REFIT_XTOL` of every parameter's scale, or after :data:`REFIT_MAX_STEPS` steps.  Why
-#: these numbers (fixed before any result was looked at): the held-out gap is reported to 3
-#: digits and a 1e-3 relative change of the training cost moves the gap (its root) by 5e-4;
-#: a step of 1e-3 of a parameter's scale is 50x below the finite-difference step (0.05 of the
-#: scale), below which the Jacobian cannot resolve a change; 8 steps: from a start at the
-#: nominal values (a 2x-off damping or a zero friction) a damped Gauss-Newton on a smooth
-#: objective needs 3-6 steps, and 8 caps the cost at 8 steps per fold.
-REFIT_FTOL = 1e-3
-REFIT_XTOL = 1e-3
-REFIT_MAX_STEPS = 8
+#: Least-squares evaluations of a fold's fit (:func:`fit_folds`): those of the all-runs fit
+#: it stands for, the screening fit's 8 (:meth:`discrepancy.select.Scorer.score_round`) and the
+#: confirming fit's :data:`discrepancy.select.CONFIRM_NFEV` (10).
+FOLD_NFEV = 18
 
 
-def fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray],
-                   with_jac: bool | list[bool] = True) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Each fold's weighted residual and forward-difference Jacobian (times the parameters'
-    scale) at ``xs[f]`` on its training samples: every fold's point and its ``p``
-    perturbations (:meth:`Problem.steps`) on the fold's training runs in ONE replay batch
-    (``with_jac`` False, for all folds or per fold: the point alone, its Jacobian empty)."""
-    runs = problem.runs
-    jac = [with_jac] * len(fps) if isinstance(with_jac, bool) else list(with_jac)
-    points, steps, pairs = [], [], []
-    for (_, idx), x, wj in zip(fps, xs, jac):
-        pts, h = problem.perturbed(x) if wj else ([x], [])
-        pairs += [(len(points) + m, j) for m in range(len(pts)) for j in idx]
-        points += pts
-        steps.append(h)
-    th = problem.rep.simulate([problem.model(x) for x in points], runs, pairs)
-    problem.nsim += len(points)
-    out, b = [], 0
-    for (pf, idx), h, wj in zip(fps, steps, jac):
-        raws = []
-        for _ in range(len(h) + 1):
-            raws.append([th[b + k] - runs[j].theta for k, j in enumerate(idx)])
-            b += len(idx)
-            problem.unstable += unstable_count(raws[-1])
-        f0, J = pf.jacobian(raws, h)
-        out.append((f0, J * problem.scale if wj else J))
-    return out
-
-
-def broyden(J: np.ndarray, dz: np.ndarray, df: np.ndarray) -> np.ndarray:
-    """Broyden's rank-one update of a Jacobian ``J`` after a step ``dz`` changed the residual
-    by ``df``: the least change of ``J`` that makes ``J dz = df`` (the secant condition;
-    Levenberg-Marquardt with Broyden updates: Madsen, Nielsen and Tingleff, *Methods for
-    non-linear least squares problems*, 2nd ed., 2004, sect. 3.4)."""
-    dd = float(dz @ dz)
-    if dd == 0.0:
-        return J
-    return J + np.outer(df - J @ dz, dz) / dd
-
-
-def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
-                max_steps: int = REFIT_MAX_STEPS) -> list[np.ndarray]:
-    """Per-fold fits from ``start`` (one point per fold, found without the fold's held-out
-    samples), all folds in lockstep: each fold's parameters fitted on its own training samples
-    only (the held-out samples never enter its steps or its start).
-
-    Each fold takes Levenberg-damped Gauss-Newton steps with its own forward-difference
-    Jacobian, taken at its start and then updated by Broyden's rank-one formula after every
-    kept step (:func:`broyden`: a step costs one replay of the fold's training runs, not
-    ``p + 1``).  A step that does not lower the cost is undone and the damping raised (x10;
-    lowered /3 after a kept step); if the Jacobian is not a fresh one, it is taken again at
-    the kept point first.
-    Every active fold's point (and, where due, its ``p`` perturbations) on its training runs is
-    one batch.  A fold stops on the convergence test of :data:`REFIT_FTOL`,
-    :data:`REFIT_XTOL`, ``max_steps``."""
-    fps = [fold_problem(problem, fold) for fold in folds]
-    k = len(folds)
-    x = [np.clip(np.asarray(s, float), problem.lower, problem.upper) for s in start]
-    trial = [xi.copy() for xi in x]
-    cost, f0, J = [math.inf] * k, [None] * k, [None] * k
-    lam, steps, done = [1e-3] * k, [0] * k, [False] * k
-    need_jac = [True] * k    # the next evaluation takes the Jacobian too
-    refresh = [False] * k    # the next evaluation is the kept point again, for its Jacobian
-    jac_at_x = [False] * k   # J[f] was taken at x[f]
-    while not all(done):
-        act = [f for f in range(k) if not done[f]]
-        evals = fold_jacobians(problem, [fps[f] for f in act], [trial[f] for f in act],
-                               [need_jac[f] for f in act])
-        for f, (r, Jf) in zip(act, evals):
-            c = float(np.sum(r ** 2))
-            small = False
-            if refresh[f]:  # the kept point again: its Jacobian
-                f0[f], J[f], jac_at_x[f], refresh[f] = r, Jf, True, False
-            elif c < cost[f]:  # kept
-                dz_last = (trial[f] - x[f]) / problem.scale
-                small = steps[f] > 0 and float(np.max(np.abs(dz_last), initial=0.0)) < REFIT_XTOL
-                drop = (cost[f] - c) / cost[f] if math.isfinite(cost[f]) else math.inf
-                if need_jac[f]:
-                    J[f] = Jf
-                else:
-                    J[f] = broyden(J[f], dz_last, r - f0[f])
-                x[f], cost[f], f0[f] = trial[f], c, r
-                jac_at_x[f] = need_jac[f]
-                lam[f] = max(lam[f] / 3, 1e-6)
-                small = small or drop < REFIT_FTOL
-            else:  # undone: step again from the kept point, damped more
-                dz_last = (trial[f] - x[f]) / problem.scale
-                small = float(np.max(np.abs(dz_last), initial=0.0)) < REFIT_XTOL
-                lam[f] *= 10
-                if not jac_at_x[f] and not small:  # the chord Jacobian is stale: take it again here
-                    trial[f], need_jac[f], refresh[f] = x[f].copy(), True, True
-                    continue
-            if small or steps[f] >= max_steps or J[f].shape[1] == 0 or not J[f].any():
-                done[f] = True
-                continue
-            need_jac[f] = False
-            dz = damped_step(J[f], f0[f], lam[f])
-            trial[f] = np.clip(x[f] + dz * problem.scale, problem.lower, problem.upper)
-            steps[f] += 1
-    return x
-
-
-def polish_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray]) -> list[np.ndarray]:
-    """Per-fold fits of a candidate with rough parameters, estimated like the all-runs fit: on
-    each fold's training samples, a trust-region fit from the fold's start
-    (:data:`POLISH_NFEV` evaluations; its own tests ``xtol`` 1e-3, ``ftol`` 1e-4), then
-    :meth:`Problem.polish` (the basin of the rough parameters)."""
+def fit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray]) -> list[np.ndarray]:
+    """Per-fold fits, each on the fold's own training samples only, from ``start[f]`` (a point
+    found without the fold's held-out samples), by the estimator of the all-runs fit: the
+    trust-region fit (:meth:`Problem.fit`: :data:`FOLD_NFEV` evaluations, its own tests
+    ``xtol`` 1e-3, ``ftol`` 1e-4), then :meth:`Problem.polish` (the basin of any rough
+    parameter).  The held-out score is then the score of the estimator the report uses, and
+    the folds' spread is that estimator's (the jackknife's)."""
     out = []
     for fold, x0 in zip(folds, start):
         pf, _ = fold_problem(problem, fold)
-        fit = pf.polish(pf.fit(np.asarray(x0, float), None, max_nfev=POLISH_NFEV))
+        fit = pf.polish(pf.fit(np.asarray(x0, float), None, max_nfev=FOLD_NFEV))
         problem.nsim += pf.nsim
         problem.unstable += pf.unstable
         out.append(fit.x)

@@ -12,8 +12,8 @@ score for the few candidates they rank first.
    ranked by that fit's in-sample gap (more free parameters can only lower it a little on
    thousands of samples; the held-out score below judges them);
 3. *confirm* the ``n_confirm`` best and the set accepted so far (:data:`NULL`): each fold's
-   parameters fitted on its own training samples to convergence (:func:`refit_folds`) and its
-   held-out samples simulated with them; this held-out gap decides.  The fold fits also give a
+   parameters fitted on its own training samples by the all-runs fit's estimator
+   (:func:`fit_folds`) and its held-out samples simulated with them; this held-out gap decides.  The fold fits also give a
    jackknife spread of each parameter.
 
 Held out means held out: every fold's fit starts from a point found without the fold's
@@ -21,12 +21,11 @@ held-out samples -- the earlier effects at their own fit on that fold (the corre
 nominal, the set accepted so far), the new candidate at the best point of its grid on the
 fold's training samples (:func:`fold_grid_starts`; a pair on the product of its two grids), a
 given set (the corrections in the first round) at its given values -- and never from the
-all-runs fit.  A fold's fit stops when a step lowers its training cost by less than
-:data:`REFIT_FTOL` (1e-3) of it, or moves every parameter by less than :data:`REFIT_XTOL`
-(1e-3) of its scale, or after :data:`REFIT_MAX_STEPS` (8) steps; the reasons are given at those
-constants.  Which candidates reach that score is chosen in-sample (stages 1 and 2, on every
-sample): a ranking cannot make a candidate's held-out score better than its structure earns,
-and computing the ranking fold by fold cost 2.5x the physics steps on the geared-servo case.
+all-runs fit.  A fold is fitted as the all-runs fit is (the trust-region fit to its own
+convergence tests within :data:`~discrepancy.folds.FOLD_NFEV` evaluations, then the basin of
+any rough parameter), so the held-out score judges the estimator the report uses.  Which
+candidates reach that score is chosen in-sample (stages 1 and 2, on every sample): a ranking
+cannot make a candidate's held-out score better than its structure earns, and computing the ranking fold by fold cost 2.5x the physics steps on the geared-servo case.
 
 Acceptance (held-out stopping): the best candidate's held-out gap must fall by at least
 ``min_share`` of the gap it started from, and that starting gap must stand clearly above the
@@ -51,10 +50,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fit import FitResult, Problem, gap, rough
+from .fit import FitResult, Problem, gap
 # the folds and the prescreen are named here too, where the search and the studies read them
 from .folds import (FOLD_SCHEMES, Fold, block_folds, fold_grid_starts, heldout, heldout_replays,  # noqa: F401
-                    make_folds, polish_folds, refit_folds, run_folds)
+                    make_folds, fit_folds, run_folds)
 from .prescreen import (N_SCREEN, NULL, PAIR_FITS, PAIR_GRID_POINTS, PAIR_GRID_S, PRESCREEN_S,  # noqa: F401
                         Prescreened, fold_pair_starts, grid_minima, pair_grid, prescreen)
 from .runs import ReplayRun
@@ -379,7 +378,7 @@ class Scorer:
         place): each fold fitted on its training samples only, from its own start
         (:attr:`Scored.fold_start`, moved to its grid's best point on the fold's training
         samples as :attr:`Scored.grid` says), never from the all-runs fit, to the convergence
-        test of :func:`refit_folds`."""
+        tests of :func:`fit_folds`."""
         t0 = time.perf_counter()
         prob = self.problem(s.effects)
         # the screening fit already simulated its end point (same model, runs and effects): the
@@ -394,11 +393,8 @@ class Scorer:
         else:
             starts = fold_grid_starts(prob, self.folds, s.fold_start,
                                       s.grid_from if s.grid == "effects" else len(s.effects))
-        if rough(s.effects):
-            # the folds are estimated the same way (so the jackknife sees the estimator's spread)
-            s.fold_x = polish_folds(prob, self.folds, starts)
-        else:
-            s.fold_x = refit_folds(prob, self.folds, starts)
+        # the folds are estimated the same way (so the jackknife sees the estimator's spread)
+        s.fold_x = fit_folds(prob, self.folds, starts)
         s.heldout_raw = heldout(prob, s.fold_x, self.folds)
         s.heldout_gap = gap(s.heldout_raw)
         s.share = share_of(s.heldout_gap, gap_start)
@@ -480,8 +476,7 @@ class Scorer:
             x0 = np.clip(np.concatenate([self.builder.nominal_values(e) for e in s.effects]), prob.lower, prob.upper)
             starts = [x0] * len(self.folds)
         starts = fold_grid_starts(prob, self.folds, starts, grid_from)
-        fold_x = (polish_folds(prob, self.folds, starts) if rough(s.effects)
-                  else refit_folds(prob, self.folds, starts))
+        fold_x = fit_folds(prob, self.folds, starts)
         raw = heldout(prob, fold_x, self.folds)
         g = gap(raw)
         return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, self.folds,
