@@ -52,12 +52,6 @@ from .torque import Estimator, InverseModel, MissingTorque, invert, smooth
 EXPLAINED_ENOUGH = 0.5
 #: Scored candidates kept in ``report.json`` (every one is in :attr:`Evidence.fits`).
 TOP = 5
-#: Candidates judged by equation error that the closed-loop search goes on to score: the best
-#: ``N_SHAPE`` by explained share (:meth:`Evidence.shortlist`).  3: chosen before any case was
-#: run with the shortlist and not tuned afterwards (the closed loop screens :data:`N_SCREEN
-#: <discrepancy.select.N_SCREEN>` = 4 candidates on all samples; three by shape leave room for
-#: one that needs a replay).
-N_SHAPE = 3
 #: Equal-width position bins of the summarised map.
 POSITION_BINS = 8
 #: Significant digits of the numbers in :meth:`Evidence.to_json`.
@@ -124,20 +118,6 @@ class Evidence:
     def explained_enough(self) -> bool:
         """Some library law explains at least :data:`EXPLAINED_ENOUGH` of the missing torque."""
         return self.best is not None and self.best.explained >= EXPLAINED_ENOUGH
-
-    def shortlist(self, names: tuple) -> tuple:
-        """The candidates of ``names`` the closed-loop search scores (named by shape, cheaply):
-        the :data:`N_SHAPE` that explain most of the missing torque, and every one
-        equation error cannot judge (hidden state: it needs a replay), in the order of
-        ``names``; all of ``names`` when the evidence is not available (a stateful actuator,
-        a failure).  The shape fits saw every fit sample, so they rank only: no fold starts from
-        their values (held-out scores stay held out)."""
-        if not self.available:
-            return tuple(names)
-        scored = [f.name for f in self.fits if f.explained is not None and f.name in names]
-        keep = set(scored[:N_SHAPE]) | {f.name for f in self.fits if f.explained is None}
-        keep |= {n for n in names if self.fit_of(n) is None}  # not fitted: never left out unseen
-        return tuple(n for n in names if n in keep)
 
     def fit_of(self, name: str):
         """The shape fit of effect ``name`` (None if it was not a candidate)."""

@@ -1,6 +1,6 @@
-"""The prescreen: every candidate fitted coarsely on short records, all in lockstep, to rank
-them (never a held-out score), and the starting grids of pairs of effects.
-Used by :class:`discrepancy.select.Scorer`.
+"""The prescreen: every candidate fitted coarsely on short records, all in lockstep, to choose
+the few the held-out screening scores; and the starting grids of pairs of effects.  Used by
+:class:`discrepancy.select.Scorer`.
 """
 
 from __future__ import annotations
@@ -11,13 +11,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .fit import Problem, damped_step, gap, unstable_count
-from .folds import Fold, fold_records
 from .runs import ReplayRun
+
 
 #: The candidate of a round that adds no effect: the set accepted so far, fitted and scored like
 #: every candidate, the reference of the round's shares (:func:`score_round`).
 NULL = "(no new effect)"
-
 #: Length [s] of the short records on which every candidate is prescreened (1 s: a step edge and
 #: its settling, or 1.5-3.5 cycles of a 1.5-3.5 Hz sine from the start; half of an Omni bank
 #: run, a sixth of a paper-campaign sine, a fifth of a geared-servo bank run).  In seconds, not
@@ -32,8 +31,7 @@ PRESCREEN_ITERATIONS = 3
 
 @dataclass
 class Prescreened:
-    """A candidate fitted on the short records: its free effects, start, end point and gap
-    [rad] there."""
+    """A candidate fitted on the short records: its free effects, start, end point, gap [rad]."""
 
     name: str
     effects: list
@@ -47,17 +45,16 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
               runs: list[ReplayRun], rep,
               seconds: float = PRESCREEN_S, iterations: int = PRESCREEN_ITERATIONS,
               log=None, jobs: list | None = None) -> list[Prescreened]:
-    """Fit every candidate coarsely on the first ``seconds`` of each run; best first (a
-    ranking on every sample of those records, never a held-out score).
+    """Fit every candidate coarsely on the first ``seconds`` of each run; best first.
 
     All candidates advance together: their grid points form one batch (per group of models
     that can share one, :meth:`Replayer.simulate_grouped`), then each Gauss-Newton iteration
     simulates every candidate's point and its finite-difference perturbations in one batch and
     each candidate takes its own damped step.  A candidate thus costs a few short-record
-    batches, not a full campaign; the best :data:`N_SCREEN` go on to the screening.
+    batches, not a full campaign; the best :data:`N_SCREEN` go on to the held-out screening.
 
     ``jobs``: (base effects, their values, candidate name) per candidate -- several bases
-    scored in one lockstep (the beam of :meth:`Scorer.score_round`); by default every name on
+    scored in one lockstep (the beam of :func:`score_round`); by default every name on
     ``accepted``.
     """
     t0 = time.perf_counter()
@@ -88,13 +85,12 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
 
 
 def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: list[ReplayRun],
-                    rep, masks: list | None = None) -> tuple[Problem, np.ndarray, list[np.ndarray]]:
+                    rep) -> tuple[Problem, np.ndarray, list[np.ndarray]]:
     """The problem of ``base`` + candidate ``name`` on ``runs``, its start (``base_x``, the
     candidate at its nominal values) and its starting grids, one per base point: the
     candidate's grid with the base at ``base_x`` followed by the start itself, and, when the
     model's own values of the base differ from ``base_x``, the candidate's grid with the base
-    there.  ``name`` None: the base alone (:data:`NULL`), from ``base_x``.  ``masks``: the
-    samples of each run the problem's objective uses (:class:`Problem`).
+    there.  ``name`` None: the base alone (:data:`NULL`), from ``base_x``.
 
     Why a second grid from the model's own values: ``base_x`` holds the corrections fitted
     *without* the candidate, which stand in for it where they can (on the bank's
@@ -104,11 +100,11 @@ def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: li
     the best grid point about the user's values reach the truth (docs/method/discrepancy.md, "Why the
     load law is blended, and why the prescreen starts twice")."""
     if name is None:
-        prob = Problem(builder, [], list(base), runs, rep, masks=masks)
+        prob = Problem(builder, [], list(base), runs, rep)
         x0 = np.clip(np.asarray(base_x, float), prob.lower, prob.upper)
         return prob, x0, [[x0]]
     eff = builder.effect(name)
-    prob = Problem(builder, [], list(base) + [eff], runs, rep, masks=masks)
+    prob = Problem(builder, [], list(base) + [eff], runs, rep)
     x0 = np.clip(np.concatenate([np.asarray(base_x, float), builder.nominal_values(eff)]),
                  prob.lower, prob.upper)
     i0 = len(x0) - eff.nparam
@@ -130,8 +126,8 @@ def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: li
 
 def grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
                  runs: list[ReplayRun]) -> list[tuple[float, np.ndarray]]:
-    """Each problem's best grid point on ``runs`` and its gap on the problem's samples
-    (:meth:`Problem.used`), ``(gap, point)``: every point of every grid simulated together (one batch per group of models that can share one)."""
+    """Each problem's best grid point on ``runs`` and its gap, ``(gap, point)``: every point of
+    every grid simulated together (one batch per group of models that can share one)."""
     nr = len(runs)
     models, pairs = [], []
     for prob, pts in zip(probs, grids):
@@ -145,7 +141,7 @@ def grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
         for _ in pts:
             res = [th[m * nr + j] - runs[j].theta for j in range(nr)]
             prob.unstable += unstable_count(res)
-            gaps.append(gap(prob.used(res)))
+            gaps.append(gap(res))
             m += 1
         i = int(np.argmin(gaps))
         out.append((gaps[i], pts[i].copy()))
@@ -178,7 +174,7 @@ def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], 
             raws = [[th[(first + i) * nr + j] - runs[j].theta for j in range(nr)]
                     for i in range(len(h) + 1)]
             prob.unstable += sum(unstable_count(raw) for raw in raws)
-            g0 = gap(prob.used(raws[0]))
+            g0 = gap(raws[0])
             if g0 <= best_gap[c]:
                 best_gap[c], best_x[c] = g0, xs[c].copy()
                 lam[c] = max(lam[c] / 3, 1e-6)
@@ -204,34 +200,8 @@ PAIR_FITS = 8
 PAIR_GRID_POINTS = 5
 
 
-def _thin(grid: np.ndarray, m: int) -> np.ndarray:
+def thin_grid(grid: np.ndarray, m: int) -> np.ndarray:
     """At most ``m`` points of a starting grid, spread over it (ends kept)."""
     if len(grid) <= m:
         return grid
     return grid[np.unique(np.round(np.linspace(0, len(grid) - 1, m)).astype(int))]
-
-
-def pair_grid(builder, effects: list, lower: np.ndarray, upper: np.ndarray,
-              grid_points: int = PAIR_GRID_POINTS) -> list[np.ndarray]:
-    """A pair's starting grid: the product of its two effects' grids (each thinned to
-    ``grid_points``), and the nominal values; clipped to ``lower``/``upper``."""
-    ga = _thin(effects[0].grid(builder.nominal_values(effects[0])), grid_points)
-    gb = _thin(effects[1].grid(builder.nominal_values(effects[1])), grid_points)
-    x0 = np.concatenate([builder.nominal_values(e) for e in effects])
-    return [np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)), effects[1].clip(np.asarray(v, float))]),
-                    lower, upper) for u in ga for v in gb] + [np.clip(x0, lower, upper)]
-
-
-def fold_pair_starts(problem: Problem, folds: list[Fold]) -> list[np.ndarray]:
-    """Each fold's start for a pair: the best point of the pair's product grid
-    (:func:`pair_grid`) on the fold's training samples of the first :data:`PAIR_GRID_S`
-    seconds (:func:`fold_records`)."""
-    out = []
-    for fold in folds:
-        runs, masks = fold_records(problem.runs, fold, PAIR_GRID_S)
-        pf = Problem(problem.builder, problem.fixed, problem.free, runs, problem.rep, masks=masks)
-        (_, x), = grid_minima(problem.rep, [pf], [pair_grid(pf.builder, pf.free, pf.lower, pf.upper)], runs)
-        problem.nsim += pf.nsim
-        problem.unstable += pf.unstable
-        out.append(x)
-    return out

@@ -195,13 +195,6 @@ class Replayer:
     def __enter__(self):
         return self
 
-    @property
-    def warnings(self) -> dict:
-        """The report's ``mujoco_warnings``: unstable replays, MuJoCo's instability warnings
-        and the first one's text."""
-        return {"unstable_simulations": self.unstable_replays, "instability_warnings": self.unstable_warnings,
-                "first": self.first_warning}
-
     def _warned(self, msg: str) -> None:
         self.unstable_warnings += 1
         if not self.first_warning:

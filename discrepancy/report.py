@@ -87,10 +87,9 @@ def assemble_report(builder, runs: list[ReplayRun], findings: Findings, settings
     loc_before = localise(runs, nominal.theta, actuator_limit)
     loc_after = localise(runs, theta_after, actuator_limit)
     rounds = selection.rounds
-    # the library's nearest candidates (round 1, held-out share: the ones scored held out), for
-    # a gap left unexplained
+    # the library's nearest candidates (round 1, held-out share), for a gap left unexplained
     nearest = [{"name": c.name, "share": c.share, "confidence": "low"}
-               for c in (rounds[0] if rounds else []) if c.method == "refit" and c.name != sel.NULL][:3]
+               for c in (rounds[0] if rounds else []) if c.method != "prescreen" and c.name != sel.NULL][:3]
     return {
         "effects": effects,
         "corrections": corrections,
@@ -135,8 +134,7 @@ def sampling(run: ReplayRun) -> dict:
 def _candidate_row(s: Scored) -> dict:
     """One scored candidate as the report lists it."""
     return {"name": s.name, "heldout_gap_rad": s.heldout_gap, "share": s.share,
-            "method": s.method, "prescreen_gap_rad": s.prescreen_gap, "train_gap_rad": s.train_gap,
-            "unstable_replays": s.unstable,
+            "method": s.method, "prescreen_gap_rad": s.prescreen_gap, "unstable_replays": s.unstable,
             "parameters": {p.name: float(v) for e, x in split_values(s.effects, s.fit.x)
                            for p, v in zip(e.params, x)}}
 

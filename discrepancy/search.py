@@ -43,7 +43,7 @@ class Selection:
         The held-out gap the next round starts from.
     best : Scored or None
         The accepted set of effects (its fit and folds), None before any is accepted.
-    beam : list of (effects, values, fold values) or None
+    beam : list of (effects, values) or None
         The pair search's confirmed pairs, grown together in the next round.
     fixed : tuple of str
         The nominal's corrections (accepted before round 1, never removed).
@@ -76,11 +76,6 @@ class Selection:
     def accepted_x(self) -> np.ndarray:
         """Their fitted values."""
         return self.best.fit.x if self.best is not None else np.zeros(0)
-
-    @property
-    def accepted_fold_x(self) -> list | None:
-        """Their fold fits, one per fold (where each fold's fits start); None before any."""
-        return list(self.best.fold_x) if self.best is not None else None
 
     def accept(self, best: Scored) -> None:
         """Take ``best`` as the accepted set; the next round starts from its held-out gap."""
@@ -180,7 +175,7 @@ class Search:
             # members included)
             scored = self.scorer.score_round(state.accepted, state.accepted_x, state.gap,
                                              candidates=tuple(candidates if state.beam else names),
-                                             bases=state.beam, accepted_fold_x=state.accepted_fold_x)
+                                             bases=state.beam)
             state.rounds.append(scored)
             state.take_null(scored)
             entry = round_entry(rnd, scored, state.gap, self.noise)
@@ -254,7 +249,7 @@ class Search:
         # compensates the missing armature; the triple grows from Coulomb + delay)
         confirmed = [p for p in pairs if p.method == "refit" and math.isfinite(p.heldout_gap)]
         if len(confirmed) > 1:
-            state.beam = [(p.effects, p.fit.x, list(p.fold_x)) for p in confirmed]
+            state.beam = [(p.effects, p.fit.x) for p in confirmed]
             state.pairs_scored = [p for p in pairs if math.isfinite(p.heldout_gap)]
         return True
 
@@ -331,7 +326,6 @@ class Search:
         for sch in sel.FOLD_SCHEMES:
             row = {"nominal": gap_nominal}
             scorer = self.scorer.on(sel.make_folds(self.runs, self.k, sch))
-            corrected_fold_x = None  # the corrected nominal's fold fits on this scheme's folds
             for key, sc in (("corrected", start), ("after", self.selection.best)):
                 if sc is None or (key == "after" and sc is start):  # nothing fitted, or nothing named
                     row[key] = row.get("corrected", gap_nominal)
@@ -339,9 +333,7 @@ class Search:
                         row["after_unstable_replays"] = row["corrected_unstable_replays"]
                     continue
                 if sch != self.scheme:
-                    sc = scorer.rescore(sc, gap_nominal, *self._rescore_starts(sc, corrected_fold_x))
-                if key == "corrected":
-                    corrected_fold_x = sc.fold_x
+                    sc = scorer.rescore(sc, gap_nominal)
                 row[key] = sc.heldout_gap
                 row[f"{key}_unstable_replays"] = sc.unstable
             row["share_removed_by_effects"] = sel.share_of(row["after"], row["corrected"])
@@ -350,19 +342,6 @@ class Search:
             f"{sch} folds {r['nominal']:.3e} -> {r['corrected']:.3e} (corrected) -> {r['after']:.3e} rad"
             for sch, r in out.items()))
         return out
-
-    def _rescore_starts(self, sc: Scored, corrected_fold_x: list | None) -> tuple[list | None, int]:
-        """Each fold's start for rescoring ``sc`` on the other scheme's folds and the index of
-        the first effect to start from its grid: the corrected nominal's fold fit on those folds
-        for the corrections (when ``sc`` begins with them), the rest from their grid's best
-        point on the fold's training samples; without, every effect from its nominal values
-        (the corrections) or its grid (the named effects)."""
-        start = self.start
-        n = len(start.effects) if start is not None else 0
-        if corrected_fold_x is None or [e.name for e in sc.effects[:n]] != [e.name for e in start.effects]:
-            return None, n if sc is not start else len(sc.effects)
-        rest = [self.builder.nominal_values(e) for e in sc.effects[n:]]
-        return [np.concatenate([np.asarray(x, float)] + rest) for x in corrected_fold_x], n
 
 
 def round_entry(rnd: int, scored: list[Scored], gap_start: float, noise: float) -> dict:

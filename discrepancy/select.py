@@ -1,31 +1,18 @@
 """Name the missing effect: score every candidate on held-out runs, accept the best if it
 removes a clear share of the gap, repeat (forward selection, up to three effects).
 
-Scoring (per round): two ranking stages that never claim a held-out score, then a held-out
-score for the few candidates they rank first.
+Scoring (per round):
 
-1. *prescreen* every candidate on short records (the first :data:`PRESCREEN_S` seconds of
-   each run): its grid, then a few damped Gauss-Newton steps, all candidates in lockstep so
+1. *prescreen* every candidate on short records (the first :data:`PRESCREEN_S` seconds
+   of each run): its grid, then a few damped Gauss-Newton steps, all candidates in lockstep so
    each iteration is one batch of rollouts (earlier accepted effects stay free so effects can
-   trade off).  A ranking: a candidate costs a few short batches, not a campaign;
-2. *screen* the :data:`N_SCREEN` best: least squares on all runs from the prescreen's point;
-   ranked by that fit's in-sample gap (more free parameters can only lower it a little on
-   thousands of samples; the held-out score below judges them);
-3. *confirm* the ``n_confirm`` best and the set accepted so far (:data:`NULL`): each fold's
-   parameters fitted on its own training samples by the all-runs fit's estimator
-   (:func:`fit_folds`) and its held-out samples simulated with them; this held-out gap decides.  The fold fits also give a
-   jackknife spread of each parameter.
-
-Held out means held out: every fold's fit starts from a point found without the fold's
-held-out samples -- the earlier effects at their own fit on that fold (the corrections of the
-nominal, the set accepted so far), the new candidate at the best point of its grid on the
-fold's training samples (:func:`fold_grid_starts`; a pair on the product of its two grids), a
-given set (the corrections in the first round) at its given values -- and never from the
-all-runs fit.  A fold is fitted as the all-runs fit is (the trust-region fit to its own
-convergence tests within :data:`~discrepancy.folds.FOLD_NFEV` evaluations, then the basin of
-any rough parameter), so the held-out score judges the estimator the report uses.  Which
-candidates reach that score is chosen in-sample (stages 1 and 2, on every sample): a ranking
-cannot make a candidate's held-out score better than its structure earns, and computing the ranking fold by fold cost 2.5x the physics steps on the geared-servo case.
+   trade off).  A candidate costs a few short batches, not a campaign;
+2. *screen* the :data:`N_SCREEN` best on all runs: least squares from the prescreen's point,
+   then the held-out gap with k-fold over runs, each fold's parameters from one Gauss-Newton
+   step from the all-runs fit with the held-out runs' rows removed (cheap: one Jacobian);
+3. *confirm*: the best candidates (``n_confirm``) are refitted exactly on each fold's training
+   runs (warm start) and their held-out runs simulated with those parameters; this held-out gap
+   decides.  The fold fits also give a jackknife spread of each parameter.
 
 Acceptance (held-out stopping): the best candidate's held-out gap must fall by at least
 ``min_share`` of the gap it started from, and that starting gap must stand clearly above the
@@ -37,7 +24,8 @@ removals and rescoring as methods; :class:`discrepancy.search.Search` holds one)
 side comes in from the caller: ``builder`` (:class:`~discrepancy.effects.ModelBuilder`:
 effects by name, their nominal values, compiled models) and ``rep``
 (:class:`~discrepancy.replay.Replayer`: simulates models on runs); this module only
-fits, scores and compares.
+fits, scores and compares; the folds and the fits on them are in :mod:`.folds`, the prescreen
+and the pairs' starting grids in :mod:`.prescreen`.
 """
 
 from __future__ import annotations
@@ -50,12 +38,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fit import FitResult, Problem, gap
+from .fit import FitResult, Problem, gap, rough
 # the folds and the prescreen are named here too, where the search and the studies read them
-from .folds import (FOLD_SCHEMES, Fold, block_folds, fold_grid_starts, heldout, heldout_replays,  # noqa: F401
-                    make_folds, fit_folds, run_folds)
-from .prescreen import (N_SCREEN, NULL, PAIR_FITS, PAIR_GRID_POINTS, PAIR_GRID_S, PRESCREEN_S,  # noqa: F401
-                        Prescreened, fold_pair_starts, grid_minima, pair_grid, prescreen)
+from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, REFIT_ITERATIONS, Fold, block_folds,  # noqa: F401
+                    heldout, heldout_replays, make_folds, onestep_folds, polish_folds, refit_folds, run_folds)
+from .prescreen import (N_SCREEN, NULL, PAIR_FITS, PAIR_GRID_POINTS, PAIR_GRID_S, PRESCREEN_ITERATIONS,  # noqa: F401
+                        PRESCREEN_S, Prescreened, grid_minima, prescreen, thin_grid)
 from .runs import ReplayRun
 
 #: Least share of the round's starting held-out gap the best candidate must remove.
@@ -80,13 +68,8 @@ def share_of(g: float, gap_start: float) -> float:
     return 0.0 if g <= 0 else -math.inf
 
 
-#: Least-squares evaluations of a confirmed candidate's all-runs fit, from the screening fit's
-#: end point (each evaluation simulates the point and its p perturbations in one batch).
-CONFIRM_NFEV = 10
 #: Candidates (best by the screen's held-out gap) confirmed with exact per-fold refits.
 N_CONFIRM = 2
-
-
 #: Pairs are searched when the best single candidate removes less than this share of the gap.
 PAIR_SEARCH_SHARE = 0.5
 
@@ -121,9 +104,7 @@ class Scored:
     share : float
         ``1 - heldout_gap / gap_start`` of the round.
     method : str
-        ``"screen"`` (fitted on all runs, ranked by that in-sample gap, not held out),
-        ``"refit"`` (per-fold fits to convergence, scored held out) or ``"prescreen"`` (fitted
-        on the short records only).
+        ``"one-step"`` or ``"refit"`` (how the fold parameters were obtained).
     heldout_raw : list of ndarray
         Held-out residual [rad] per run.
     fold_x : list of ndarray
@@ -142,34 +123,6 @@ class Scored:
     seconds: float = 0.0
     prescreen_gap: float = math.nan
     unstable: int = 0  # replays MuJoCo found unstable while fitting and scoring it (excluded)
-    #: The all-runs fit's gap on every sample [rad] (in-sample: it ranks the screened
-    #: candidates, never judges one).
-    train_gap: float = math.nan
-    #: Each fold's start before its grid (found without the fold's held-out samples: the set
-    #: accepted so far at its own fold fit, the rest at the builder's nominal values), and what
-    #: moves to a grid on the fold's training samples before the fold's fit (:meth:`Scorer._confirm`):
-    #: ``grid`` "effects" (each effect from index ``grid_from`` on, one after the other), "pair"
-    #: (the two effects on the product of their grids) or "" (none).
-    fold_start: list | None = field(default=None, repr=False)
-    grid_from: int = 0
-    grid: str = ""
-
-    @property
-    def rank_gap(self) -> float:
-        """The gap that orders the candidates: held out once confirmed, else in-sample (screened),
-        else infinite (prescreened only)."""
-        if math.isfinite(self.heldout_gap):
-            return self.heldout_gap
-        return self.train_gap if math.isfinite(self.train_gap) else math.inf
-
-
-def _values(effects: list, x: np.ndarray) -> list[np.ndarray]:
-    """``x`` split into each effect's values."""
-    out, i = [], 0
-    for e in effects:
-        out.append(np.asarray(x[i:i + e.nparam], float))
-        i += e.nparam
-    return out
 
 
 def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> list[tuple[str | None, float]]:
@@ -256,57 +209,43 @@ class Scorer:
     def score_round(self, accepted: list, accepted_x: np.ndarray, gap_start: float, *,
                     candidates: tuple[str, ...] | None = None, bases: list | None = None,
                     n_confirm: int = N_CONFIRM, screen_nfev: int = 4, n_screen: int | None = None,
-                    prescreen_s: float | None = None, accepted_fold_x: list | None = None) -> list[Scored]:
+                    prescreen_s: float | None = None) -> list[Scored]:
         """Fit and score every candidate not yet accepted; best first.
 
-        With ``bases`` (a beam: several sets of effects with their fitted values and fold fits,
-        e.g. the pairs the pair search confirmed), every candidate is added to every base it is
-        not in, all of them prescreened in one lockstep; the scored sets are named ``"a+b+c"``
-        (base, then the candidate) and the best set wins, whichever base it grew from.
+        With ``bases`` (a beam: several sets of effects with their fitted values, e.g. the pairs
+        the pair search confirmed), every candidate is added to every base it is not in, all of
+        them prescreened in one lockstep; the scored sets are named ``"a+b+c"`` (base, then the
+        candidate) and the best set wins, whichever base it grew from.
 
         Parameters
         ----------
         accepted, accepted_x : list of Effect, ndarray
             Effects accepted in earlier rounds and their fitted values (free again in this round).
-        accepted_fold_x : list of ndarray, optional
-            The accepted effects' own fold fits, one per fold: each fold's fits start there
-            (default ``accepted_x`` for every fold, for a set given without fold fits).
         gap_start : float [rad]
             Held-out gap of the model the round starts from.
         candidates : tuple of str, optional
             Library names to try (default: all).
-        bases : list of (effects, values, fold values), optional
-            The beam.
         n_confirm : int
-            Candidates (best by their all-runs gap) refitted per fold and scored held out.
+            Candidates refitted exactly per fold after screening.
         screen_nfev : int
             Least-squares evaluations of the screening fit (the confirmed candidates are then
             fitted to convergence).
         n_screen : int
             Candidates, best on the short records (:func:`prescreen`), that are fitted on all runs
-            (default :data:`N_SCREEN`); the others keep their prescreen.
+            and scored on held-out runs (default :data:`N_SCREEN`); the others keep their prescreen.
         prescreen_s : float [s]
             Length of the prescreen's short records (default :data:`PRESCREEN_S`).
         """
         names = [n for n in (candidates or self.builder.names) if n not in [e.name for e in accepted]]
-        k = len(self.folds)
-        acc_fold_x = list(accepted_fold_x) if accepted_fold_x is not None else [accepted_x] * k
+        jobs = None
         if bases:
-            jobs = [(list(b), bx, bfx, n) for b, bx, bfx in bases for n in (candidates or self.builder.names)
+            jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or self.builder.names)
                     if n not in [e.name for e in b]]
-        else:  # the set so far (NULL) fitted and scored exactly as every candidate
-            jobs = [(list(accepted), accepted_x, acc_fold_x, n) for n in names]
-            if accepted:
-                jobs.append((list(accepted), accepted_x, acc_fold_x, None))
+        if accepted and not bases:  # the set so far, fitted and scored exactly as every candidate
+            jobs = [(list(accepted), accepted_x, n) for n in names] + [(list(accepted), accepted_x, None)]
         pre = prescreen(self.builder, accepted, accepted_x, names, self.runs, self.rep,
-                        seconds=PRESCREEN_S if prescreen_s is None else prescreen_s, log=self.log,
-                        jobs=[(b, bx, n) for b, bx, _, n in jobs] if (bases or accepted) else None)
-        starts = {}  # each prescreened label's fold starts and where its grid begins
-        for b, _, bfx, n in jobs:
-            label = "+".join([e.name for e in b] + [n]) if bases else (n or NULL)
-            extra = [] if n is None else [self.builder.nominal_values(self.builder.effect(n))]
-            starts[label] = ([np.concatenate([np.asarray(x, float)] + extra) for x in bfx], len(b))
-        scored = self._screen_all(pre, starts, N_SCREEN if n_screen is None else n_screen,
+                        seconds=PRESCREEN_S if prescreen_s is None else prescreen_s, log=self.log, jobs=jobs)
+        scored = self._screen_all(pre, gap_start, N_SCREEN if n_screen is None else n_screen,
                                   screen_nfev=screen_nfev, width=36 if bases else 18)
         null = [sc for sc in scored if sc.name == NULL]
         if not null:
@@ -318,13 +257,12 @@ class Scorer:
         out = self._confirm_best([sc for sc in scored if sc.name != NULL], gap_start, n_confirm)
         for sc in out + null:
             sc.share = share_of(sc.heldout_gap, null[0].heldout_gap)
-        return sorted(out + null, key=lambda sc: sc.rank_gap)
+        return sorted(out + null, key=lambda sc: sc.heldout_gap)
 
-    def _screen_all(self, pre: list[Prescreened], starts: dict, n_screen: int, *,
+    def _screen_all(self, pre: list[Prescreened], gap_start: float, n_screen: int, *,
                     screen_nfev: int, width: int) -> list[Scored]:
         """The prescreened candidates scored: the ``n_screen`` best (and :data:`NULL`) fitted on
-        all runs (their in-sample gap ranks them), the others with their prescreen only;
-        ``starts[name]``: each fold's start and where its grid begins."""
+        all runs and screened on held-out samples, the others with their prescreen only."""
         keep = {c.name for c in [c for c in pre if c.name != NULL][:n_screen]} | {NULL}
         scored: list[Scored] = []
         for c in pre:
@@ -338,47 +276,36 @@ class Scorer:
             # a screening fit only ranks the candidates (the best are confirmed with full fits):
             # the start's Jacobian serves its few steps
             fit = prob.fit(c.x, None, max_nfev=screen_nfev, chord=True)
-            fold_start, grid_from = starts[c.name]
-            sc = self._screened(c.name, c.effects, prob, fit, (fold_start, grid_from, "effects"), t0=t0,
-                                width=width)
+            sc = self._screened(c.name, c.effects, prob, fit, gap_start, t0, width=width)
             sc.prescreen_gap = c.gap
             sc.unstable += c.unstable
             scored.append(sc)
         return scored
 
     # -- screening and confirmation --------------------------------------------------------------
-    def _screened(self, name: str, effects: list, prob: Problem, fit: FitResult, start: tuple, *,
-                  t0: float | None = None, width: int = 18) -> Scored:
-        """A set of effects fitted on all runs: ranked by that fit's in-sample gap (no held-out
-        score: :meth:`_confirm` gives one); ``start``: ``(each fold's start, grid_from, grid)``
-        for the confirmation (:class:`Scored`); ``t0``: when its scoring began (for its
-        ``seconds``; default now)."""
-        t0 = time.perf_counter() if t0 is None else t0
-        fold_start, grid_from, grid = start
-        s = Scored(name, effects, fit, method="screen", folds=self.folds, seconds=time.perf_counter() - t0,
-                   unstable=prob.unstable, train_gap=fit.gap_train, fold_start=list(fold_start),
-                   grid_from=grid_from, grid=grid)
+    def _screened(self, name: str, effects: list, prob: Problem, fit: FitResult, gap_start: float,
+                  t0: float, *, width: int = 18) -> Scored:
+        """Score an all-runs fit on held-out samples with one Gauss-Newton step per fold."""
+        fold_x = onestep_folds(prob, fit, self.folds)
+        raw = heldout(prob, fold_x, self.folds)
+        g = gap(raw)
+        s = Scored(name, effects, fit, g, share_of(g, gap_start), "one-step", raw, fold_x, self.folds,
+                   time.perf_counter() - t0, unstable=prob.unstable)
         if self.log:
-            self.log(f"  {name:{width}s} screen all-runs gap {fit.gap_train:.3e} rad (in-sample) "
+            self.log(f"  {name:{width}s} screen held-out gap {g:.3e} rad (share {s.share:+.2f}) "
                      f"x={np.array2string(fit.x, precision=4)} [{s.seconds:.1f} s]")
         return s
 
     def _confirm_best(self, scored: list[Scored], gap_start: float, n_confirm: int) -> list[Scored]:
-        """Confirm the ``n_confirm`` screened candidates of least all-runs gap; best first (the
-        confirmed by their held-out gap, then the rest by their all-runs gap)."""
-        scored.sort(key=lambda s: s.rank_gap)
+        """Confirm the ``n_confirm`` best screened candidates with exact refits; best first."""
+        scored.sort(key=lambda s: s.heldout_gap)
         for s in scored[:n_confirm]:
-            if s.method == "screen":
-                self._confirm(s, gap_start)
-        confirmed = sorted(scored[:n_confirm], key=lambda s: s.rank_gap)
+            self._confirm(s, gap_start)
+        confirmed = sorted(scored[:n_confirm], key=lambda s: s.heldout_gap)
         return confirmed + scored[n_confirm:]
 
     def _confirm(self, s: Scored, gap_start: float, nfev: int | None = None) -> None:
-        """Converge the all-runs fit of ``s`` (its reported values) and score it held out (in
-        place): each fold fitted on its training samples only, from its own start
-        (:attr:`Scored.fold_start`, moved to its grid's best point on the fold's training
-        samples as :attr:`Scored.grid` says), never from the all-runs fit, to the convergence
-        tests of :func:`fit_folds`."""
+        """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
         t0 = time.perf_counter()
         prob = self.problem(s.effects)
         # the screening fit already simulated its end point (same model, runs and effects): the
@@ -388,13 +315,12 @@ class Scorer:
         # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
         # minimum wherever it started; the basin search moves it to the basin's centre
         s.fit = prob.polish(s.fit)
-        if s.grid == "pair":
-            starts = fold_pair_starts(prob, self.folds)
+        s.fold_x = onestep_folds(prob, s.fit, self.folds)
+        if rough(s.effects):
+            # the folds are estimated the same way (so the jackknife sees the estimator's spread)
+            s.fold_x = polish_folds(prob, self.folds, s.fold_x)
         else:
-            starts = fold_grid_starts(prob, self.folds, s.fold_start,
-                                      s.grid_from if s.grid == "effects" else len(s.effects))
-        # the folds are estimated the same way (so the jackknife sees the estimator's spread)
-        s.fold_x = fit_folds(prob, self.folds, starts)
+            s.fold_x = refit_folds(prob, self.folds, s.fold_x)
         s.heldout_raw = heldout(prob, s.fold_x, self.folds)
         s.heldout_gap = gap(s.heldout_raw)
         s.share = share_of(s.heldout_gap, gap_start)
@@ -416,9 +342,8 @@ class Scorer:
         :meth:`score_round` adds them, cannot find such a pair.  Here every pair starts from the
         best point of the product of the two effects' grids (each thinned to ``grid_points``),
         all pairs' grid points simulated together on the first ``grid_s`` seconds of each run;
-        the ``n_fit`` best pairs are fitted on all runs, and the ``n_confirm`` of least all-runs
-        gap are confirmed: each fold from the best point of the pair's product grid on its own
-        training samples (:func:`fold_pair_starts`), fitted to convergence, scored held out.
+        the ``n_fit`` best pairs are fitted on all runs and screened on held-out samples like the
+        single candidates, and the best ``n_confirm`` are confirmed with exact per-fold refits.
         """
         starts = self._pair_starts(candidates or self.builder.names, grid_s, grid_points, n_fit)
         scored = []
@@ -427,22 +352,26 @@ class Scorer:
             effects = [self.builder.effect(a), self.builder.effect(b)]
             prob = self.problem(effects)
             fit = prob.fit(x0, None, max_nfev=screen_nfev)
-            nominal = np.concatenate([self.builder.nominal_values(e) for e in effects])
-            scored.append(self._screened(f"{a}+{b}", effects, prob, fit, ([nominal] * len(self.folds), 0, "pair"),
-                                         t0=t0, width=36))
+            scored.append(self._screened(f"{a}+{b}", effects, prob, fit, gap_start, t0, width=36))
         return self._confirm_best(scored, gap_start, n_confirm)
 
     def _pair_starts(self, names, grid_s: float, grid_points: int, n_fit: int) -> list[tuple]:
         """Every pair of ``names`` at the best point of its grid on the first ``grid_s`` seconds
-        of each run: ``(gap, a, b, point)``, best first (the ``n_fit`` best logged; a ranking
-        and a start for the all-runs fits, never a held-out score)."""
+        of each run: ``(gap, a, b, point)``, best first (the ``n_fit`` best logged)."""
+        builder = self.builder
         grid_runs = [r.first_seconds(grid_s) for r in self.runs]
         t0 = time.perf_counter()
         combos = list(itertools.combinations(names, 2))
         probs, grids = [], []
         for a, b in combos:
-            prob = self.problem([self.builder.effect(a), self.builder.effect(b)], grid_runs)
-            grids.append(pair_grid(self.builder, prob.free, prob.lower, prob.upper, grid_points))
+            effects = [builder.effect(a), builder.effect(b)]
+            prob = self.problem(effects, grid_runs)
+            ga = thin_grid(effects[0].grid(builder.nominal_values(effects[0])), grid_points)
+            gb = thin_grid(effects[1].grid(builder.nominal_values(effects[1])), grid_points)
+            x0 = np.concatenate([builder.nominal_values(e) for e in effects])
+            grids.append([np.clip(np.concatenate([effects[0].clip(np.asarray(u, float)),
+                                                  effects[1].clip(np.asarray(v, float))]), prob.lower, prob.upper)
+                          for u in ga for v in gb] + [np.clip(x0, prob.lower, prob.upper)])
             probs.append(prob)
         minima = grid_minima(self.rep, probs, grids, grid_runs)
         starts = [(g, a, b, x) for (a, b), (g, x) in zip(combos, minima)]
@@ -455,28 +384,24 @@ class Scorer:
     # -- given sets ------------------------------------------------------------------------------
     def score_set(self, name: str, effects: list, x0: np.ndarray, gap_start: float) -> Scored:
         """Fit a given set of effects from ``x0`` on all runs and score it held out like a
-        confirmed candidate: e.g. the nominal's corrections alone, the start every named effect
-        must beat (every fold starts from ``x0``, the user's values: no data seen)."""
+        confirmed candidate (exact per-fold refits): e.g. the nominal's corrections alone, the
+        start every named effect must beat."""
         t0 = time.perf_counter()
         prob = self.problem(effects)
         fit = prob.fit(np.asarray(x0, float), None, max_nfev=8)
-        sc = self._screened(name, effects, prob, fit, ([np.asarray(x0, float)] * len(self.folds), 0, ""), t0=t0)
+        sc = self._screened(name, effects, prob, fit, gap_start, t0, width=18)
         self._confirm(sc, gap_start)
         return sc
 
-    def rescore(self, s: Scored, gap_start: float, starts: list | None = None, grid_from: int = 0) -> Scored:
-        """``s``'s set of effects scored held out on this scorer's folds (per-fold refits to
-        convergence; the all-runs fit is kept): e.g. the named set under the fold scheme the
-        verdict did not use (:meth:`on`).  Each fold starts from ``starts[f]`` (default the
-        builder's nominal values of every effect: no data seen), the effects from index
-        ``grid_from`` on moved to their grid's best point on the fold's training samples
-        (:func:`fold_grid_starts`)."""
+    def rescore(self, s: Scored, gap_start: float) -> Scored:
+        """``s``'s all-runs fit scored held out on this scorer's folds (exact per-fold refits
+        from one-step starts; the all-runs fit is kept): e.g. the named set under the fold
+        scheme the verdict did not use (:meth:`on`)."""
         prob = self.problem(s.effects)
-        if starts is None:
-            x0 = np.clip(np.concatenate([self.builder.nominal_values(e) for e in s.effects]), prob.lower, prob.upper)
-            starts = [x0] * len(self.folds)
-        starts = fold_grid_starts(prob, self.folds, starts, grid_from)
-        fold_x = fit_folds(prob, self.folds, starts)
+        prob.seed(s.fit)
+        fold_x = onestep_folds(prob, s.fit, self.folds)
+        fold_x = (polish_folds(prob, self.folds, fold_x) if rough(s.effects)
+                  else refit_folds(prob, self.folds, fold_x))
         raw = heldout(prob, fold_x, self.folds)
         g = gap(raw)
         return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, self.folds,
@@ -499,14 +424,11 @@ class Scorer:
                 continue
             effects = [e for i, e in enumerate(best.effects) if i != m]
             x0 = np.concatenate([x for i, (_, x) in enumerate(best.fit.split()) if i != m])
-            # each fold starts from best's own fold fit without the member
-            starts = [np.concatenate([x for i, x in enumerate(_values(best.effects, fx)) if i != m])
-                      for fx in best.fold_x]
             t0 = time.perf_counter()
             prob = scorer.problem(effects)
             fit = prob.fit(x0, None, max_nfev=8)
-            sc = scorer._screened("+".join(e.name for e in effects), effects, prob, fit, (starts, 0, ""),
-                                  t0=t0, width=36)
+            sc = scorer._screened("+".join(e.name for e in effects), effects, prob, fit, gap_start, t0,
+                                  width=36)
             scorer._confirm(sc, gap_start)
             out.append(sc)
         out.sort(key=lambda s: s.heldout_gap)

@@ -36,7 +36,7 @@ from omni_sim import runtime
 from omni_sim.device import Device
 from . import effects as fx
 from . import select as sel
-from .evidence import N_SHAPE, of_outcome as evidence_of
+from .evidence import of_outcome as evidence_of
 from .fit import gap, split_values
 from .replay import Replayer, control_period_of, prepare_runs
 from .report import Findings, assemble_report
@@ -150,8 +150,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
     max_fit_samples : int
         Sample budget of the fits (see :data:`MAX_FIT_SAMPLES`).
     candidates : tuple of str, optional
-        Library names to consider (default: all that can be written into the model); the
-        closed loop scores their shortlist by equation error (``Evidence.shortlist``).
+        Library names to consider (default: all that can be written into the model).
     target : omni_sim.model.Target, optional
         The controlled hinge and its actuator of a user's single-joint device (default None:
         the Omni's contract, ``yaw``/``yaw_motor`` with the arm).  Without the Omni's arm the
@@ -174,23 +173,25 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
         clock = _Stages(rep, progress)
         with clock.stage("replay_nominal"):
             nominal = replay_nominal(inp.device.model, inp.runs, inp.fit_runs, rep)
-        log(_start_line(nominal, inp))
+        log(f"gap before {nominal.gap:.3e} rad, noise floor {nominal.noise:.2e} rad, {len(inp.runs)} runs, "
+            f"{sum(r.n for r in inp.runs)} samples"
+            + (f" (fits use the first {inp.fit_samples} of each run)" if inp.fit_samples else ""))
         search = Search(inp.builder, inp.fit_runs, rep, gap=nominal.fit_gap, noise=nominal.noise, k=k,
                         scheme=folds, log=log)
         with clock.stage("corrections"):
             start = search.refit_nominal(inp.fixed)
         evidence = evidence_of(inp.builder, start, inp.fit_runs, inp.candidates, log)
-        shortlist = _shortlist(evidence, inp.candidates, log)
         with clock.stage("naming"):
-            selection = search.select(shortlist, max_effects)
+            selection = search.select(inp.candidates, max_effects)
         with clock.stage("uncertainty_and_evaluation"):
             unc, theta_after = search.estimate(inp.runs, nominal.theta)
             exported = replay_exported(patched := _patched_spec(inp.builder, selection.best), inp.runs, rep)
         with clock.stage("other_fold_scheme"):
             gaps = search.both_schemes()
         clock.done()
-        warnings = rep.warnings
-    settings = _settings(inp, k=k, scheme=folds, max_effects=max_effects, shortlist=shortlist)
+        warnings = {"unstable_simulations": rep.unstable_replays, "instability_warnings": rep.unstable_warnings,
+                    "first": rep.first_warning}
+    settings = _settings(inp, k=k, scheme=folds, max_effects=max_effects)
     report = assemble_report(inp.builder, inp.runs, Findings(nominal, selection, unc, theta_after, gaps),
                              settings, fixed=inp.fixed, actuator_limit=inp.device.voltage_limit)
     report["exported_model"], report["mujoco_warnings"] = exported, warnings
@@ -391,33 +392,14 @@ def replay_exported(spec: mujoco.MjSpec, runs: list[ReplayRun], rep: Replayer) -
             "runtime": runtime.RUNTIME if needs else None, "note": EXPORTED_NOTE}
 
 
-def _start_line(nominal, inp: _Prepared) -> str:
-    """The log's line after the nominal replay: its gap, the noise floor, the data."""
-    return (f"gap before {nominal.gap:.3e} rad, noise floor {nominal.noise:.2e} rad, {len(inp.runs)} runs, "
-            f"{sum(r.n for r in inp.runs)} samples"
-            + (f" (fits use the first {inp.fit_samples} of each run)" if inp.fit_samples else ""))
-
-
-def _shortlist(evidence, candidates: tuple[str, ...], log) -> tuple[str, ...]:
-    """The candidates the closed loop scores (:meth:`discrepancy.evidence.Evidence.shortlist`),
-    logged when some are left out."""
-    shortlist = evidence.shortlist(candidates)
-    if shortlist != tuple(candidates):
-        log(f"shortlist by equation error: {', '.join(shortlist)} "
-            f"(left out: {', '.join(n for n in candidates if n not in shortlist)})")
-    return shortlist
-
-
-def _settings(inp: _Prepared, *, k: int, scheme: str, max_effects: int, shortlist: tuple) -> dict:
-    """The report's ``settings``: what the workflow ran with (``shortlist``: the candidates the
-    closed loop scored)."""
+def _settings(inp: _Prepared, *, k: int, scheme: str, max_effects: int) -> dict:
+    """The report's ``settings``: what the workflow ran with."""
     return {"folds": k, "fold_scheme": scheme, "corrections": list(inp.fixed),
             "pair_search": not inp.fixed, "max_effects": max_effects, "min_share": sel.MIN_SHARE,
             "noise_factor": sel.NOISE_FACTOR, "tie_margin": sel.TIE_MARGIN,
             "fit_samples_per_run": inp.fit_samples, "model": inp.path, "joint": inp.effect_target.joint,
             "actuator": inp.effect_target.actuator, "candidates": list(inp.candidates),
-            "prescreen_s": sel.PRESCREEN_S, "n_screen": sel.N_SCREEN, "shortlist": list(shortlist),
-            "n_shape": N_SHAPE,
+            "prescreen_s": sel.PRESCREEN_S, "n_screen": sel.N_SCREEN,
             "mujoco": mujoco.__version__}
 
 

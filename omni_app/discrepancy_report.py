@@ -164,10 +164,10 @@ def _figure_candidates(plt, rep: dict, folder: Path) -> str:
         ax = axes[0, i]
         nm = [c["name"] for c in rnd][::-1]
         sh = [max(c["share"], -0.5) if math.isfinite(c["share"]) else 0.0 for c in rnd][::-1]
-        ranked = [c["method"] if c["method"] in ("prescreen", "screen") else "" for c in rnd][::-1]
-        ax.barh(np.arange(len(nm)), sh, color=["0.8" if r else "C0" for r in ranked])
-        ax.set_yticks(np.arange(len(nm)), [n + (f" ({r}: not scored held out)" if r else "")
-                                           for n, r in zip(nm, ranked)], fontsize=7)
+        pre = [c["method"] == "prescreen" for c in rnd][::-1]
+        ax.barh(np.arange(len(nm)), sh, color=["0.8" if p else "C0" for p in pre])
+        ax.set_yticks(np.arange(len(nm)), [n + (" (prescreen)" if p else "") for n, p in zip(nm, pre)],
+                      fontsize=7)
         ax.axvline(rep["settings"]["min_share"], color="k", ls=":", lw=0.8)
         ax.set_xlim(-0.5, 1.0)
         ax.set_xlabel("held-out share of the gap removed", fontsize=8)
@@ -243,7 +243,7 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
               "replay can judge them): " + ", ".join(f["name"] for f in ev["needs_replay"]) + ".", ""]
     L += ["*This ranking is by equation error: each law fitted to the missing torque at the logged "
           "states, no replays. The closed-loop verdict below (held-out replays) is what names the "
-          "effect.*", ""] + _md_shortlist(rep)
+          "effect.*", ""]
     named = [e["name"] for e in rep["effects"] if e["name"] != "none"]
     fits = {f["name"]: f for f in ev["ranking"]}
     replay = {f["name"]: f["reason"] for f in ev["needs_replay"]}
@@ -263,18 +263,6 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
               f"{EXPLAINED_ENOUGH:.0%} of the missing torque{best}; the maps above show how large it "
               "is and where (against velocity, drive torque, position, time).", ""]
     return L
-
-
-def _md_shortlist(rep: dict) -> list[str]:
-    """Which candidates the closed loop scored: the shortlist by equation error."""
-    st = rep.get("settings", {})
-    short, every = st.get("shortlist"), st.get("candidates", [])
-    if short is None or list(short) == list(every):
-        return []
-    left = [n for n in every if n not in short]
-    return [f"The closed loop scored {len(short)} of the {len(every)} candidates: the {st['n_shape']} "
-            "that explain most of the missing torque and every one this ranking cannot judge; left "
-            f"out: {', '.join(left)}.", ""]
 
 
 def _md_values(f: dict) -> str:
@@ -473,10 +461,6 @@ def _md_candidates(rep: dict) -> list[str]:
             if c["method"] == "prescreen":  # not among the best on the short records
                 L.append(f"| {c['name']} | (short records {_fmt(c['prescreen_gap_rad'])}) | - | "
                          f"prescreen | {c.get('unstable_replays', 0)} | {ps} |")
-                continue
-            if c["method"] == "screen":  # fitted on all runs, not among the best there: no held-out score
-                L.append(f"| {c['name']} | (all runs, in-sample {_fmt(c['train_gap_rad'])}) | - | "
-                         f"screen | {c.get('unstable_replays', 0)} | {ps} |")
                 continue
             L.append(f"| {c['name']} | {_fmt(c['heldout_gap_rad'])} | {c['share']:+.2f} | {c['method']} | "
                      f"{c.get('unstable_replays', 0)} | {ps} |")

@@ -110,24 +110,3 @@ def test_a_refused_model_gives_the_reason_in_one_line():
     assert j == json.loads(json.dumps(j)) and j["available"] is False
     lines = [line for line in rp._md_evidence({"evidence": j, "effects": [{"name": "none"}]}, []) if line]
     assert lines == ["## Where the model lacks torque", f"Not available for this model: {ev.reason}."]
-
-
-def test_shortlist_keeps_the_best_by_shape_and_those_it_cannot_judge():
-    """Evidence.shortlist: the N_SHAPE best-explaining candidates, every one that needs a
-    replay, and any candidate not fitted at all, in the caller's order; everything when the
-    evidence is not available."""
-    from discrepancy.evidence import N_SHAPE, Evidence
-    from discrepancy.shape import ShapeFit
-
-    def fit(name, explained):
-        why = "" if explained is not None else "hidden state"
-        return ShapeFit(name, None, None, explained, (), why, 0, 0, 0.0)
-
-    shares = {"a": 0.9, "b": 0.1, "c": 0.7, "d": 0.5, "e": 0.2}
-    fits = sorted((fit(n, v) for n, v in shares.items()), key=lambda f: -f.explained)
-    ev = Evidence(True, fits=tuple(fits) + (fit("lag", None),))
-    names = ("e", "lag", "d", "c", "b", "a", "unfitted")
-    best = sorted(shares, key=lambda n: -shares[n])[:N_SHAPE]
-    assert ev.shortlist(names) == tuple(n for n in names if n in best + ["lag", "unfitted"])
-    assert N_SHAPE == 3 and ev.shortlist(names) == ("lag", "d", "c", "a", "unfitted")
-    assert Evidence(False, "no").shortlist(names) == names
