@@ -88,23 +88,31 @@ def test_step_settles_inside_the_friction_band(model):
     assert ptp[0] > ptp[1] > ptp[2], ptp  # decaying
 
 
-#: Three of the step campaign's 25 poses (its first, middle and last; its square wave): same
-#: bytes do not depend on the number of runs, and three runs still split unevenly over two jobs.
-THREE_STEPS = """
+#: Three of the step campaign's 25 poses (its first, middle and last), with its square wave read
+#: from the built-in campaign: same bytes do not depend on the number of runs, and three runs
+#: still split unevenly over two jobs.
+THREE_POSES = (ex.TABLE2_POSES[0], ex.TABLE2_POSES[12], ex.TABLE2_POSES[-1])
+THREE_STEPS = f"""
 [step]
-poses_deg = [[25, 60], [45, 90], [65, 115]]
-frequency_hz = 0.25
-amplitude_rad = 0.07
-duration_s = 8.0
+poses_deg = {[list(p) for p in THREE_POSES]}
+frequency_hz = {ex.STEP_FREQUENCY_HZ}
+amplitude_rad = {ex.STEP_AMPLITUDE_RAD}
+duration_s = {ex.STEP_DURATION_S}
 """
+
+
+def _key(e) -> tuple:
+    """An experiment as comparable values (its reference by bytes)."""
+    return (e.name, e.kind, e.gamma1_set_deg, e.gamma2_set_deg, e.frequency_hz, e.amplitude_rad,
+            e.theta0_rad, e.r.tobytes())
 
 
 def test_determinism_and_round_trip(tmp_path):
     camp = tmp_path / "three_steps.toml"
     camp.write_text(THREE_STEPS)
-    assert ([(e.name, e.frequency_hz, e.amplitude_rad, e.theta0_rad) for e in ex.campaign(str(camp))]
-            == [(e.name, e.frequency_hz, e.amplitude_rad, e.theta0_rad) for e in ex.campaign("step")
-                if e.name in ("step_g25_060", "step_g45_090", "step_g65_115")])
+    three = ex.campaign(str(camp))
+    assert [_key(e) for e in three] == [_key(e) for e in ex.campaign("step")
+                                        if (e.gamma1_set_deg, e.gamma2_set_deg) in THREE_POSES]
     args = ["generate", "--campaign", str(camp), "--seed", "3", "--noise", "1e-4", "--quantize",
             "--jobs", "2"]
     assert main(args + ["--out", str(tmp_path / "a")]) == 0
@@ -118,7 +126,7 @@ def test_determinism_and_round_trip(tmp_path):
     q = ex.ENCODER_STEP_RAD
     assert np.allclose(run.theta / q, np.round(run.theta / q), atol=1e-6)
     # round trip: what we read back is bit-identical to a fresh simulation
-    exp = [e for e in ex.campaign(str(camp)) if e.name == run.name][0]
+    exp = [e for e in three if e.name == run.name][0]
     fresh = ex.simulate(Device.load(), [exp], settings=ex.Settings(quantize=True, noise_rad=1e-4, seed=3))[0]
     assert np.array_equal(fresh.theta, run.theta) and np.array_equal(fresh.v, run.v)
     assert fresh.meta == run.meta

@@ -21,10 +21,9 @@ def reproduced(tmp_path_factory):
 def _pred(folder, name):
     """A prediction file's columns by their header's names (numpy's reader: the same floats as
     Python's ``float`` of each field, at a fraction of csv.DictReader's time)."""
-    path = folder / "predictions" / f"{name}.csv"
-    with open(path) as fh:
+    with open(folder / "predictions" / f"{name}.csv") as fh:
         names = fh.readline().strip().split(",")
-    cols = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        cols = np.loadtxt(fh, delimiter=",", ndmin=2)
     return {k: cols[:, i] for i, k in enumerate(names)}
 
 
