@@ -118,7 +118,7 @@ def generate(args: argparse.Namespace) -> int:
 
 def bench(args: argparse.Namespace) -> int:
     """``omni bench``: print (and write) the performance figures."""
-    from .bench import run_bench
+    from omni_studies.bench import run_bench
 
     jobs = _check_jobs(args.jobs)
     if args.out:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 import threading
-import time
 from pathlib import Path
 
 from identification.dataset import atomic_output_dir, check_output_dir, read_dataset, write_run
@@ -193,65 +192,3 @@ def demo(out: Path, force: bool = False, log=None) -> int:
         rp.write(outcome, tmp, title="Model discrepancy demo", intro=intro)
     _summary(outcome, out)
     return 0
-
-
-def bench_discrepancy(jobs: int | None = None) -> dict:
-    """Time the workflow on a representative case (the demo's: 16 runs, 32 s of data).
-
-    Returns
-    -------
-    dict
-        ``discrepancy_s`` (wall time of the workflow [s]), ``discrepancy_steps_per_s``,
-        ``discrepancy_samples`` (measured samples), ``discrepancy_named`` (names found) and
-        ``discrepancy_correct`` (they match the hidden effect).
-    """
-    runs = demo_truth.generate(jobs=jobs)
-    t0 = time.perf_counter()
-    outcome = run_discrepancy(runs, None, jobs=jobs)
-    wall = time.perf_counter() - t0
-    named = [e["name"] for e in outcome.report["effects"]]
-    return {"discrepancy_s": wall,
-            "discrepancy_steps_per_s": outcome.report["timings"]["steps_per_s"],
-            "discrepancy_samples": int(sum(len(r.t) for r in runs)),
-            "discrepancy_named": named,
-            "discrepancy_correct": named == [demo_truth.CASE]}
-
-
-#: The case hidden by the campaign benchmark (``omni bench --discrepancy-campaign``).
-CAMPAIGN_CASE = "viscous_damping"
-
-
-def bench_discrepancy_campaign(case_name: str = CAMPAIGN_CASE, jobs: int | None = None,
-                               log=None) -> dict:
-    """Time the workflow on the whole paper campaign (106 runs, 686 s at 1 kHz) with the
-    whole library: the truth is the validation bank's hidden case ``case_name`` (``bank.hidden``,
-    independent of the library; the bank must be installed: :mod:`omni_studies.bank_link`), measured with the quantised, noisy encoder of the compact
-    experiment set (:mod:`discrepancy.experiment_set`).
-
-    Returns
-    -------
-    dict
-        ``wall_s``, ``samples``, ``candidates``, ``named``, ``correct``, ``parameters`` (fitted
-        and truth, with the 95 % half-width), ``shrink_factor``, ``physics_steps``.
-    """
-    from omni_sim import experiments as ex
-    from discrepancy import effects as fx
-    from omni_studies.bank_link import load as load_bank
-
-    hidden = load_bank("the discrepancy campaign benchmark").hidden
-    case = hidden.case(case_name)
-    runs = hidden.generate(case, exps=ex.campaign("paper"), jobs=jobs)
-    t0 = time.perf_counter()
-    rep = run_discrepancy(runs, None, jobs=jobs, log=log).report
-    wall = time.perf_counter() - t0
-    named = [e["name"] for e in rep["effects"]]
-    truth = dict(case.effects)
-    params = {e["name"]: {p: {"fitted": v, "half_width_95": e["uncertainty"][p],
-                              "truth": (truth[e["name"]][i] if e["name"] in truth else None)}
-                          for i, (p, v) in enumerate(e["parameters"].items())}
-              for e in rep["effects"] if e["name"] != "none"}
-    return {"case": case_name, "wall_s": round(wall, 1), "runs": len(runs),
-            "samples": int(sum(len(r.t) for r in runs)), "candidates": len(fx.NAMES),
-            "named": named, "correct": sorted(named) == sorted(case.expect),
-            "parameters": params, "shrink_factor": rep["shrink_factor"],
-            "physics_steps": rep["timings"]["physics_steps"]}

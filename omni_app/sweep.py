@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 import os
 import sys
-import time
 from pathlib import Path
 
 from identification.errors import UserError
@@ -88,18 +87,6 @@ def plot_param(study: Study, variants, p: str, out: Path) -> Path:
 
 
 # -- benchmark and command -------------------------------------------------------------------
-def bench_sweep(workers: int) -> float:
-    """Variants per second of the example study (``omni sweep --example``) on ``workers``
-    local worker processes (a fresh temporary output folder; cluster start-up included)."""
-    import tempfile
-
-    study = parse_study(EXAMPLE, "example")
-    with tempfile.TemporaryDirectory(prefix="omni-sweep-bench-") as d:
-        t0 = time.perf_counter()
-        run_sweep(study, Path(d) / "out", workers=workers, progress=False)
-        return len(study.variants) / (time.perf_counter() - t0)
-
-
 def sweep_command(args) -> int:
     """``omni sweep SPEC.toml --out DIR [--workers N] [--scheduler ADDRESS]``, ``--example``,
     ``--plot DIR``."""

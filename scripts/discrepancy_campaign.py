@@ -14,7 +14,7 @@ import argparse
 import json
 import sys
 
-from omni_app.discrepancy import CAMPAIGN_CASE, bench_discrepancy_campaign
+from omni_studies.bench import CAMPAIGN_CASE, bench_discrepancy_campaign
 
 
 def main(argv=None) -> int:

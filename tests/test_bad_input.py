@@ -35,7 +35,7 @@ LONG_WORK = (
     ("identification.inertia", "_profile_minima"),  # fit-inertia's search
     ("omni_app.reproduce", "worker_pool"),       # reproduce's worker processes
     ("discrepancy.replay:Replayer", "__init__"),  # every replay of the discrepancy search
-    ("omni_app.bench", "run_bench"),
+    ("omni_studies.bench", "run_bench"),
     ("omni_studies.sweep", "_client"),           # the Dask cluster
     ("omni_studies.sweep", "run_variant"),
 )

@@ -185,7 +185,7 @@ def test_discrepancy_friction_resolves_the_nominal_model(campaigns, tmp_path, mo
 
 
 def test_bench_friction(campaigns, monkeypatch):
-    import omni_app.bench as bench
+    import omni_studies.bench as bench
     from omni_sim import experiments as ex
 
     loaded = []

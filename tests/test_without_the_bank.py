@@ -35,8 +35,8 @@ def nothing_runs(monkeypatch):
 
     monkeypatch.setattr(ex, "simulate", boom)
     monkeypatch.setattr(discrepancy.workflow, "run_discrepancy", boom)
-    import omni_app.bench
-    monkeypatch.setattr(omni_app.bench, "_bench_discrepancy_servo", boom)
+    import omni_studies.bench
+    monkeypatch.setattr(omni_studies.bench, "_bench_discrepancy_servo", boom)
 
 
 def _one_error_line(capsys, *words) -> str:
@@ -78,7 +78,7 @@ def test_bench_refuses_without_the_bank(no_bank, nothing_runs, capsys, tmp_path,
 
 
 def test_bench_campaign_refuses_without_the_bank(no_bank, nothing_runs):
-    from omni_app.discrepancy import bench_discrepancy_campaign
+    from omni_studies.bench import bench_discrepancy_campaign
     with pytest.raises(UserError, match="pip install -e ./bank"):
         bench_discrepancy_campaign()
 
