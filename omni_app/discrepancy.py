@@ -11,6 +11,7 @@ from identification.dataset import atomic_output_dir, check_output_dir, read_dat
 from identification.errors import UserError
 
 from omni_sim import model as om
+from omni_sim.device import Device
 from discrepancy import demo as demo_truth
 from discrepancy import experiment_set
 from discrepancy.workflow import run_discrepancy
@@ -126,17 +127,11 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_output_dir(out, args.force, inputs=(args.measured, model))
     corrections = _corrections(args)
-    # the pose keys are checked against the model (needed only with the Omni's arm)
     runs = read_dataset(args.measured, require_pose=False, uniform=False)  # compared at the logged times
+    device = _device(args.model, friction, target)  # compiled once: the checks and the workflow share it
     if target == om.OMNI:  # the arm's actual angles too (the replay reads the set points)
-        check_run_poses(runs, args.measured, model)
+        check_run_poses(runs, args.measured, device=device)
         require_run_poses(runs, args.measured)
-    elif args.model is None and friction is None:  # --joint/--actuator on the built-in Omni
-        try:
-            om.load_model(None, target=target)
-        except UserError as exc:
-            raise UserError(f"{exc}; --joint/--actuator name your own robot's: give its model "
-                            "with --model FILE (the default is the virtual Omni's)") from None
     note = period_note(runs, args.measured)
     with Progress() as log:
         def stage(index: int, name: str, steps: int) -> None:
@@ -144,12 +139,25 @@ def discrepancy_command(args: argparse.Namespace) -> int:
                 log(note)
             log.stage(index, name, steps)
 
-        outcome = run_discrepancy(runs, model, log=log, target=target, progress=stage,
+        outcome = run_discrepancy(runs, device=device, log=log, progress=stage,
                                   folds=getattr(args, "folds", "blocked"), corrections=corrections)
     with atomic_output_dir(out, force=args.force) as tmp:
         rp.write(outcome, tmp)
     _summary(outcome, out)
     return 0
+
+
+def _device(model, friction: str | None, target: om.Target) -> Device:
+    """The nominal model as a device (:meth:`Device.load`: ``--model``, or the ``--friction``
+    family's built-in scene), compiled once for the pose checks and the workflow.  The built-in
+    Omni with ``--joint``/``--actuator`` names: one line saying to give the robot's own model."""
+    try:  # the Omni's contract checked as every command checks it (target None: its names)
+        return Device.load(model, friction=friction, target=None if target == om.OMNI else target)
+    except UserError as exc:
+        if model is None and friction is None and target != om.OMNI:
+            raise UserError(f"{exc}; --joint/--actuator name your own robot's: give its model "
+                            "with --model FILE (the default is the virtual Omni's)") from None
+        raise
 
 
 def period_note(runs, data) -> str | None:

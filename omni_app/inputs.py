@@ -26,11 +26,12 @@ def omni_pose_check(model=None):
     return Device(om.load_model(model)).check_pose
 
 
-def check_run_poses(runs, data, model=None) -> None:
-    """Refuse a run whose pose the Omni of ``model`` (default: the built-in one) cannot take
-    (:func:`omni_pose_check`): its actual angles ``gamma1_deg``/``gamma2_deg`` and its set
-    points, where given.  ``data``: the dataset folder (for the message)."""
-    check = omni_pose_check(model)
+def check_run_poses(runs, data, model=None, *, device=None) -> None:
+    """Refuse a run whose pose the Omni of ``model`` (default: the built-in one), or of a
+    loaded ``device`` (not compiled again), cannot take (:func:`omni_pose_check`): its actual
+    angles ``gamma1_deg``/``gamma2_deg`` and its set points, where given.  ``data``: the
+    dataset folder (for the message)."""
+    check = device.check_pose if device is not None else omni_pose_check(model)
     for run in runs:
         for keys in (("gamma1_deg", "gamma2_deg"), ("gamma1_set_deg", "gamma2_set_deg")):
             g1, g2 = (run.meta.get(k) for k in keys)

@@ -169,17 +169,18 @@ def test_discrepancy_friction_resolves_the_nominal_model(campaigns, tmp_path, mo
     class Stop(Exception):
         pass
 
-    def fake(runs, model_path=None, **kw):
-        seen["model"] = model_path
+    def fake(runs, model_path=None, *, device=None, **kw):
+        seen["model"], seen["device"] = model_path, device
         raise Stop
 
     monkeypatch.setattr(dc, "run_discrepancy", fake)
     with pytest.raises(Stop):
         main(["discrepancy", "--measured", str(data), "--friction", "coulomb", "--out", str(tmp_path / "d")])
-    assert Path(seen["model"]).resolve() == om.scene_path("coulomb").resolve()
+    # the command compiles the nominal once and hands the workflow that device, not a path
+    assert seen["model"] is None and Path(seen["device"].file).resolve() == om.scene_path("coulomb").resolve()
     with pytest.raises(Stop):
         main(["discrepancy", "--measured", str(data), "--out", str(tmp_path / "d")])
-    assert seen["model"] is None  # no option: the workflow's own default
+    assert seen["model"] is None and seen["device"].file is None  # no option: the built-in scene.xml
     assert main(["discrepancy", "--demo", "--friction", "lugre", "--out", str(tmp_path / "e")]) == 2
     assert not (tmp_path / "e").exists()
 
