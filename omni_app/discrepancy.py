@@ -128,7 +128,7 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     check_output_dir(out, args.force, inputs=(args.measured, model))
     corrections = _corrections(args)
     runs = read_dataset(args.measured, require_pose=False, uniform=False)  # compared at the logged times
-    device = _device(args.model, friction, target)  # compiled once: the checks and the workflow share it
+    device = _device(model, target)  # compiled once: the checks and the workflow share it
     if target == om.OMNI:  # the arm's actual angles too (the replay reads the set points)
         check_run_poses(runs, args.measured, device=device)
         require_run_poses(runs, args.measured)
@@ -147,14 +147,15 @@ def discrepancy_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def _device(model, friction: str | None, target: om.Target) -> Device:
-    """The nominal model as a device (:meth:`Device.load`: ``--model``, or the ``--friction``
-    family's built-in scene), compiled once for the pose checks and the workflow.  The built-in
+def _device(model, target: om.Target) -> Device:
+    """The nominal model ``model`` (``--model``, or the ``--friction`` family's built-in scene,
+    as the command resolved it; None: the built-in scene.xml) as a device
+    (:meth:`Device.load`), compiled once for the pose checks and the workflow.  The built-in
     Omni with ``--joint``/``--actuator`` names: one line saying to give the robot's own model."""
     try:  # the Omni's contract checked as every command checks it (target None: its names)
-        return Device.load(model, friction=friction, target=None if target == om.OMNI else target)
+        return Device.load(model, target=None if target == om.OMNI else target)
     except UserError as exc:
-        if model is None and friction is None and target != om.OMNI:
+        if model is None and target != om.OMNI:
             raise UserError(f"{exc}; --joint/--actuator name your own robot's: give its model "
                             "with --model FILE (the default is the virtual Omni's)") from None
         raise

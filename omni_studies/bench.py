@@ -46,6 +46,7 @@ import numpy as np
 from mujoco import rollout
 
 from discrepancy import demo as demo_truth
+from discrepancy import effects as fx
 from discrepancy.workflow import run_discrepancy
 from omni_sim import experiments as ex
 from omni_sim import model as om
@@ -108,13 +109,10 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
             figures["vector_env"] = _bench_vector_env(ceiling_steps_per_s=ceil)
         except Exception as exc:  # noqa: BLE001  (reported, not fatal)
             figures["vector_env"] = {"error": f"{type(exc).__name__}: {exc}"}
-
         figures["discrepancy"] = bench_discrepancy(jobs=jobs)
         figures["discrepancy_servo"] = _bench_discrepancy_servo(jobs)
         if discrepancy_campaign:
-
             figures["discrepancy_campaign"] = bench_discrepancy_campaign(jobs=jobs)
-
         one, two = bench_sweep(1), bench_sweep(2)
         figures["sweep"] = {"variants_per_s_1_worker": round(one, 4),
                             "variants_per_s_2_workers": round(two, 4),
@@ -394,8 +392,9 @@ def bench_discrepancy_campaign(case_name: str = CAMPAIGN_CASE, jobs: int | None 
                                log=None) -> dict:
     """Time the workflow on the whole paper campaign (106 runs, 686 s at 1 kHz) with the
     whole library: the truth is the validation bank's hidden case ``case_name`` (``bank.hidden``,
-    independent of the library; the bank must be installed: :mod:`omni_studies.bank_link`), measured with the quantised, noisy encoder of the compact
-    experiment set (:mod:`discrepancy.experiment_set`).
+    independent of the library; the bank must be installed: :mod:`omni_studies.bank_link`),
+    measured with the quantised, noisy encoder of the compact experiment set
+    (:mod:`discrepancy.experiment_set`).
 
     Returns
     -------
@@ -403,8 +402,6 @@ def bench_discrepancy_campaign(case_name: str = CAMPAIGN_CASE, jobs: int | None 
         ``wall_s``, ``samples``, ``candidates``, ``named``, ``correct``, ``parameters`` (fitted
         and truth, with the 95 % half-width), ``shrink_factor``, ``physics_steps``.
     """
-    from discrepancy import effects as fx
-
     hidden = load_bank("the discrepancy campaign benchmark").hidden
     case = hidden.case(case_name)
     runs = hidden.generate(case, exps=ex.campaign("paper"), jobs=jobs)
