@@ -12,6 +12,8 @@ Modules:
   lives in words), :mod:`.fit` (simulation-error fits), :mod:`.select` (prescreen, held-out
   scoring, pairs, acceptance), :mod:`.uncertainty` (standard errors and the 95 % interval),
   :mod:`.report` (the content of ``report.json``, from what the search found);
+* :mod:`.result` (what the workflow returns: :class:`~.result.DiscrepancyResult`, its named
+  effects and corrections typed);
 * :mod:`.search` (the search: one :class:`~.search.Search` through all its stages) and
   :mod:`.workflow` (all of it, step by step: load, prepare, search, report);
 * hidden effects, written independently of the library: :mod:`.experiment_set` (the compact
@@ -22,6 +24,7 @@ Modules:
 """
 
 from .effects import LIBRARY, NAMES
+from .result import Correction, DiscrepancyResult, NamedEffect
 from .workflow import run_discrepancy
 
-__all__ = ["run_discrepancy", "LIBRARY", "NAMES"]
+__all__ = ["run_discrepancy", "DiscrepancyResult", "NamedEffect", "Correction", "LIBRARY", "NAMES"]

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -40,6 +40,7 @@ from .evidence import of_outcome as evidence_of
 from .fit import gap, split_values
 from .replay import Replayer, control_period_of, prepare_runs
 from .report import Findings, assemble_report
+from .result import DiscrepancyResult
 from .runs import ReplayRun
 from .search import Search
 from .select import Scored
@@ -51,30 +52,8 @@ MAX_FIT_SAMPLES = 300_000
 MIN_FIT_RUN_SAMPLES = 3000
 
 
-@dataclass
-class Outcome:
-    """Everything the report needs.
-
-    Attributes
-    ----------
-    report : dict
-        The ``report.json`` content.
-    spec : MjSpec
-        The patched model (nominal + accepted effects at their all-runs fit).
-    runs : list of ReplayRun
-    theta_before, theta_after : list of ndarray [rad]
-        Replay of the nominal model; held-out replay of the patched model (each run with the
-        parameters fitted without it).
-    rounds : list of list of Scored
-    """
-
-    report: dict
-    spec: mujoco.MjSpec
-    runs: list
-    theta_before: list
-    theta_after: list
-    rounds: list = field(default_factory=list)
-    evidence: object = None  # the missing torque under the corrected nominal (evidence.Evidence)
+#: The former name of :class:`~discrepancy.result.DiscrepancyResult` (kept for existing code).
+Outcome = DiscrepancyResult
 
 
 #: The nominal's uncertain constants refitted by default (library names): rotor inertia, viscous
@@ -122,7 +101,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
                     jobs: int | None = None, k: int = 5, max_effects: int = 3,
                     max_fit_samples: int = MAX_FIT_SAMPLES, candidates: tuple[str, ...] | None = None,
                     log=None, target: om.Target | None = None, folds: str = "blocked",
-                    corrections="auto", progress=None) -> Outcome:
+                    corrections="auto", progress=None) -> DiscrepancyResult:
     """Find, name, fit and check the effect(s) the model misses on these measured runs.
 
     Parameters
@@ -197,7 +176,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
     report["exported_model"], report["mujoco_warnings"] = exported, warnings
     report["timings"] = clock.timings(time.perf_counter() - t_start)
     report["timings"]["evidence"], report["evidence"] = evidence.cost, evidence.to_json()
-    return Outcome(report, patched, inp.runs, nominal.theta, theta_after, selection.rounds, evidence)
+    return DiscrepancyResult(report, patched, inp.runs, nominal.theta, theta_after, selection.rounds, evidence)
 
 
 class _Stages:

@@ -392,7 +392,7 @@ DISCREPANCY_LAYERS = {
     "statistics": ("localise", "fit", "folds", "prescreen", "select", "uncertainty", "nesting", "report"),
     # MuJoCo: the replay, the effect library, the missing torque and its equation-error naming
     "simulation": ("replay", "effects", "smoothing", "torque", "shape", "evidence"),
-    "workflow": ("workflow", "search"),  # joins statistics and simulation
+    "workflow": ("workflow", "search", "result"),  # joins statistics and simulation; its result
     "truth": ("experiment_set", "demo"),  # hidden effects: the demo's; the bank's cases are bank/
 }
 #: The layers each layer may import inside the package (the package's ``__init__`` is exempt).

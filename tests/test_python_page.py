@@ -88,8 +88,11 @@ def test_the_whole_page_runs(tmp_path, monkeypatch):
     """The discrepancy block finds the stand-in's tripled gear friction (0.09 N m)."""
     out = run_blocks([c for _, c in blocks(PAGE.read_text())], tmp_path, monkeypatch)
     _check_fast_output(out, tmp_path)
-    m = re.search(r"^coulomb_friction \{'frictionloss_nm': (\S+)\}$", out, re.M)
+    m = re.search(r"^coulomb_friction \{'frictionloss_nm': (\S+)\} \{'frictionloss_nm': (\S+)\} (\w+)$", out, re.M)
     assert m and abs(float(m.group(1)) - 0.09) < 1e-3, out
+    assert float(m.group(2)) > 0 and m.group(3) in ("high", "low"), out  # its 95 % half-width, confidence
+    g = re.search(r"^gap (\S+) -> (\S+) rad$", out, re.M)
+    assert g and float(g.group(2)) < float(g.group(1)) / 3, out
     assert (tmp_path / "pendulum_report" / "report.md").is_file()
 
 
