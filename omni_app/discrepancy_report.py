@@ -257,12 +257,28 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
         else:
             L += [f"The verdict names **{name}**, which is not among the {len(fits)} best laws here "
                   "(report.json's `evidence` lists them).", ""]
+        L += _md_stand_in(next(e for e in rep["effects"] if e["name"] == name), fits, replay)
     if ev["unexplained"]:
         best = (f" (best {ev['best']}: {100 * ev['best_explained']:.1f} %)" if ev["best"] else "")
         L += [f"**Unexplained, and here is its shape:** no library law explains "
               f"{EXPLAINED_ENOUGH:.0%} of the missing torque{best}; the maps above show how large it "
               "is and where (against velocity, drive torque, position, time).", ""]
     return L
+
+
+def _md_stand_in(entry: dict, fits: dict, replay: dict) -> list[str]:
+    """A named effect's closed-loop runner-up (the effect that stands in for it best) seen on
+    the same missing-torque map: the share it explains here, or why it is not judged."""
+    other = entry.get("runner_up")
+    if not other or "+" in other or other.startswith("("):
+        return []
+    head = f"Its runner-up in the closed loop, **{other}**,"
+    if other in fits:
+        return [f"{head} explains {100 * fits[other]['explained']:.1f} % of the missing torque here "
+                f"({_md_values(fits[other])}).", ""]
+    if other in replay:
+        return [f"{head} cannot be judged by equation error ({replay[other]}).", ""]
+    return [f"{head} is not among the {len(fits)} best laws here.", ""]
 
 
 def _md_values(f: dict) -> str:

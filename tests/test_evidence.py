@@ -69,6 +69,16 @@ def test_report_section_renders(ev, tmp_path):
     # every table row has the header's four cells (a "|qd|" in a cell is escaped)
     rows = [line for line in md.splitlines() if line.startswith("| ")]
     assert all(line.replace("\\|", "").count("|") == 5 for line in rows)
+    assert "runner-up" not in md  # the entry names none
+    # the stand-in compared on the same map: a scored runner-up, one that needs a replay
+    vd = next(f for f in rep["evidence"]["ranking"] if f["name"] == "viscous_damping")
+    for runner, words in (("viscous_damping", f"explains {100 * vd['explained']:.1f} % of the missing torque here"),
+                          ("time_delay", "cannot be judged by equation error (adds a delay buffer"),
+                          ("coulomb_friction+time_delay", None), ("(no new effect)", None)):
+        rep["effects"] = [{"name": "coulomb_friction", "runner_up": runner}]
+        md = "\n".join(rp._md_evidence(rep, []))
+        line = f"Its runner-up in the closed loop, **{runner}**, "
+        assert (line + words in md) if words else ("runner-up" not in md), (runner, md)
     name = rp._figure_evidence(SimpleNamespace(evidence=ev), tmp_path)
     assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
