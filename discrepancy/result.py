@@ -83,8 +83,9 @@ class Correction:
         The refitted value's 95 % half-width.
     plausible : bool
         Within the plausible factor of the nominal and not on a bound.
-    confounded_with : tuple of str
-        Named effects' parameters it cannot be measured apart from (correlation >= 0.9).
+    confounded_with : tuple of (str, str, float)
+        ``(effect, parameter, correlation)`` of each named effect's parameter it cannot be
+        measured apart from (correlation of magnitude 0.9 or more at the all-runs optimum).
     """
 
     effect: str
@@ -100,7 +101,8 @@ class Correction:
     def from_json(cls, c: dict) -> "Correction":
         """From an entry of ``report.json``'s ``corrections``."""
         return cls(c["effect"], c["parameter"], c["unit"], c["nominal"], c["fitted"], c.get("half_width_95"),
-                   bool(c.get("plausible")), tuple(c.get("confounded_with") or ()))
+                   bool(c.get("plausible")),
+                   tuple((d["effect"], d["parameter"], d["correlation"]) for d in c.get("confounded_with") or ()))
 
 
 @dataclass(frozen=True)

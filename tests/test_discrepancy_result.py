@@ -49,6 +49,10 @@ def test_corrections_and_nothing_named():
             j["effect"], j["parameter"], j["unit"], j["nominal"], j["fitted"])
         assert c.plausible is bool(j["plausible"])
     assert res.unexplained is True
+    # a correction confounded with a named law (report.json's form, discrepancy/report.py)
+    entry = dict(rep["corrections"][0], confounded_with=[
+        {"effect": "load_friction", "parameter": "mu_back", "correlation": -0.93}])
+    assert Correction.from_json(entry).confounded_with == (("load_friction", "mu_back", -0.93),)
 
 
 def test_frozen_and_the_former_name():
