@@ -125,9 +125,11 @@ class Engine:
                                      for f, d in zip(laws, devices)])
             self._force = np.zeros(self.B)  # each row's actuator force of its last step
             self._law_models = [copy.deepcopy(d.model) for d in devices]
+            self._law_fl = [m.dof_frictionloss for m in self._law_models]  # written every period
         # torque-off periods (run_p_loop's ``enabled``) step each row's off model
         self._on_models = self._law_models if self._laws else [d.model for d in devices]
         self._off_models = None  # made at the first torque-off period
+        self._off_fl = None  # their dof_frictionloss arrays (with drive laws)
         if self.B == 1:
             m1 = self._law_models[0] if self._laws else d0.model
             self._data = d0.start_data(float(theta0_rad[0]), _pose(gamma_set_deg[0]), data)
@@ -143,6 +145,7 @@ class Engine:
         for b, (dev, th0, gs) in enumerate(zip(devices, theta0_rad, gamma_set_deg)):
             self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
         self._models = list(self._on_models)
+        self._models_on = np.ones(self.B, bool)  # which rows _models steps with the drive on
         nthread = max(1, nthread or os.cpu_count() or 1)
         self._own_pool = pool is None
         # one thread: the calling thread steps the batch (no hand-off to a pool thread at
@@ -271,7 +274,10 @@ class Engine:
         self._ctrl[:, :, self._yaw_act] = v[:, None] if v.ndim == 1 else v
         if on is not None or self._off_models is not None:
             off = self._off()
-            self._models = [mo if (on is None or on[b]) else off[b] for b, mo in enumerate(self._on_models)]
+            state = np.ones(self.B, bool) if on is None else np.asarray(on, bool)
+            if not np.array_equal(state, self._models_on):  # the rows' models change only at a switch
+                self._models = [mo if state[b] else off[b] for b, mo in enumerate(self._on_models)]
+                self._models_on = state.copy()
         if self._laws:
             self._set_friction()
         x_before = self.x
@@ -303,12 +309,14 @@ class Engine:
         """Every row's :class:`DriveFriction` level for the coming control period, written into
         the row's own model."""
         w = self.yaw_velocity()
-        self._laws.write(self._law_models, w, self._force)  # the one row's model is _law_models[0]
+        # the one row's model is _law_models[0]
+        levels = self._laws.write(self._law_models, w, self._force, self._law_fl)
         if self._off_models is not None:  # the drive off: no force, only the friction level
-            levels = self._laws.levels(w, self._force)
+            if self._off_fl is None:
+                self._off_fl = [m.dof_frictionloss for m in self._off_models]
             dof = self._laws.dof
-            for m, f in zip(self._off_models, levels):
-                m.dof_frictionloss[dof] = f
+            for fl, f in zip(self._off_fl, levels):
+                fl[dof] = f
 
 
 def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,

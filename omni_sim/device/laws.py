@@ -293,17 +293,21 @@ class _DriveLaws:
         tau_i, b = self.limit[:, 0], self.limit[:, 1]
         return (b * w - tau_i) / self.gear, (b * w + tau_i) / self.gear
 
-    def write(self, models, w: np.ndarray, force: np.ndarray) -> None:
+    def write(self, models, w: np.ndarray, force: np.ndarray, frictionloss: list | None = None) -> np.ndarray:
         """Write the rows' Coulomb levels (joint ``frictionloss``) and, for the rows with a
         current limit, their actuator ``forcerange`` (forcelimited on) into ``models`` (one per
         row): what the engine and the runtime (:mod:`omni_sim.runtime`) do at every control
-        period."""
+        period.  ``frictionloss``: the models' ``dof_frictionloss`` arrays, taken once by a
+        caller that writes every period (each attribute read makes a new array).  Returns the
+        levels."""
         levels = self.levels(w, force)
-        for m, f in zip(models, levels):
-            m.dof_frictionloss[self.dof] = f
+        for fl, f in zip(frictionloss if frictionloss is not None else [m.dof_frictionloss for m in models],
+                         levels):
+            fl[self.dof] = f
         if self.limited.any():
             lo, hi = self.force_ranges(w)
             for m, on, a, b in zip(models, self.limited, lo, hi):
                 if on:
                     m.actuator_forcelimited[self.act] = 1
                     m.actuator_forcerange[self.act] = (a, b)
+        return levels
