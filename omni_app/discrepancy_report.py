@@ -244,10 +244,12 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
     L += ["*This ranking is by equation error: each law fitted to the missing torque at the logged "
           "states, no replays. The closed-loop verdict below (held-out replays) is what names the "
           "effect.*", ""]
-    named = [e["name"] for e in rep["effects"] if e["name"] != "none"]
     fits = {f["name"]: f for f in ev["ranking"]}
     replay = {f["name"]: f["reason"] for f in ev["needs_replay"]}
-    for name in named:
+    for entry in rep["effects"]:
+        name = entry["name"]
+        if name == "none":
+            continue
         if name in fits:
             L += [f"The verdict names **{name}**: its law explains {100 * fits[name]['explained']:.1f} % of "
                   f"the missing torque here ({_md_values(fits[name])}); it disagrees: "
@@ -257,7 +259,7 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
         else:
             L += [f"The verdict names **{name}**, which is not among the {len(fits)} best laws here "
                   "(report.json's `evidence` lists them).", ""]
-        L += _md_stand_in(next(e for e in rep["effects"] if e["name"] == name), fits, replay)
+        L += _md_stand_in(entry, fits, replay)
     if ev["unexplained"]:
         best = (f" (best {ev['best']}: {100 * ev['best_explained']:.1f} %)" if ev["best"] else "")
         L += [f"**Unexplained, and here is its shape:** no library law explains "
