@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 from collections import OrderedDict
 
 import mujoco
@@ -43,7 +42,7 @@ from identification.dataset import Run
 from identification.errors import UserError
 
 from omni_sim import model as om
-from omni_sim.device import Device, Engine, run_p_loop, substeps_of
+from omni_sim.device import Device, Engine, default_threads, run_p_loop, substeps_of
 from .runs import ReplayRun
 
 #: Shortest run that can be replayed and localised [s]: one step edge's transient at the
@@ -163,7 +162,7 @@ class Replayer:
     Parameters
     ----------
     nthread : int, optional
-        Threads of the rollout pool (default: all cores).
+        Threads of the rollout pool (default: :func:`omni_sim.device.default_threads`).
     target : omni_sim.model.Target, optional
         The controlled joint and actuator of the devices built (default None: the Omni).
     control_period_s : float [s], optional
@@ -175,7 +174,7 @@ class Replayer:
 
     def __init__(self, nthread: int | None = None, target: om.Target | None = None,
                  control_period_s: float | None = None):
-        self.nthread = max(1, nthread or os.cpu_count() or 1)
+        self.nthread = max(1, nthread or default_threads())
         self.target = target
         self.control_period_s = control_period_s
         # one thread: rollouts run on the calling thread (Rollout(nthread=0)), not handed to a

@@ -115,7 +115,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
         place of ``model_path``: its compiled model is replayed as it is (not compiled again)
         and the effects are written into its file; its target is the workflow's.
     jobs : int, optional
-        Rollout threads (default: all cores).
+        Rollout threads (default: :func:`omni_sim.device.default_threads`).
     k : int
         Folds for held-out scoring.
     folds : str

@@ -107,7 +107,7 @@ def _add_generate(sub) -> None:
                    help="quantize the measured yaw to the encoder's 15000 counts/rev")
     p.add_argument("--noise", type=float, default=0.0, metavar="RAD",
                    help="standard deviation of white encoder noise [rad] (default 0)")
-    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
+    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: $OMNI_THREADS, else all cores)")
 
 
 def _add_identify(sub) -> None:
@@ -137,7 +137,7 @@ def _add_reproduce(sub) -> None:
     _friction_option(p, all_=True)
     p.add_argument("--out", default="reproduce", help="output folder (default: ./reproduce)")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
-    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
+    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: $OMNI_THREADS, else all cores)")
 
 
 def _add_discrepancy(sub) -> None:
@@ -172,7 +172,7 @@ def _add_bench(sub) -> None:
     p = sub.add_parser("bench", help="print and write the performance figures")
     p.add_argument("--out", default=None, help="write the figures as JSON to this file")
     _friction_option(p, what="the campaign and reproduce figures on: ")
-    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
+    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: $OMNI_THREADS, else all cores)")
     p.add_argument("--only", default=None, choices=("discrepancy_servo",),
                    help="measure this one figure alone (discrepancy_servo: omni discrepancy on the "
                         "geared-servo bank case with its nominal off, 12 runs of 6 s)")
@@ -219,7 +219,7 @@ def _add_zwidth(sub) -> None:
                    help="speed of the Nyquist square-wave probe (default 0.02 rad/s: corners of "
                         "+-1e-5 rad, below one encoder count); speed x substeps >= 0.4, and the "
                         "slowest probe must stay inside the wall (< 1.25 rad/s)")
-    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: all cores)")
+    p.add_argument("--jobs", type=_positive_int, default=None, help="threads (default: $OMNI_THREADS, else all cores)")
     p.add_argument("--out", required=True, metavar="DIR", help="writes DIR/zwidth.json and DIR/zwidth.png")
     p.add_argument("--force", action="store_true", help="replace a non-empty DIR")
 
@@ -260,6 +260,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
+        from omni_sim.device import default_threads
+        default_threads()  # a bad OMNI_THREADS is refused before any work
         from omni_studies.accel import install
         install()  # the compiled α loop (loaded at its first use)
         code = _dispatch(args) or 0

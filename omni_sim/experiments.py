@@ -34,6 +34,7 @@ from identification.dataset import Run
 from identification import paper
 from identification.errors import UserError
 
+from .device import default_threads
 from .device import (CONTROL_PERIOD_S, ENCODER_STEP_RAD, Device, Encoder,  # noqa: F401 (re-exported)
                      p_law, run_p_loop, substeps_of)
 
@@ -544,7 +545,7 @@ def simulate(device: Device, exps: list[Experiment], settings: Settings = Settin
         and name the device's joint and actuator when it has a ``target``.
     settings : Settings
     jobs : int, optional
-        Threads of the rollouts; default: all cores.
+        Threads of the rollouts; default: :func:`omni_sim.device.default_threads`.
     progress : bool
         Show a progress bar (tqdm) on stderr.
     force_reference : bool
@@ -553,7 +554,7 @@ def simulate(device: Device, exps: list[Experiment], settings: Settings = Settin
     from tqdm import tqdm
 
     device = device.at_period(settings.control_period_s)
-    jobs = max(1, jobs or os.cpu_count() or 1)
+    jobs = max(1, jobs or default_threads())
     settings.encoder  # validates the noise level
     if not (settings.kp > 0 and math.isfinite(settings.kp)):
         raise UserError(f"kp must be positive, got {settings.kp}")

@@ -43,7 +43,7 @@ class OmniYawVectorEnv(VectorEnv):
     num_envs : int
         Number of sub-environments N (>= 1).
     nthread : int, optional
-        Rollout threads (default: all cores).
+        Rollout threads (default: :func:`omni_sim.device.default_threads`).
     **kwargs
         The options of :class:`omni_sim.env.OmniYawEnv` (make-time ones included, rendering
         excepted), the same for every sub-environment; per-episode options may also be passed

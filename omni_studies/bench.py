@@ -50,7 +50,7 @@ from discrepancy import effects as fx
 from discrepancy.workflow import run_discrepancy
 from omni_sim import experiments as ex
 from omni_sim import model as om
-from omni_sim.device import Device
+from omni_sim.device import Device, default_threads
 from omni_studies.bank_link import load as load_bank
 
 
@@ -86,7 +86,7 @@ def run_bench(jobs: int | None = None, repeats: int = 3, extended: bool = True,
     ``discrepancy_campaign``: also time the discrepancy workflow on the whole paper campaign
     with the whole library (minutes: off by default).
     """
-    jobs = max(1, jobs or os.cpu_count() or 1)
+    jobs = max(1, jobs or default_threads())
     if extended or only == "discrepancy_servo":  # its cases, before any measurement
         load_bank("omni bench")
     if only == "discrepancy_servo":

@@ -15,6 +15,20 @@ the run (an error after its last test), naming them, if anything new is there be
 without :mod:`tempfile`, or a process started with ``TMPDIR`` removed).  Another program writing
 to the same folder meanwhile also shows there; ``OMNI_TESTS_TMP_CHECK=0`` skips the comparison
 (the redirection stays).
+
+Under pytest-xdist each worker's simulations use the worker's share of the cores
+(``OMNI_THREADS``, :func:`omni_sim.device.default_threads`; unless set already): with two
+workers on two cores, each batch stepped on both cores made four threads contend for two, and
+a bank case run beside another took 15 % longer on two threads than on one (the ``armature``
+case, two at once: 81-83 s against 68-72 s).
+
+Under pytest-xdist, a run of slow tests only (``.ci/run``'s slow stage, ``--dist worksteal``)
+is ordered for the scheduler:
+pytest-xdist hands each worker a contiguous share of the collection and an idle worker steals
+from the end of the other's queue, never its last tests, so a long test near the end ran alone
+while the other worker idled.  Each worker's share is made of the tests a longest-first
+assignment gives it (by the durations of one run, ``tests/slow_durations.json``; a test not
+there counts as short), longest first.
 """
 
 from __future__ import annotations
@@ -35,12 +49,38 @@ BANK_DISTRIBUTION = "omni-alpha-bank"
 def pytest_configure(config):
     from importlib import metadata
 
+    workers = os.environ.get("PYTEST_XDIST_WORKER_COUNT")
+    if workers and workers.isdigit() and "OMNI_THREADS" not in os.environ:
+        os.environ["OMNI_THREADS"] = str(max(1, (os.cpu_count() or 1) // int(workers)))
+
     try:
         metadata.version(BANK_DISTRIBUTION)
     except metadata.PackageNotFoundError:
         raise pytest.UsageError(f"the validation bank ({BANK_DISTRIBUTION}) is not installed: "
                                 'pip install -e ./bank (the README\'s test command, pip install -e ".[test]" '
                                 "-e ./bank, installs it with the project)") from None
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config, items):
+    workers = getattr(config, "workerinput", {}).get("workercount", 0)  # in a pytest-xdist worker
+    if workers < 2 or not items or not all(it.get_closest_marker("slow") for it in items):
+        return
+    import json
+
+    seconds = json.loads((Path(__file__).parent / "slow_durations.json").read_text())["seconds"]
+    order = sorted(items, key=lambda it: -seconds.get(it.nodeid, 0.0))  # stable: ties keep their order
+    # the shares pytest-xdist's work stealing hands out at the start (WorkStealingScheduling.check_schedule)
+    left, sizes = len(items), []
+    for w in range(workers, 0, -1):
+        sizes.append(left // w)
+        left -= sizes[-1]
+    shares, load = [[] for _ in sizes], [0.0] * len(sizes)
+    for it in order:
+        w = min((w for w in range(len(sizes)) if len(shares[w]) < sizes[w]), key=lambda w: load[w])
+        shares[w].append(it)
+        load[w] += seconds.get(it.nodeid, 0.0)
+    items[:] = [it for share in shares for it in share]
 
 
 def _listing(folder: Path) -> set[str]:

@@ -17,6 +17,7 @@ as the compiled α loop and the numpy loop, use a stated tolerance: tests/test_s
 from __future__ import annotations
 
 import math
+import os
 
 import mujoco
 import numpy as np
@@ -233,3 +234,22 @@ def test_named_parameters_are_the_model_fields():
         dev.body("wrist")
     with pytest.raises(UserError, match="no LuGre"):
         Device.load(friction="coulomb").lugre()
+
+
+def test_threads_from_the_environment(monkeypatch, capsys):
+    """OMNI_THREADS sets the threads of every batch a caller gives no count; anything but a
+    positive whole number is refused: one error line and status 2 from the command, before
+    any work."""
+    from omni_app.cli import main
+    from omni_sim.device import THREADS_ENV, default_threads
+
+    monkeypatch.setenv(THREADS_ENV, "3")
+    assert default_threads() == 3
+    assert Replayer().nthread == 3
+    monkeypatch.delenv(THREADS_ENV)
+    assert default_threads() == max(1, os.cpu_count() or 1)
+    for bad in ("0", "-2", "two", "1.5"):
+        monkeypatch.setenv(THREADS_ENV, bad)
+        assert main(["generate", "--campaign", "step", "--out", "unused"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("error: OMNI_THREADS must be a positive whole number")

@@ -26,6 +26,21 @@ from .laws import DriveFriction, _DriveLaws
 CONTROL_PERIOD_S = 1e-3
 #: The physics state the engine carries between control periods.
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+#: The environment variable that sets how many threads a batch uses when a caller names none
+#: (a machine shared with other jobs, several test processes on one machine); unset: all cores.
+THREADS_ENV = "OMNI_THREADS"
+
+
+def default_threads() -> int:
+    """Threads of a batch when none is asked for: ``OMNI_THREADS`` (a positive whole
+    number) if set, else all cores.  UserError if it is set to anything else."""
+    raw = os.environ.get(THREADS_ENV, "").strip()
+    if not raw:
+        return max(1, os.cpu_count() or 1)
+    n = int(raw) if raw.isdigit() else 0
+    if n < 1:
+        raise UserError(f"{THREADS_ENV} must be a positive whole number of threads, got {raw!r}")
+    return n
 
 
 def p_law(kp, r, y, vmax):
@@ -85,7 +100,7 @@ class Engine:
     gamma_set_deg : sequence of (float, float) [deg]
         One pair per row (None, or an empty tuple, per row for a device without the arm).
     nthread : int, optional
-        Threads for a batch (default: all cores).
+        Threads for a batch (default: :func:`default_threads`).
     pool : mujoco.rollout.Rollout, optional
         A thread pool of ``nthread`` threads to share between engines (default: the engine
         makes its own, stopped by :meth:`close`).
@@ -146,7 +161,7 @@ class Engine:
             self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
         self._models = list(self._on_models)
         self._models_on = np.ones(self.B, bool)  # which rows _models steps with the drive on
-        nthread = max(1, nthread or os.cpu_count() or 1)
+        nthread = max(1, nthread or default_threads())
         self._own_pool = pool is None
         # one thread: the calling thread steps the batch (no hand-off to a pool thread at
         # every control period); same trajectories either way
