@@ -69,8 +69,15 @@ def pytest_collection_modifyitems(config, items):
     import json
 
     seconds = json.loads((Path(__file__).parent / "slow_durations.json").read_text())["seconds"]
-    order = sorted(items, key=lambda it: -seconds.get(it.nodeid, 0.0))  # stable: ties keep their order
-    # the shares pytest-xdist's work stealing hands out at the start (WorkStealingScheduling.check_schedule)
+    items[:] = worksteal_order(items, lambda it: seconds.get(it.nodeid, 0.0), workers)
+
+
+def worksteal_order(items: list, seconds, workers: int) -> list:
+    """``items`` in the order that gives each of ``workers`` workers, in the contiguous share
+    pytest-xdist's work stealing hands it at the start (``WorkStealingScheduling.check_schedule``:
+    ``len // w`` to the first of ``w`` workers left), the items a longest-first assignment to the
+    least loaded worker gives it, longest first (``seconds(item)``: its expected duration)."""
+    order = sorted(items, key=lambda it: -seconds(it))  # stable: ties keep their order
     left, sizes = len(items), []
     for w in range(workers, 0, -1):
         sizes.append(left // w)
@@ -79,8 +86,8 @@ def pytest_collection_modifyitems(config, items):
     for it in order:
         w = min((w for w in range(len(sizes)) if len(shares[w]) < sizes[w]), key=lambda w: load[w])
         shares[w].append(it)
-        load[w] += seconds.get(it.nodeid, 0.0)
-    items[:] = [it for share in shares for it in share]
+        load[w] += seconds(it)
+    return [it for share in shares for it in share]
 
 
 def _listing(folder: Path) -> set[str]:
