@@ -34,9 +34,8 @@ from identification.dataset import Run
 from identification import paper
 from identification.errors import UserError
 
-from .device import default_threads
 from .device import (CONTROL_PERIOD_S, ENCODER_STEP_RAD, Device, Encoder,  # noqa: F401 (re-exported)
-                     p_law, run_p_loop, substeps_of)
+                     default_threads, p_law, run_p_loop, substeps_of)
 
 # --- Campaign files --------------------------------------------------------------------------
 #: The built-in campaigns: ``paper`` is the file ``campaigns/paper.toml``, ``sine`` and ``step``
