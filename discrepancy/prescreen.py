@@ -44,7 +44,8 @@ class Prescreened:
 def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
               runs: list[ReplayRun], rep,
               seconds: float = PRESCREEN_S, iterations: int = PRESCREEN_ITERATIONS,
-              log=None, jobs: list | None = None) -> list[Prescreened]:
+              log=None, jobs: list | None = None, starts: dict | None = None,
+              beam: bool = False) -> list[Prescreened]:
     """Fit every candidate coarsely on the first ``seconds`` of each run; best first.
 
     All candidates advance together: their grid points form one batch (per group of models
@@ -53,19 +54,21 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
     each candidate takes its own damped step.  A candidate thus costs a few short-record
     batches, not a full campaign; the best :data:`N_SCREEN` go on to the held-out screening.
 
-    ``jobs``: (base effects, their values, candidate name) per candidate -- several bases
-    scored in one lockstep (the beam of :func:`score_round`); by default every name on
-    ``accepted``.
+    ``jobs``: (base effects, their values, candidate name) per candidate (name None: the base
+    alone, :data:`NULL`); by default every name on ``accepted``.  ``beam``: the jobs grow several
+    bases in one lockstep (the beam of :meth:`~discrepancy.select.Scorer.score_round`), each
+    labelled ``"base+name"``.  ``starts``: ``{name: values}``, a further grid point of candidate ``name``
+    (its own parameters; e.g. its equation-error fit, :mod:`.shape`).
     """
     t0 = time.perf_counter()
     short = [r.first_seconds(seconds) for r in runs]
-    beam = jobs is not None and not any(n is None for _, _, n in jobs)
     jobs = [(list(accepted), accepted_x, n) for n in names] if jobs is None else jobs
     labels = ["+".join([e.name for e in b] + [n]) if beam and n is not None else (n or NULL)
               for b, _, n in jobs]
     probs, x0s, grids, owner = [], [], [], []
     for c, (base, base_x, name) in enumerate(jobs):
-        prob, x0, per_base = _candidate_grid(builder, base, base_x, name, short, rep)
+        prob, x0, per_base = _candidate_grid(builder, base, base_x, name, short, rep,
+                                             (starts or {}).get(name))
         x0s.append(x0)
         for pts in per_base:  # one start per base: each is stepped from its own best grid point
             probs.append(prob)
@@ -85,12 +88,13 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
 
 
 def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: list[ReplayRun],
-                    rep) -> tuple[Problem, np.ndarray, list[np.ndarray]]:
+                    rep, start=None) -> tuple[Problem, np.ndarray, list[np.ndarray]]:
     """The problem of ``base`` + candidate ``name`` on ``runs``, its start (``base_x``, the
     candidate at its nominal values) and its starting grids, one per base point: the
     candidate's grid with the base at ``base_x`` followed by the start itself, and, when the
     model's own values of the base differ from ``base_x``, the candidate's grid with the base
-    there.  ``name`` None: the base alone (:data:`NULL`), from ``base_x``.
+    there.  ``name`` None: the base alone (:data:`NULL`), from ``base_x``.  ``start``: the
+    candidate's values of one more point of the first grid (the base at ``base_x``).
 
     Why a second grid from the model's own values: ``base_x`` holds the corrections fitted
     *without* the candidate, which stand in for it where they can (on the bank's
@@ -121,6 +125,10 @@ def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: li
             pts.append(xp)
         grids.append(pts)
     grids[0].append(x0)
+    if start is not None:
+        xp = x0.copy()
+        xp[i0:] = eff.clip(np.asarray(start, float))
+        grids[0].append(np.clip(xp, prob.lower, prob.upper))
     return prob, x0, grids
 
 

@@ -89,7 +89,7 @@ def assemble_report(builder, runs: list[ReplayRun], findings: Findings, settings
     rounds = selection.rounds
     # the library's nearest candidates (round 1, held-out share), for a gap left unexplained
     nearest = [{"name": c.name, "share": c.share, "confidence": "low"}
-               for c in (rounds[0] if rounds else []) if c.method != "prescreen" and c.name != sel.NULL][:3]
+               for c in (rounds[0] if rounds else []) if c.method in ("one-step", "refit") and c.name != sel.NULL][:3]
     return {
         "effects": effects,
         "corrections": corrections,

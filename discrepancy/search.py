@@ -27,7 +27,7 @@ from omni_sim.device import ENCODER_STEP_RAD
 from . import effects as fx
 from . import select as sel
 from . import uncertainty as un
-from .fit import split_values
+from .fit import FitResult, split_values
 from .replay import Replayer
 from .runs import ReplayRun
 from .select import Scored
@@ -149,7 +149,7 @@ class Search:
         return self.start
 
     # -- naming the effects ----------------------------------------------------------------------
-    def select(self, candidates: tuple[str, ...], max_effects: int) -> Selection:
+    def select(self, candidates: tuple[str, ...], max_effects: int, evidence=None) -> Selection:
         """Forward selection: each round scores the candidates not yet accepted (with the
         accepted ones free) on held-out samples and accepts the best if it removes a clear share
         of the gap; the first round also searches pairs (:meth:`_search_pairs`), a round whose
@@ -159,7 +159,16 @@ class Search:
         The nominal's corrections (:attr:`start`, :meth:`refit_nominal`) are accepted before
         round 1 and free in every round, so each candidate is fitted jointly with them and must
         beat their held-out gap; they are never removed and not counted in ``max_effects``, and
-        the pair search is not run (its grid would have to span the corrections too)."""
+        the pair search is not run (its grid would have to span the corrections too).  Round 1
+        takes their confirmed fit as its :data:`~discrepancy.select.NULL` (fitted with a
+        candidate's effort already).
+
+        ``evidence`` (:class:`~discrepancy.evidence.Evidence`, optional): the missing torque with
+        the candidates fitted to it by equation error.  When it is available, round 1 prescreens
+        only the :data:`~discrepancy.select.N_SCREEN` candidates it ranks best among those it
+        could judge, each with its equation-error fit as one more starting point, and every
+        candidate it could not judge (:func:`shape_shortlist`); the others are listed with their
+        equation-error fit only."""
         state = self.selection
         if self.start is not None:
             state.accept(self.start)
@@ -171,11 +180,19 @@ class Search:
             if not names:
                 break
             self.log(f"round {rnd + 1}: scoring {len(names)} candidates")
+            shortlist, left_out, starts = names, [], None
+            if rnd == 0 and evidence is not None and evidence.available:
+                shortlist, left_out = shape_shortlist(evidence, names, sel.N_SCREEN)
+                starts = {f.name: f.x for f in evidence.fits if f.name in shortlist and f.x is not None}
+                self.log(f"round 1: equation error leaves out {', '.join(left_out) or 'none'}; "
+                         f"prescreening {', '.join(shortlist)}")
             # a beam grows every confirmed pair by any candidate not in it (the accepted pair's
             # members included)
             scored = self.scorer.score_round(state.accepted, state.accepted_x, state.gap,
-                                             candidates=tuple(candidates if state.beam else names),
-                                             bases=state.beam)
+                                             candidates=tuple(candidates if state.beam else shortlist),
+                                             bases=state.beam, starts=starts,
+                                             null=self.start if rnd == 0 else None)
+            scored += [self._by_shape_only(evidence.fit_of(n)) for n in left_out]
             state.rounds.append(scored)
             state.take_null(scored)
             entry = round_entry(rnd, scored, state.gap, self.noise)
@@ -191,6 +208,14 @@ class Search:
                      f"{entry['runner_up']}, margin {entry['margin']:.2f})")
             self._accept_round(rnd, entry, scored)
         return state
+
+    def _by_shape_only(self, shape_fit) -> Scored:
+        """A candidate round 1 did not prescreen, as the round lists it: with the accepted set
+        at its values and the candidate at its equation-error fit, no closed-loop score."""
+        state = self.selection
+        effects = list(state.accepted) + [self.builder.effect(shape_fit.name)]
+        x = np.concatenate([state.accepted_x, shape_fit.x])
+        return Scored(shape_fit.name, effects, FitResult(effects, x, x, math.nan), method="equation-error")
 
     def _round_due(self, rnd: int) -> bool:
         """Whether round ``rnd`` is worth scoring: a gap to explain, above the noise after round 1."""
@@ -342,6 +367,21 @@ class Search:
             f"{sch} folds {r['nominal']:.3e} -> {r['corrected']:.3e} (corrected) -> {r['after']:.3e} rad"
             for sch, r in out.items()))
         return out
+
+
+def shape_shortlist(evidence, names: list[str], n: int) -> tuple[list[str], list[str]]:
+    """Round 1's candidates for the closed-loop prescreen, by the evidence's equation-error
+    ranking (:attr:`~discrepancy.evidence.Evidence.fits`): of the candidates it scored, the ``n``
+    that explain most of the missing torque; every candidate it could not judge (a filter,
+    bristles, a delay, a two-mass drive: only a replay sees them) or did not fit.  Returns the
+    shortlist (in the order of ``names``) and the candidates left out (by their ranking).
+
+    Why ``n`` = :data:`~discrepancy.select.N_SCREEN`, fixed before any case was run with it: the
+    prescreen passes that many candidates on to the held-out screening, so the equation error
+    chooses among the laws it can judge no fewer than the prescreen would pass on."""
+    judged = [f.name for f in evidence.fits if f.explained is not None and f.name in names]
+    keep = set(judged[:n])
+    return [c for c in names if c not in judged or c in keep], judged[n:]
 
 
 def round_entry(rnd: int, scored: list[Scored], gap_start: float, noise: float) -> dict:

@@ -209,7 +209,8 @@ class Scorer:
     def score_round(self, accepted: list, accepted_x: np.ndarray, gap_start: float, *,
                     candidates: tuple[str, ...] | None = None, bases: list | None = None,
                     n_confirm: int = N_CONFIRM, screen_nfev: int = 4, n_screen: int | None = None,
-                    prescreen_s: float | None = None) -> list[Scored]:
+                    prescreen_s: float | None = None, null: Scored | None = None,
+                    starts: dict | None = None) -> list[Scored]:
         """Fit and score every candidate not yet accepted; best first.
 
         With ``bases`` (a beam: several sets of effects with their fitted values, e.g. the pairs
@@ -235,6 +236,13 @@ class Scorer:
             and scored on held-out runs (default :data:`N_SCREEN`); the others keep their prescreen.
         prescreen_s : float [s]
             Length of the prescreen's short records (default :data:`PRESCREEN_S`).
+        null : Scored, optional
+            The accepted set already fitted and scored with a confirmed candidate's effort (the
+            nominal's corrections in round 1, :meth:`score_set`): it stands as the round's
+            :data:`NULL` instead of being fitted again.
+        starts : dict, optional
+            ``{name: values}``: one more starting point of a candidate's prescreen (its own
+            parameters, e.g. its equation-error fit).
         """
         names = [n for n in (candidates or self.builder.names) if n not in [e.name for e in accepted]]
         jobs = None
@@ -242,18 +250,27 @@ class Scorer:
             jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or self.builder.names)
                     if n not in [e.name for e in b]]
         if accepted and not bases:  # the set so far, fitted and scored exactly as every candidate
-            jobs = [(list(accepted), accepted_x, n) for n in names] + [(list(accepted), accepted_x, None)]
+            jobs = [(list(accepted), accepted_x, n) for n in names]
+            if null is None:
+                jobs.append((list(accepted), accepted_x, None))
         pre = prescreen(self.builder, accepted, accepted_x, names, self.runs, self.rep,
-                        seconds=PRESCREEN_S if prescreen_s is None else prescreen_s, log=self.log, jobs=jobs)
+                        seconds=PRESCREEN_S if prescreen_s is None else prescreen_s, log=self.log, jobs=jobs,
+                        starts=starts, beam=bool(bases))
         scored = self._screen_all(pre, gap_start, N_SCREEN if n_screen is None else n_screen,
                                   screen_nfev=screen_nfev, width=36 if bases else 18)
+        if null is not None and accepted and not bases:
+            # the set so far, as fitted and confirmed already: no replay spent on it again
+            scored.append(dataclasses.replace(null, name=NULL, seconds=0.0, unstable=0, prescreen_gap=math.nan))
+            if self.log:
+                self.log(f"  {NULL:18s} refit  held-out gap {null.heldout_gap:.3e} rad (as confirmed before)")
         null = [sc for sc in scored if sc.name == NULL]
         if not null:
             return self._confirm_best(scored, gap_start, n_confirm)
         # the set so far is always confirmed, and each share is against its held-out gap: a
         # candidate must beat the set re-fitted with the same effort, not the set as the last
         # round left it
-        self._confirm(null[0], gap_start)
+        if null[0].method != "refit":
+            self._confirm(null[0], gap_start)
         out = self._confirm_best([sc for sc in scored if sc.name != NULL], gap_start, n_confirm)
         for sc in out + null:
             sc.share = share_of(sc.heldout_gap, null[0].heldout_gap)

@@ -161,7 +161,7 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
             start = search.refit_nominal(inp.fixed)
         evidence = evidence_of(inp.builder, start, inp.fit_runs, inp.candidates, log)
         with clock.stage("naming"):
-            selection = search.select(inp.candidates, max_effects)
+            selection = search.select(inp.candidates, max_effects, evidence)
         with clock.stage("uncertainty_and_evaluation"):
             unc, theta_after = search.estimate(inp.runs, nominal.theta)
             exported = replay_exported(patched := _patched_spec(inp.builder, selection.best), inp.runs, rep)

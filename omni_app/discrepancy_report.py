@@ -164,10 +164,11 @@ def _figure_candidates(plt, rep: dict, folder: Path) -> str:
         ax = axes[0, i]
         nm = [c["name"] for c in rnd][::-1]
         sh = [max(c["share"], -0.5) if math.isfinite(c["share"]) else 0.0 for c in rnd][::-1]
-        pre = [c["method"] == "prescreen" for c in rnd][::-1]
+        # not scored held out: left on the short records, or by equation error
+        tags = {"prescreen": " (prescreen)", "equation-error": " (equation error)"}
+        pre = [tags.get(c["method"], "") for c in rnd][::-1]
         ax.barh(np.arange(len(nm)), sh, color=["0.8" if p else "C0" for p in pre])
-        ax.set_yticks(np.arange(len(nm)), [n + (" (prescreen)" if p else "") for n, p in zip(nm, pre)],
-                      fontsize=7)
+        ax.set_yticks(np.arange(len(nm)), [n + p for n, p in zip(nm, pre)], fontsize=7)
         ax.axvline(rep["settings"]["min_share"], color="k", ls=":", lw=0.8)
         ax.set_xlim(-0.5, 1.0)
         ax.set_xlabel("held-out share of the gap removed", fontsize=8)
@@ -479,6 +480,9 @@ def _md_candidates(rep: dict) -> list[str]:
             if c["method"] == "prescreen":  # not among the best on the short records
                 L.append(f"| {c['name']} | (short records {_fmt(c['prescreen_gap_rad'])}) | - | "
                          f"prescreen | {c.get('unstable_replays', 0)} | {ps} |")
+                continue
+            if c["method"] == "equation-error":  # not among the best by equation error: not replayed
+                L.append(f"| {c['name']} | (not replayed) | - | equation error | 0 | {ps} |")
                 continue
             L.append(f"| {c['name']} | {_fmt(c['heldout_gap_rad'])} | {c['share']:+.2f} | {c['method']} | "
                      f"{c.get('unstable_replays', 0)} | {ps} |")

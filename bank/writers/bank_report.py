@@ -210,8 +210,14 @@ def _efficiency_rounds(rep: dict) -> list[str]:
                      f"{'accepted' if ps['accepted'] else 'not accepted'})")
         lines.append(line)
     first = [c for c in rep["candidates"][0] if "prescreen_gap_rad" in c]
-    scored = [c for c in first if c["method"] != "prescreen"]
-    screen = sorted((c for c in first if not c["name"].startswith("(")), key=lambda c: c["prescreen_gap_rad"])
+    scored = [c for c in first if c["method"] in ("one-step", "refit")]
+    screen = sorted((c for c in first if not c["name"].startswith("(") and c["method"] != "equation-error"),
+                    key=lambda c: c["prescreen_gap_rad"])
+    if not any(c["name"] == "load_friction" for c in screen):
+        lines.append("- round 1's held-out shares (of the round's gap): "
+                     + ", ".join(f"`{c['name']}` {c['share']:.3f}" for c in scored)
+                     + "; `load_friction` was not among the best by equation error, so it was not replayed")
+        return lines
     rank = next(i for i, c in enumerate(screen) if c["name"] == "load_friction") + 1
     lf = screen[rank - 1]
     nth = {1: "1st", 2: "2nd", 3: "3rd"}.get(rank, f"{rank}th")
