@@ -245,6 +245,11 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
     L += ["*This ranking is by equation error: each law fitted to the missing torque at the logged "
           "states, no replays. The closed-loop verdict below (held-out replays) is what names the "
           "effect.*", ""]
+    left = [c["name"] for c in (rep["candidates"][0] if rep.get("candidates") else [])
+            if c["method"] == "equation-error"]
+    if left:
+        L += ["Round 1 of the closed-loop search replayed the best of these laws and every law only a "
+              "replay can judge; it left out, by this ranking: " + ", ".join(left) + ".", ""]
     fits = {f["name"]: f for f in ev["ranking"]}
     replay = {f["name"]: f["reason"] for f in ev["needs_replay"]}
     for entry in rep["effects"]:

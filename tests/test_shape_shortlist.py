@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from discrepancy import select as sel
+from omni_app import discrepancy_report as rp
 from discrepancy.search import shape_shortlist
 from discrepancy.workflow import run_discrepancy
 from test_torque import PATH, TARGET, hidden_runs
@@ -67,6 +68,9 @@ def test_round_one_replays_only_the_shortlist(report):
     for name in left:
         assert first[name]["heldout_gap_rad"] == float("inf")
     assert report["effects"][0]["name"] == "coulomb_friction"
+    md = "\n".join(rp._md_evidence(report, []))
+    assert "it left out, by this ranking: " + ", ".join(
+        c["name"] for c in report["candidates"][0] if c["method"] == "equation-error") in md
 
 
 @pytest.mark.slow
