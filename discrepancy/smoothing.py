@@ -114,13 +114,19 @@ def hann_taps(h: float, dt: float) -> np.ndarray:
 
 def noise_sigma(run: ReplayRun, est: Estimator) -> float:
     """The logged angle's noise sigma [rad] (module docstring: the estimator's, the run's
-    metadata, else 1.4826 MAD(third differences) / sqrt(20))."""
+    metadata, else 1.4826 MAD(third differences) / sqrt(20), at least the quantisation noise
+    ``q / sqrt(12)`` of the smallest step ``q`` the log takes: a quantised angle at rest for
+    most of a run has third differences mostly 0, whose MAD is 0, and a band of 0 would weigh
+    those samples without bound)."""
     if est.noise_rad is not None:
         return float(est.noise_rad)
     step = run.meta.get("encoder_step_rad")
     if step is not None:
         return math.sqrt(float(step) ** 2 / 12 + float(run.meta.get("encoder_noise_rad", 0.0)) ** 2)
-    return _mad_sigma(run.theta)
+    moves = np.abs(np.diff(np.asarray(run.theta, float)))
+    moves = moves[moves > 0]
+    floor = float(moves.min()) / math.sqrt(12.0) if len(moves) else 0.0
+    return max(_mad_sigma(run.theta), floor)
 
 
 def _interp_matrix(t_fine: np.ndarray, t_log: np.ndarray) -> sparse.csr_matrix:

@@ -44,7 +44,8 @@ The noise band
 --------------
 Every state is a linear map of the logged angles, ``x = W theta`` (:mod:`.smoothing`).  White noise ``sigma`` on each logged angle (``sigma^2 = step^2 / 12 +
 noise^2`` from the run's metadata ``encoder_step_rad``/``encoder_noise_rad``, the
-:class:`Estimator`'s ``noise_rad``, else 1.4826 MAD of the third differences / sqrt(20))
+:class:`Estimator`'s ``noise_rad``, else 1.4826 MAD of the third differences / sqrt(20), at
+least the quantisation noise of the smallest step the log takes)
 gives ``tau_miss`` the spread::
 
     band = 3 sqrt( sigma^2 || J_q W_q + J_qd W_qd + J_qdd W_qdd ||^2 + (sigma_v J_v ||W_v||)^2 ),
