@@ -145,8 +145,8 @@ def test_the_omni_coulomb_scene_names_a_hidden_coulomb_friction():
     the four laws offered.  (Before the noise floor of ``smoothing.noise_sigma`` the step runs'
     band was 0 and cogging ranked first.)  The level is not checked: measured 16.7 mN*m for the
     truth's 18.8 (-11 %); under the truth itself the inverse leaves 2-7 mN*m along the motion on
-    the step runs' steady samples (0.4 on a 1.5 Hz sine), a bias of the Omni's fast step
-    transients that this test does not hide."""
+    the step runs' steady samples (0.4 on a 1.5 Hz sine; 0.1 on the steps with the file's own
+    3.8 mN*m), a bias of the Omni's step transients with a larger dry friction, not hidden here."""
     from omni_sim import experiments as ex
     path = str(om.DEFAULT_SCENE).replace("scene.xml", "scene_coulomb.xml")
     spec = mujoco.MjSpec.from_file(path)
