@@ -24,6 +24,10 @@ direction and sticking share on the fine grid, through the window::
 
     s_f = K * sign(qdd + B qd),     w_f = K * [|qdd + B qd| < 3 sigma]
 
+(``qd``, ``qdd`` here from the angle smoothed by a window :data:`~.smoothing.STICK_SHARE` as
+wide: the smoothing's own window would leak a motion's onset back by its half-width and count
+the rest before a step as sliding)
+
 (MuJoCo's ``frictionloss`` row is a bounded servo of the velocity towards 0 with reference
 acceleration ``-B qd``, :func:`friction_rate`: it opposes ``qdd + B qd``, not ``qd`` alone, so
 braking harder than ``B qd`` it pushes along the motion; sigma: the noise of ``qdd + B qd``),
