@@ -249,32 +249,32 @@ class Scorer:
         if bases:
             jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or self.builder.names)
                     if n not in [e.name for e in b]]
+        given = null is not None and accepted and not bases  # the set so far, confirmed already
         if accepted and not bases:  # the set so far, fitted and scored exactly as every candidate
             jobs = [(list(accepted), accepted_x, n) for n in names]
-            if null is None:
+            if not given:
                 jobs.append((list(accepted), accepted_x, None))
         pre = prescreen(self.builder, accepted, accepted_x, names, self.runs, self.rep,
                         seconds=PRESCREEN_S if prescreen_s is None else prescreen_s, log=self.log, jobs=jobs,
                         starts=starts, beam=bool(bases))
         scored = self._screen_all(pre, gap_start, N_SCREEN if n_screen is None else n_screen,
                                   screen_nfev=screen_nfev, width=36 if bases else 18)
-        if null is not None and accepted and not bases:
-            # the set so far, as fitted and confirmed already: no replay spent on it again
+        if given:  # no replay spent on it again
             scored.append(dataclasses.replace(null, name=NULL, seconds=0.0, unstable=0, prescreen_gap=math.nan))
             if self.log:
                 self.log(f"  {NULL:18s} refit  held-out gap {null.heldout_gap:.3e} rad (as confirmed before)")
-        null = [sc for sc in scored if sc.name == NULL]
-        if not null:
+        nulls = [sc for sc in scored if sc.name == NULL]
+        if not nulls:
             return self._confirm_best(scored, gap_start, n_confirm)
         # the set so far is always confirmed, and each share is against its held-out gap: a
         # candidate must beat the set re-fitted with the same effort, not the set as the last
         # round left it
-        if null[0].method != "refit":
-            self._confirm(null[0], gap_start)
+        if not given:
+            self._confirm(nulls[0], gap_start)
         out = self._confirm_best([sc for sc in scored if sc.name != NULL], gap_start, n_confirm)
-        for sc in out + null:
-            sc.share = share_of(sc.heldout_gap, null[0].heldout_gap)
-        return sorted(out + null, key=lambda sc: sc.heldout_gap)
+        for sc in out + nulls:
+            sc.share = share_of(sc.heldout_gap, nulls[0].heldout_gap)
+        return sorted(out + nulls, key=lambda sc: sc.heldout_gap)
 
     def _screen_all(self, pre: list[Prescreened], gap_start: float, n_screen: int, *,
                     screen_nfev: int, width: int) -> list[Scored]:

@@ -213,16 +213,15 @@ def _efficiency_rounds(rep: dict) -> list[str]:
     scored = [c for c in first if c["method"] in ("one-step", "refit")]
     screen = sorted((c for c in first if not c["name"].startswith("(") and c["method"] != "equation-error"),
                     key=lambda c: c["prescreen_gap_rad"])
+    shares = ("- round 1's held-out shares (of the round's gap): "
+              + ", ".join(f"`{c['name']}` {c['share']:.3f}" for c in scored))
     if not any(c["name"] == "load_friction" for c in screen):
-        lines.append("- round 1's held-out shares (of the round's gap): "
-                     + ", ".join(f"`{c['name']}` {c['share']:.3f}" for c in scored)
-                     + "; `load_friction` was not among the best by equation error, so it was not replayed")
+        lines.append(shares + "; `load_friction` was not among the best by equation error, so it was not replayed")
         return lines
     rank = next(i for i, c in enumerate(screen) if c["name"] == "load_friction") + 1
     lf = screen[rank - 1]
     nth = {1: "1st", 2: "2nd", 3: "3rd"}.get(rank, f"{rank}th")
-    lines.append("- round 1's held-out shares (of the round's gap): "
-                 + ", ".join(f"`{c['name']}` {c['share']:.3f}" for c in scored)
+    lines.append(shares
                  + f"; `load_friction` was {nth} of {len(screen)} candidates on the prescreen (first second of each "
                  f"run: gap {lf['prescreen_gap_rad']:.3g} rad at mu_drive {lf['parameters']['mu_drive']:.3g}, "
                  f"mu_back {lf['parameters']['mu_back']:.3g}), "
