@@ -200,8 +200,12 @@ def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], 
 
 
 #: Length [s] of the records on which the pairs' starting grids are evaluated (a coarse start
-#: only; 0.7 s, 700 samples of the Omni's 1 kHz log).
-PAIR_GRID_S = 0.7
+#: only; every pair's fit then runs on the whole records).  0.35 s: one step edge and its
+#: settling at the Omni's ~3.4 Hz resonance, or half a cycle of a 1.5 Hz sine with its first
+#: reversal; was 0.7 s, halved for the cost (the grid was the largest part of a pair case's
+#: replays: 85 of 152 s of the bank's delay+friction case), the choice made before the bank was
+#: run with it.
+PAIR_GRID_S = 0.35
 #: Pairs (best by their grid) fitted and screened; the best ``n_confirm`` of them confirmed.
 PAIR_FITS = 8
 #: Points per effect of a pair's starting grid (each effect's grid thinned to this many).

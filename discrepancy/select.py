@@ -426,8 +426,9 @@ class Scorer:
 
     def score_removals(self, best: Scored, gap_start: float, keep: tuple[str, ...] = ()) -> list[Scored]:
         """The backward step of floating selection: ``best`` without each of its members,
-        refitted jointly from ``best``'s values and scored like a confirmed candidate (exact
-        per-fold refits on ``best``'s folds); best first.
+        refitted jointly from ``best``'s values and screened on ``best``'s folds, the
+        :data:`N_CONFIRM` best screened confirmed (exact per-fold refits) as a round's
+        candidates are; best first.
 
         A member whose removal leaves a held-out gap that the full set lowers by less than
         :data:`MIN_SHARE` removes no clear share of the gap: a stand-in accepted early (a spring
@@ -444,10 +445,9 @@ class Scorer:
             t0 = time.perf_counter()
             prob = scorer.problem(effects)
             fit = prob.fit(x0, None, max_nfev=8)
-            sc = scorer._screened("+".join(e.name for e in effects), effects, prob, fit, gap_start, t0,
-                                  width=36)
-            scorer._confirm(sc, gap_start)
-            out.append(sc)
-        out.sort(key=lambda s: s.heldout_gap)
-        return out
+            out.append(scorer._screened("+".join(e.name for e in effects), effects, prob, fit, gap_start, t0,
+                                        width=36))
+        # the caller reads the best removal: like a round's candidates, the best N_CONFIRM by
+        # their screen are confirmed (each confirm of a rough set is a minute of replays)
+        return scorer._confirm_best(out, gap_start, N_CONFIRM)
 
