@@ -20,10 +20,10 @@ why (``reason``), never an exception: the closed-loop verdict does not depend on
 
 The ranking is by equation error on the smoothed states: it judges a law by how well its torque
 matches the missing torque at the same states, which a replay cannot (a replay's error mixes
-every effect through the closed loop).  It cannot judge a law whose torque depends on state the
-logged angle does not fix (filters, bristles, delays, a rotor), and it sees the missing torque
-only through the estimator's window: a fast effect (a delay of a few ms, a short stick) is
-smoothed away.  The closed-loop verdict (:mod:`.select`) is what names the effect.
+every effect through the closed loop).  A delay or a filter on the command is judged through
+the command it makes (:mod:`.shape`); a law whose torque depends on state the logged angle does
+not fix (bristles, a rotor) cannot be judged, and it sees the missing torque only through the
+estimator's window: a fast effect (a short stick) is smoothed away.  The closed-loop verdict (:mod:`.select`) is what names the effect.
 """
 
 from __future__ import annotations

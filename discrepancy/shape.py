@@ -20,9 +20,14 @@ The candidates are ranked by the share of the missing torque they explain::
 and each says where the fitted law and the missing torque still disagree
 (:func:`disagreements`: the residual binned by speed and by driving / back-driven).
 
-Effects whose model has state the logged angle does not fix -- an actuator filter or
-LuGre bristle (activation states), a delay buffer, a two-mass drive (extra joints) -- cannot be
-judged by equation error: they are marked ``needs_replay`` with the reason, not scored.
+An effect on the command's path only -- a loop delay, the drive's first-order lag -- is judged
+through the command it makes (:attr:`~discrepancy.effects.base.Effect.command`): the model
+without it is fed the logged command delayed or filtered as MuJoCo's ``delay`` or
+``filterexact`` would (on the model's timestep, before the window smooths it), so its residual
+is that of the model with it, up to the history before the run's start.  Other effects whose
+model has state the logged angle does not fix -- LuGre bristles (activation states), a
+two-mass drive (extra joints) -- cannot be judged by equation error: they are marked
+``needs_replay`` with the reason, not scored.
 """
 
 from __future__ import annotations
@@ -141,11 +146,25 @@ class _Candidate:
             i += eff.nparam
         return out
 
+    @property
+    def on_command(self) -> bool:
+        """The effect acts on the command's path only (:attr:`Effect.command`): judged by
+        feeding the model without it the command it makes."""
+        return self.effect is not None and self.effect.command is not None
+
     def taus(self, x: np.ndarray) -> list[np.ndarray]:
-        model = self.builder.compile(self.changes(x))
+        changes = self.changes(x)
+        if self.on_command:
+            changes, (eff, own) = changes[:-1], changes[-1]
+        model = self.builder.compile(changes)
         self.compiles += 1
         inv = InverseModel(model, self.builder.target)
-        out = [inv.missing(s)[0] for s in self.states.smoothed]
+        if self.on_command:
+            dt = float(model.opt.timestep)
+            out = [inv.missing(s, ctrl=s.fine[0] @ eff.command(s.v_fine, dt, own))[0]
+                   for s in self.states.smoothed]
+        else:
+            out = [inv.missing(s)[0] for s in self.states.smoothed]
         self.calls += inv.calls
         return out
 
@@ -164,7 +183,7 @@ def fit_candidate(builder: ModelBuilder, name: str, states: States, nominal: muj
     effects = cand.free + ([cand.effect] if cand.effect is not None else [])
     own = cand.effect.nparam if cand.effect is not None else 0
     x0 = np.concatenate([builder.nominal_values(e) for e in effects])
-    why = needs_replay(builder.compile(cand.changes(x0)), nominal)
+    why = "" if cand.on_command else needs_replay(builder.compile(cand.changes(x0)), nominal)
     if why:
         return ShapeFit(name, None, None, None, (), why, 1, 0, time.perf_counter() - t0)
     cand.compiles = 1

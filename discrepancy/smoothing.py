@@ -87,7 +87,8 @@ class Smoothed:
     ``(Wv, sigma_cmd)``, the logged command's map to ``v`` and its noise sigma (0 when logged
     every control period); ``fine``: the window's rows ``G0`` on the fine grid, the fine grid's
     velocity and acceleration of the angle smoothed by the :data:`STICK_SHARE` window (the
-    friction's direction and sticking) and their noise sigmas."""
+    friction's direction and sticking) and their noise sigmas; ``v_fine``: the command on the
+    fine grid (``v = G0 v_fine``), for a command another law makes of it."""
 
     name: str
     t: np.ndarray
@@ -103,6 +104,7 @@ class Smoothed:
     dt: float
     pose: tuple
     half_window_s: float
+    v_fine: np.ndarray | None = None
 
     @property
     def qd(self) -> np.ndarray:
@@ -209,7 +211,7 @@ def smooth(run: ReplayRun, dt: float, est: Estimator = Estimator()) -> Smoothed:
     fine = (G0, vel, acc, sigma * float(np.linalg.norm(g1)) * lin, sigma * float(np.linalg.norm(g2)) * lin)
     return Smoothed(run.name, t_fine[centres], W[0] @ theta, W[1] @ theta, W[2] @ theta,
                     G0 @ v_fine, on_fine[centres], fine, _away_from_switches(on_fine, centres, len(K) // 2 + 1), W, sigma, dt,
-                    tuple(run.gamma_set_deg), h)
+                    tuple(run.gamma_set_deg), h, v_fine)
 
 
 def _mad_sigma(x: np.ndarray) -> float:

@@ -211,10 +211,11 @@ class InverseModel:
         stuck = np.abs(jar) < max(BAND_SIGMAS * math.hypot(sig_a, self.rate * sig_v), 1e-9)
         return G0 @ np.where(stuck, 0.0, np.sign(jar)), G0 @ stuck.astype(float)
 
-    def missing(self, sm: Smoothed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def missing(self, sm: Smoothed, ctrl=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``tau_miss`` [N*m], ``tau_motor`` [N*m] and ``steady`` (the window sees one
-        friction direction and no sticking: ``|s_f| > 0.99``, ``w_f < 0.01``) at the output times."""
-        req, motor = self.required(sm)
+        friction direction and no sticking: ``|s_f| > 0.99``, ``w_f < 0.01``) at the output times;
+        ``ctrl``: the (smoothed) command the drive applies, default the logged one."""
+        req, motor = self.required(sm, ctrl=ctrl)
         F = self.level(sm, motor)
         s_f, w_f = self.direction(sm)
         moving = -F * s_f

@@ -21,7 +21,7 @@ from test_torque import PATH, TARGET, hidden_runs, nominal
 
 #: The hidden dry friction [N*m] (the nominal model says 0.03).
 FC = 0.06
-NAMES = ("coulomb_friction", "viscous_damping", "armature", "time_delay")
+NAMES = ("coulomb_friction", "viscous_damping", "armature", "drive_compliance")
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +46,7 @@ def test_names_the_hidden_coulomb_friction(ev):
     assert ev.explained_enough and ev.best.explained > 0.9
     j = json.loads(json.dumps(ev.to_json()))  # plain JSON: no numpy types
     assert j["ranking"][0]["name"] == "coulomb_friction" and j["ranking"][0]["at_bound"] == []
-    assert [f["name"] for f in j["needs_replay"]] == ["time_delay"]
+    assert [f["name"] for f in j["needs_replay"]] == ["drive_compliance"]
     assert j["unexplained"] is False
     # the missing friction, -(0.06 - 0.03) sign(qd), seen along the motion where the drive drives
     assert j["by_drive"]["driving"]["median_along_motion_mnm"] == pytest.approx(-1e3 * (FC - 0.03), rel=0.15)
@@ -73,8 +73,8 @@ def test_report_section_renders(ev, tmp_path):
     # the stand-in compared on the same map: a scored runner-up, one that needs a replay
     vd = next(f for f in rep["evidence"]["ranking"] if f["name"] == "viscous_damping")
     for runner, words in (("viscous_damping", f"explains {100 * vd['explained']:.1f} % of the missing torque here"),
-                          ("time_delay", "cannot be judged by equation error (adds a delay buffer"),
-                          ("coulomb_friction+time_delay", None), ("(no new effect)", None)):
+                          ("drive_compliance", "cannot be judged by equation error (adds joints"),
+                          ("coulomb_friction+drive_compliance", None), ("(no new effect)", None)):
         rep["effects"] = [{"name": "coulomb_friction", "runner_up": runner}]
         md = "\n".join(rp._md_evidence(rep, []))
         line = f"Its runner-up in the closed loop, **{runner}**, "

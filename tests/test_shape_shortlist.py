@@ -42,10 +42,11 @@ def test_the_shortlist_keeps_the_best_judged_laws_and_every_law_only_a_replay_se
 
 @pytest.fixture(scope="module")
 def report():
-    """Two 3-s runs, the damping as the nominal's correction, seven candidates (one a delay)."""
+    """Two 3-s runs, the damping as the nominal's correction, seven candidates (one a two-mass
+    drive)."""
     data = hidden_runs(lambda s: setattr(s.joint("pivot"), "frictionloss", FC), n=2, duration=3.0)
     cands = ("coulomb_friction", "armature", "stribeck_friction", "cogging", "joint_stiffness",
-             "position_offset", "time_delay")
+             "position_offset", "drive_compliance")
     return run_discrepancy(data, PATH, target=TARGET, k=3, max_effects=1, candidates=cands,
                            corrections=("viscous_damping",), jobs=1).report
 
@@ -53,8 +54,8 @@ def report():
 @pytest.mark.slow
 def test_round_one_replays_only_the_shortlist(report):
     """The judged laws the evidence ranks past the fourth are listed by equation error only
-    (never replayed); the delay and the Stribeck law (a LuGre ``dcmotor``), which equation error
-    cannot judge, are prescreened; the hidden Coulomb friction is still named (its level is not
+    (never replayed); the two-mass drive and the Stribeck law (a LuGre ``dcmotor``), which
+    equation error cannot judge, are prescreened; the hidden Coulomb friction is still named (its level is not
     checked here: two short runs, the bank checks levels)."""
     ev = report["evidence"]
     assert ev["available"] and ev["scored"] <= 5  # the ranking lists the top 5: all of them
@@ -62,8 +63,8 @@ def test_round_one_replays_only_the_shortlist(report):
     first = {c["name"]: c for c in report["candidates"][0]}
     left = {n for n, c in first.items() if c["method"] == "equation-error"}
     assert left and left == set(judged[sel.N_SCREEN:])
-    assert {r["name"] for r in ev["needs_replay"]} == {"time_delay", "stribeck_friction"}
-    assert first["time_delay"]["method"] != "equation-error"
+    assert {r["name"] for r in ev["needs_replay"]} == {"drive_compliance", "stribeck_friction"}
+    assert first["drive_compliance"]["method"] != "equation-error"
     assert first["stribeck_friction"]["method"] != "equation-error"
     for name in left:
         assert first[name]["heldout_gap_rad"] == float("inf")

@@ -16,6 +16,7 @@ import math
 
 import mujoco
 import numpy as np
+from scipy import signal
 
 from .base import OMNI, Effect, Param, absolute_grid, actuator_of, scaled_grid
 
@@ -38,6 +39,23 @@ def _write_lag(spec, x, target=OMNI):
     a = actuator_of(spec, target)
     a.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
     a.dynprm[0] = max(float(x[0]), MIN_TIME_CONSTANT_S)
+
+
+def _lagged(v: np.ndarray, dt: float, x) -> np.ndarray:
+    """MuJoCo's ``filterexact`` on the command held over each step ``dt``: the force at step k
+    reads the activation before that step's update, ``a_k = e a_(k-1) + (1 - e) v_(k-1)``,
+    ``e = exp(-dt / tau)``; the activation starts at the first command (a run starts at rest)."""
+    e = math.exp(-dt / max(float(x[0]), MIN_TIME_CONSTANT_S))
+    v = np.asarray(v, float)
+    out, _ = signal.lfilter([0.0, 1.0 - e], [1.0, -e], v, zi=[v[0]])
+    return out
+
+
+def _delayed(v: np.ndarray, dt: float, x) -> np.ndarray:
+    """MuJoCo's actuator ``delay`` with linear interpolation in the command's history: the
+    command ``delay_s`` earlier (the first command before the run's start)."""
+    t = np.arange(len(v)) * dt
+    return np.interp(t - max(float(x[0]), 0.0), t, np.asarray(v, float))
 
 
 def _read_delay(spec, target=OMNI):
@@ -97,12 +115,12 @@ def _write_bias(spec, x, target=OMNI):
 ACTUATOR_LAG = Effect(
     "actuator_lag", "first-order lag of the drive (amplifier/current loop)",
     (Param("time_constant_s", "s", MIN_TIME_CONSTANT_S, 0.05, 0.002),),
-    _read_lag, _write_lag, absolute_grid((MIN_TIME_CONSTANT_S, 0.002, 0.005, 0.01, 0.02)))
+    _read_lag, _write_lag, absolute_grid((MIN_TIME_CONSTANT_S, 0.002, 0.005, 0.01, 0.02)), command=_lagged)
 
 TIME_DELAY = Effect(
     "time_delay", "pure time delay in the loop (USB, servo scheduling)",
     (Param("delay_s", "s", 0.0, (DELAY_NSAMPLE - 1) * 1e-3, 0.001),),
-    _read_delay, _write_delay, absolute_grid((0.0, 0.002, 0.005, 0.01, 0.02)))
+    _read_delay, _write_delay, absolute_grid((0.0, 0.002, 0.005, 0.01, 0.02)), command=_delayed)
 
 TORQUE_SATURATION = Effect(
     "torque_saturation", "the drive's torque limit (current limit)",

@@ -58,6 +58,12 @@ class Effect:
     applies : callable(spec, target) -> bool
         Whether the effect can be written into this model (e.g. ``arm_mass`` needs the Omni's
         arm bodies); default: always.
+    command : callable(v, dt, values) -> ndarray, optional
+        For an effect on the command's path only (a delay, a filter): the command the drive
+        applies, given the logged command ``v`` on a grid of step ``dt`` [s] -- what the effect
+        does to the command, outside the model.  Equation error judges such an effect by
+        feeding the model without it this command (:mod:`discrepancy.shape`); None: the effect
+        is judged through the model it writes.
     """
 
     name: str
@@ -67,6 +73,7 @@ class Effect:
     write: Callable[..., None] = field(repr=False)
     grid: Callable[[np.ndarray], np.ndarray] = field(repr=False)
     applies: Callable[..., bool] = field(default=lambda spec, target=None: True, repr=False)
+    command: Callable[..., np.ndarray] | None = field(default=None, repr=False)
 
     @property
     def nparam(self) -> int:
