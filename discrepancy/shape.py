@@ -96,13 +96,15 @@ class States:
     band: list
     motor: list
     keep: list
+    bias: list | None = None
 
     @classmethod
-    def of(cls, smoothed: list, torques: list) -> "States":
+    def of(cls, smoothed: list, torques: list, bias: list | None = None) -> "States":
         """From the smoothed runs and their missing torque (:func:`~.torque.invert`): a band
-        floored at 1e-12 N*m (a weight, never a division by zero)."""
+        floored at 1e-12 N*m (a weight, never a division by zero); ``bias``: the estimator's own
+        error per run (on the model's own replay), taken from every candidate's missing torque."""
         return cls(smoothed, [m.tau_miss for m in torques], [np.maximum(m.band, 1e-12) for m in torques],
-                   [m.tau_motor for m in torques], [m.trusted for m in torques])
+                   [m.tau_motor for m in torques], [m.trusted for m in torques], bias)
 
     def weighted(self, taus) -> np.ndarray:
         """``tau / band`` over the trusted output times of every run, concatenated."""
@@ -166,6 +168,8 @@ class _Candidate:
         else:
             out = [inv.missing(s)[0] for s in self.states.smoothed]
         self.calls += inv.calls
+        if self.states.bias is not None:
+            out = [t - b for t, b in zip(out, self.states.bias)]
         return out
 
     def residual(self, x: np.ndarray) -> np.ndarray:

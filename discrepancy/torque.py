@@ -40,9 +40,14 @@ and::
 provides; a missing Coulomb friction ``Fc`` appears as ``-Fc sign(qd)``, a missing viscous
 term ``c`` as ``-c qd``.
 
-Not supported (a one-line error): a model with actuator activation states (a ``dcmotor`` with
-LuGre or inductance, filters: ``model.na > 0``) or a delay buffer (their state is not a
-function of the logged angle), or a two-mass drive (a hinge tied to the joint by a tendon).
+A passive LuGre ``dcmotor`` on the joint (the Omni's ``yaw_friction``) has a bristle state that
+is not a function of the logged angle: its torque is integrated along the run's smoothed
+velocity (:mod:`.bristles`), seen through the window, and taken from ``tau_req`` as the model's
+own; the inverse's copy leaves it out (its gear 0).
+
+Not supported (a one-line error): any other actuator activation state (a ``dcmotor`` with
+inductance, filters) or a delay buffer (their state is not a function of the logged angle), or
+a two-mass drive (a hinge tied to the joint by a tendon).
 
 The noise band
 --------------
@@ -75,6 +80,7 @@ from identification.errors import UserError
 
 from omni_sim import model as om
 from omni_sim.device import DRIVE_LAWS, Device
+from . import bristles
 from .runs import ReplayRun
 from .smoothing import BAND_SIGMAS, HANN_CUTOFF, Estimator, Smoothed, hann_taps, row_norms, smooth
 
@@ -152,6 +158,9 @@ class InverseModel:
         self.dof, self.act = dev.ix.yaw_dof, dev.ix.yaw_act
         self.qadr = dev.ix.yaw_qpos
         self.frictionloss = float(model.dof_frictionloss[self.dof])
+        self.lugre_ids = bristles.lugre_actuators(model, self.dof)
+        self.lugre = [bristles.parameters(model, a) for a in self.lugre_ids]
+        self._bristle_cache: dict = {}
         self.on_model = self._inverse_copy(model)
         self.off_model = self._inverse_copy(dev.off_model())
         self.data = mujoco.MjData(self.on_model)
@@ -161,6 +170,8 @@ class InverseModel:
     def _inverse_copy(self, model: mujoco.MjModel) -> mujoco.MjModel:
         m = copy.deepcopy(model)
         m.dof_frictionloss[self.dof] = 0.0  # the Coulomb friction is written out (set-valued)
+        for a in self.lugre_ids:  # and the LuGre bristles (:meth:`bristle_torque`)
+            m.actuator_gear[a, 0] = 0.0
         m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_INVDISCRETE
         return m
 
@@ -193,6 +204,18 @@ class InverseModel:
         self.calls += len(q)
         return req, motor
 
+    def bristle_torque(self, sm: Smoothed) -> np.ndarray | float:
+        """The model's LuGre torque [N*m] at the output times (0 without LuGre): integrated on the
+        fine grid along the narrow window's velocity, seen through the smoothing window."""
+        if not self.lugre:
+            return 0.0
+        hit = self._bristle_cache.get(id(sm))
+        if hit is None or hit[0] is not sm:
+            G0, vel = sm.fine[0], sm.fine[1]
+            fine = sum(bristles.torque(p, vel, sm.dt) for p in self.lugre)
+            hit = self._bristle_cache[id(sm)] = (sm, G0 @ fine)
+        return hit[1]
+
     def level(self, sm: Smoothed, motor: np.ndarray) -> np.ndarray:
         """The model's Coulomb level ``F`` [N*m]: ``frictionloss`` plus the drive laws."""
         F = np.full(len(motor), self.frictionloss)
@@ -216,6 +239,7 @@ class InverseModel:
         friction direction and no sticking: ``|s_f| > 0.99``, ``w_f < 0.01``) at the output times;
         ``ctrl``: the (smoothed) command the drive applies, default the logged one."""
         req, motor = self.required(sm, ctrl=ctrl)
+        req = req - self.bristle_torque(sm)
         F = self.level(sm, motor)
         s_f, w_f = self.direction(sm)
         moving = -F * s_f
@@ -265,13 +289,14 @@ def friction_rate(model: mujoco.MjModel, dof: int) -> float:
 
 def check_supported(model: mujoco.MjModel, device: Device) -> None:
     """Raise UserError if the model has state that the logged angle does not fix."""
-    if model.na > 0:
-        # every actuator, passive ones too (a LuGre dcmotor with input="none" is not in nu)
-        names = ", ".join(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or str(a)
-                          for a in range(model.nactuator) if model.actuator_actnum[a] > 0)
-        raise UserError(f"the model's actuator(s) {names} have activation states (LuGre, inductance, "
-                        "filters): the missing torque cannot be seen by inverse dynamics; compare "
-                        "replays instead (omni discrepancy)")
+    lugre = set(bristles.lugre_actuators(model, device.ix.yaw_dof))
+    stateful = [a for a in range(model.nactuator) if model.actuator_actnum[a] > 0 and a not in lugre]
+    if stateful:
+        # every actuator, passive ones too (a dcmotor with input="none" is not in nu)
+        names = ", ".join(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or str(a) for a in stateful)
+        raise UserError(f"the model's actuator(s) {names} have activation states (inductance, filters, "
+                        "LuGre on another joint): the missing torque cannot be seen by inverse dynamics; "
+                        "compare replays instead (omni discrepancy)")
     if model.nhistory > 0 or np.any(model.actuator_delay > 0):
         raise UserError("the model has a delay buffer: its torque depends on past commands the "
                         "inverse does not replay; compare replays instead (omni discrepancy)")

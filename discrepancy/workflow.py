@@ -159,8 +159,8 @@ def run_discrepancy(runs: list[Run], model_path=None, *, device: Device | None =
                         scheme=folds, log=log)
         with clock.stage("corrections"):
             start = search.refit_nominal(inp.fixed)
-        evidence = evidence_of(inp.builder, start, inp.fit_runs, inp.candidates, log)
         with clock.stage("naming"):
+            evidence = evidence_of(inp.builder, start, inp.fit_runs, inp.candidates, log, rep)
             selection = search.select(inp.candidates, max_effects, evidence)
         with clock.stage("uncertainty_and_evaluation"):
             unc, theta_after = search.estimate(inp.runs, nominal.theta)

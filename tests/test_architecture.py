@@ -391,7 +391,7 @@ DISCREPANCY_LAYERS = {
     "runs": ("runs",),  # a run prepared for replay: plain data
     "statistics": ("localise", "fit", "folds", "prescreen", "select", "uncertainty", "nesting", "report"),
     # MuJoCo: the replay, the effect library, the missing torque and its equation-error naming
-    "simulation": ("replay", "effects", "smoothing", "torque", "shape", "evidence"),
+    "simulation": ("replay", "effects", "smoothing", "bristles", "torque", "shape", "evidence"),
     "workflow": ("workflow", "search", "result"),  # joins statistics and simulation; its result
     "truth": ("experiment_set", "demo"),  # hidden effects: the demo's; the bank's cases are bank/
 }

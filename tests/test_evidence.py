@@ -109,12 +109,14 @@ def test_corrections_are_refitted_with_every_candidate(runs):
 
 
 def test_a_refused_model_gives_the_reason_in_one_line():
-    """The Omni's scene has a LuGre dcmotor (activation states): no evidence, the reason, and
-    one line in the report; the workflow's hook never raises."""
-    spec = mujoco.MjSpec.from_file(str(om.DEFAULT_SCENE))
-    ev = evidence.missing_torque_evidence(spec, spec.copy().compile(), [], om.OMNI)
+    """A drive with a first-order filter (an activation state the log does not fix): no
+    evidence, the reason, and one line in the report; the workflow's hook never raises."""
+    spec = mujoco.MjSpec.from_file(PATH)
+    spec.actuator("servo").dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
+    spec.actuator("servo").dynprm[0] = 0.01
+    ev = evidence.missing_torque_evidence(spec, spec.copy().compile(), [], TARGET)
     assert not ev.available and "activation states" in ev.reason
-    hooked = evidence.of_outcome(fx.ModelBuilder(spec, om.OMNI), None, [], ())
+    hooked = evidence.of_outcome(fx.ModelBuilder(spec, TARGET), None, [], ())
     assert not hooked.available and hooked.reason == ev.reason and hooked.cost["compiles"] == 1
     j = hooked.to_json()
     assert j == json.loads(json.dumps(j)) and j["available"] is False
