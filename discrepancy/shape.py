@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -97,6 +97,7 @@ class States:
     motor: list
     keep: list
     bias: list | None = None
+    bristles: dict = field(default_factory=dict)  # the LuGre torques, shared by the candidates
 
     @classmethod
     def of(cls, smoothed: list, torques: list, bias: list | None = None) -> "States":
@@ -160,7 +161,7 @@ class _Candidate:
             changes, (eff, own) = changes[:-1], changes[-1]
         model = self.builder.compile(changes)
         self.compiles += 1
-        inv = InverseModel(model, self.builder.target)
+        inv = InverseModel(model, self.builder.target, self.states.bristles)
         if self.on_command:
             dt = float(model.opt.timestep)
             out = [inv.missing(s, ctrl=s.fine[0] @ eff.command(s.v_fine, dt, own))[0]

@@ -139,6 +139,9 @@ class InverseModel:
         The (corrected nominal) model; not modified.
     target : omni_sim.model.Target, optional
         Its controlled joint and actuator (default None: the Omni's ``yaw``/``yaw_motor``).
+    bristle_cache : dict, optional
+        Where the LuGre torque of each smoothed run is kept, by the bristles' parameters (share
+        one between models that differ elsewhere).
 
     Attributes
     ----------
@@ -152,7 +155,7 @@ class InverseModel:
         of the logged angle: replay it instead).
     """
 
-    def __init__(self, model: mujoco.MjModel, target: om.Target | None = None):
+    def __init__(self, model: mujoco.MjModel, target: om.Target | None = None, bristle_cache: dict | None = None):
         self.device = dev = Device(model, target=target)
         check_supported(model, dev)
         self.dof, self.act = dev.ix.yaw_dof, dev.ix.yaw_act
@@ -160,7 +163,9 @@ class InverseModel:
         self.frictionloss = float(model.dof_frictionloss[self.dof])
         self.lugre_ids = bristles.lugre_actuators(model, self.dof)
         self.lugre = [bristles.parameters(model, a) for a in self.lugre_ids]
-        self._bristle_cache: dict = {}
+        # the LuGre torque of a smoothed run depends only on the bristles' parameters: models
+        # that share them (the candidates of one evidence) can share one cache
+        self._bristle_cache = {} if bristle_cache is None else bristle_cache
         self.on_model = self._inverse_copy(model)
         self.off_model = self._inverse_copy(dev.off_model())
         self.data = mujoco.MjData(self.on_model)
@@ -209,11 +214,12 @@ class InverseModel:
         fine grid along the narrow window's velocity, seen through the smoothing window."""
         if not self.lugre:
             return 0.0
-        hit = self._bristle_cache.get(id(sm))
+        key = (id(sm), tuple(self.lugre))
+        hit = self._bristle_cache.get(key)
         if hit is None or hit[0] is not sm:
             G0, vel = sm.fine[0], sm.fine[1]
             fine = sum(bristles.torque(p, vel, sm.dt) for p in self.lugre)
-            hit = self._bristle_cache[id(sm)] = (sm, G0 @ fine)
+            hit = self._bristle_cache[key] = (sm, G0 @ fine)
         return hit[1]
 
     def level(self, sm: Smoothed, motor: np.ndarray) -> np.ndarray:
