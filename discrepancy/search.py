@@ -164,11 +164,16 @@ class Search:
         candidate's effort already).
 
         ``evidence`` (:class:`~discrepancy.evidence.Evidence`, optional): the missing torque with
-        the candidates fitted to it by equation error.  When it is available, round 1 prescreens
+        the candidates fitted to it by equation error.  When some law has its shape
+        (:attr:`~discrepancy.evidence.Evidence.explained_enough`), round 1 prescreens
         only the :data:`~discrepancy.select.N_SCREEN` candidates it ranks best among those it
         could judge, each with its equation-error fit as one more starting point, and every
         candidate it could not judge (:func:`shape_shortlist`); the others are listed with their
-        equation-error fit only."""
+        equation-error fit only.  When none has (the best explains under half), its ranking says
+        nothing of which law stands in best in the closed loop, and every candidate is
+        prescreened as without evidence (a rule made after the bank's gain_slope case, a torque
+        constant that varies with the angle, went from torque_gain to a spring started at its
+        equation-error fit, its best law explaining 47 %)."""
         state = self.selection
         if self.start is not None:
             state.accept(self.start)
@@ -181,7 +186,7 @@ class Search:
                 break
             self.log(f"round {rnd + 1}: scoring {len(names)} candidates")
             shortlist, left_out, starts = names, [], None
-            if rnd == 0 and evidence is not None and evidence.available:
+            if rnd == 0 and evidence is not None and evidence.explained_enough:
                 shortlist, left_out = shape_shortlist(evidence, names, sel.N_SCREEN)
                 starts = {f.name: f.x for f in evidence.fits if f.name in shortlist and f.x is not None}
                 self.log(f"round 1: equation error leaves out {', '.join(left_out) or 'none'}; "

@@ -137,10 +137,11 @@ def test_fast_unexplained_gap_is_flagged(tmp_path):
     md = (tmp_path / "report.md").read_text()
     assert "The gap is unexplained" in md
     assert json.loads((tmp_path / "report.json").read_text())["unexplained"] is True
-    # the missing-torque evidence: the Omni's LuGre dcmotor is refused, said in one line, costed
-    assert rep["evidence"]["available"] is False and "activation states" in rep["evidence"]["reason"]
+    # the missing-torque evidence on the Omni's LuGre scene: none of the three laws has its shape
+    # (a position-periodic torque), said once, costed
+    assert rep["evidence"]["available"] is True and rep["evidence"]["unexplained"] is True
     assert set(rep["timings"]["evidence"]) == {"wall_s", "compiles", "inverse_calls"}
-    assert md.count("Not available for this model:") == 1
+    assert md.count("Unexplained, and here is its shape") == 1
 
 
 # --- command line and bad input ------------------------------------------------------------
