@@ -241,7 +241,7 @@ def disagreements(states: States, taus: list[np.ndarray], step_s: float | None =
             n_eff = max(1.0, float(np.sum(weight[m])))
             if abs(mean) > noise / math.sqrt(n_eff):
                 word = "against" if mean < 0 else "along"
-                out.append(f"{mean * 1e3:+.1f} mN*m {word} the motion (noise {noise / math.sqrt(n_eff) * 1e3:.1f}) "
+                out.append(f"{mean * 1e3:+.3g} mN*m {word} the motion (noise {noise / math.sqrt(n_eff) * 1e3:.2g}) "
                            f"at |qd| {lo:g}-{hi:g} rad/s, {label}")
     return tuple(out)
 
