@@ -151,8 +151,8 @@ class InverseModel:
     Raises
     ------
     UserError
-        The model has activation states, a delay buffer or a two-mass drive (not a function
-        of the logged angle: replay it instead).
+        The model has activation states other than a LuGre drive's bristles, a delay buffer
+        or a two-mass drive (not a function of the logged angle: replay it instead).
     """
 
     def __init__(self, model: mujoco.MjModel, target: om.Target | None = None, bristle_cache: dict | None = None):
