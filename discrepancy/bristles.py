@@ -27,16 +27,11 @@ import mujoco
 import numpy as np
 
 
-def lugre_actuators(model: mujoco.MjModel, dof: int) -> list[int]:
-    """The passive LuGre ``dcmotor`` actuators (a bristle activation, no control) of ``dof``."""
-    out = []
-    for a in range(model.nactuator):
-        if (model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_DCMOTOR and model.actuator_actnum[a] == 1
-                and model.actuator_dynprm[a, 5] > 0
-                and model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
-                and model.jnt_dofadr[model.actuator_trnid[a, 0]] == dof):
-            out.append(a)
-    return out
+def with_bristles(model: mujoco.MjModel, actuators: list[int]) -> list[int]:
+    """Those of ``actuators`` (the device's LuGre actuators on its joint,
+    :meth:`omni_sim.device.Device.lugre_actuators`) that hold a bristle state: one activation
+    and a bristle stiffness (a cogging ``dcmotor`` has neither)."""
+    return [a for a in actuators if model.actuator_actnum[a] == 1 and model.actuator_dynprm[a, 5] > 0]
 
 
 def parameters(model: mujoco.MjModel, a: int) -> tuple[float, ...]:

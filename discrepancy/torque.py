@@ -161,7 +161,7 @@ class InverseModel:
         self.dof, self.act = dev.ix.yaw_dof, dev.ix.yaw_act
         self.qadr = dev.ix.yaw_qpos
         self.frictionloss = float(model.dof_frictionloss[self.dof])
-        self.lugre_ids = bristles.lugre_actuators(model, self.dof)
+        self.lugre_ids = bristles.with_bristles(model, dev.lugre_actuators())
         self.lugre = [bristles.parameters(model, a) for a in self.lugre_ids]
         # the LuGre torque of a smoothed run depends only on the bristles' parameters: models
         # that share them (the candidates of one evidence) can share one cache
@@ -295,7 +295,7 @@ def friction_rate(model: mujoco.MjModel, dof: int) -> float:
 
 def check_supported(model: mujoco.MjModel, device: Device) -> None:
     """Raise UserError if the model has state that the logged angle does not fix."""
-    lugre = set(bristles.lugre_actuators(model, device.ix.yaw_dof))
+    lugre = set(bristles.with_bristles(model, device.lugre_actuators()))
     stateful = [a for a in range(model.nactuator) if model.actuator_actnum[a] > 0 and a not in lugre]
     if stateful:
         # every actuator, passive ones too (a dcmotor with input="none" is not in nu)

@@ -25,7 +25,7 @@ def test_bristle_torque_is_mujocos(sigma1):
     spec.actuator("yaw_friction").dynprm[6] = sigma1
     model = spec.compile()
     data = mujoco.MjData(model)
-    a = bristles.lugre_actuators(model, 0)
+    a = bristles.with_bristles(model, Device(model).lugre_actuators())
     assert len(a) == 1
     v, force = [], []
     for k in range(600):
