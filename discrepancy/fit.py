@@ -185,6 +185,7 @@ class Problem:
                         for r, m in zip(runs, self.masks)]
         self.nsim = 0
         self.unstable = 0  # replays of this problem MuJoCo found unstable (excluded)
+        self.unconverged = 0  # per-fold refits stopped by their step limit (discrepancy.folds)
         self._cache: dict = {}
         self._fcache: dict = {}  # the last point replayed alone (:meth:`residual`)
 

@@ -8,11 +8,14 @@ the held-out ones (:func:`heldout`, :func:`heldout_replays`).  Used by
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 
-from .fit import BASIN_SMALLEST, FitResult, Problem, damped_step, gap, unstable_count
+from .fit import BASIN_SMALLEST, FitResult, Problem, damped_step, gap, split_values, unstable_count
+from .prescreen import (PAIR_GRID_POINTS, PRESCREEN_ITERATIONS, PRESCREEN_S, grid_minima, lockstep_gauss_newton,
+                        thin_grid)
 from .runs import ReplayRun
 
 
@@ -136,19 +139,104 @@ def fold_problem(problem: Problem, fold: Fold) -> tuple[Problem, list[int]]:
     return pf, idx
 
 
-#: Gauss-Newton iterations of the per-fold refits, from each fold's one-step start (2: the
-#: one-step start is already a Gauss-Newton step from the all-runs optimum; two more steps on
-#: the fold's own training samples take it the rest of the way on a smooth objective).
-REFIT_ITERATIONS = 2
+#: A fold's refit stops when a step lowers its training cost by less than this share of it
+#: (scipy's ``ftol`` of :meth:`Problem.fit` is 1e-4 on the all-runs fit; a fold's gap is
+#: read to 2-3 digits, and 1e-3 of the cost is 5e-4 of the gap).
+REFIT_FTOL = 1e-3
+#: Steps at most of a fold's refit (a fold still moving after them is counted unconverged,
+#: :attr:`Problem.unconverged`, and its held-out replay scored as it stands).
+REFIT_MAX_STEPS = 10
 #: Least-squares evaluations of a confirmed candidate's all-runs fit, from the screening fit's
 #: end point (each evaluation simulates the point and its p perturbations in one batch).
 CONFIRM_NFEV = 10
 
 
-def fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray]) -> list[np.ndarray]:
-    """Each fold's forward-difference Jacobian at ``xs[f]`` on its training samples, in its own
-    weighting, times the parameters' scale: every fold's point and its ``p`` perturbations
-    (:meth:`Problem.steps`) on the fold's training runs in ONE replay batch."""
+def training_window(run: ReplayRun, held, seconds: float) -> tuple[ReplayRun, np.ndarray | None]:
+    """The shortest start of ``run`` that holds ``seconds`` of its training samples (those
+    ``held`` does not hold out; a run is replayed from its start, so a window after a held-out
+    block replays through it) and the mask of those samples in it (None: all of them)."""
+    train = np.ones(run.n, bool) if held is None else ~held
+    need = run.first_seconds(seconds).n
+    count = np.cumsum(train)
+    end = run.n if count[-1] <= need else int(np.searchsorted(count, need)) + 1
+    mask = train[:end]
+    return run.truncated(end), (None if mask.all() else mask)
+
+
+def fold_starts(problem: Problem, folds: list[Fold], known: tuple = (), new_at=None) -> list[np.ndarray]:
+    """Each fold's start for the refit of ``problem``'s free effects: a point that never saw the
+    fold's held-out samples.
+
+    The members of the largest ``known`` set (scored sets: a confirmed fit with its fold values
+    on these ``folds``) that the effects hold start at that set's values on the same fold
+    (fitted on the fold's training samples, as these are); the other members at their nominal
+    values, then -- unless ``new_at`` gives their values (a set refitted from the user's
+    values) -- at the best of their starting grids on the fold's training windows and a few
+    Gauss-Newton steps there (:func:`window_starts`: the prescreen's search, on training
+    samples only).  No fold starts from a fit on all samples."""
+    effects, builder = problem.free, problem.builder
+    names = [e.name for e in effects]
+    refs = [k for k in known if k.method == "refit" and k.folds is folds
+            and all(e.name in names for e in k.effects)]
+    ref = max(refs, key=lambda k: len(k.effects), default=None)
+    own = [{} for _ in folds] if ref is None else [
+        {e.name: v for e, v in split_values(ref.effects, x)} for x in ref.fold_x]
+    new = [i for i, e in enumerate(effects) if e.name not in own[0]]
+    cols = np.cumsum([0] + [e.nparam for e in effects])
+    base = []
+    for f in range(len(folds)):
+        x = np.concatenate([own[f].get(e.name, builder.nominal_values(e)) for e in effects]).astype(float)
+        if new_at is not None:
+            for i in new:
+                x[cols[i]:cols[i + 1]] = np.asarray(new_at, float)[cols[i]:cols[i + 1]]
+        base.append(np.clip(x, problem.lower, problem.upper))
+    if not new or new_at is not None:
+        return base
+    idx = np.concatenate([np.arange(cols[i], cols[i + 1]) for i in new])
+    grids = [np.asarray(effects[i].grid(builder.nominal_values(effects[i])), float) for i in new]
+    if len(grids) > 1:  # several new members: the product of their thinned grids (as a pair's)
+        grids = [thin_grid(g, PAIR_GRID_POINTS) for g in grids]
+    grid = [np.concatenate([effects[i].clip(np.asarray(g, float)) for i, g in zip(new, combo)])
+            for combo in itertools.product(*grids)]
+    return window_starts(problem, folds, base, list(idx), grid)
+
+
+def window_starts(problem: Problem, folds: list[Fold], base: list[np.ndarray], new: list[int],
+                  grid: list[np.ndarray], *, seconds: float = PRESCREEN_S,
+                  iterations: int = PRESCREEN_ITERATIONS) -> list[np.ndarray]:
+    """Each fold's start found on its own training samples only: the best of ``grid`` (points of
+    the ``new`` parameters, indices into the problem's vector) about ``base[f]`` and ``base[f]``
+    itself on the fold's training windows (:func:`training_window`), then ``iterations``
+    damped Gauss-Newton steps there with every parameter free (as the prescreen fits every
+    candidate, :mod:`.prescreen`).  Folds with the same windows and base share the work."""
+    done: dict = {}
+    out = []
+    for fold, b in zip(folds, base):
+        idx, _ = fold.train()
+        wins = [training_window(problem.runs[j], fold.held[j], seconds) for j in idx]
+        key = (tuple((j, w.n, None if m is None else m.tobytes()) for j, (w, m) in zip(idx, wins)),
+               np.asarray(b, float).tobytes())
+        if key not in done:
+            runs = [w for w, _ in wins]
+            wp = Problem(problem.builder, problem.fixed, problem.free, runs, problem.rep,
+                         masks=[m for _, m in wins])
+            pts = [b.copy() for _ in grid]
+            for xp, g in zip(pts, grid):
+                xp[new] = g
+            pts = [np.clip(xp, problem.lower, problem.upper) for xp in pts] + [b]
+            (g0, x0), = grid_minima(problem.rep, [wp], [pts], runs)
+            (x,), _ = lockstep_gauss_newton(problem.rep, [wp], [x0], [g0], runs, iterations)
+            problem.unstable += wp.unstable
+            problem.nsim += len(pts) + iterations * (len(b) + 1) + 1
+            done[key] = x
+        out.append(done[key].copy())
+    return out
+
+
+def fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray]) -> list[tuple]:
+    """Each fold's weighted training residual and forward-difference Jacobian at ``xs[f]``
+    (``(f0, J)``, the Jacobian times the parameters' scale): every fold's point and its ``p``
+    perturbations (:meth:`Problem.steps`) on the fold's training runs in ONE replay batch."""
     runs, p = problem.runs, len(problem.scale)
     points, steps, pairs = [], [], []
     for (_, idx), x in zip(fps, xs):
@@ -165,50 +253,70 @@ def fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray]) -> list[np
             raws.append([th[b + k] - runs[j].theta for k, j in enumerate(idx)])
             b += len(idx)
             problem.unstable += unstable_count(raws[-1])
-        out.append(pf.jacobian(raws, h)[1] * problem.scale)
+        f0, J = pf.jacobian(raws, h)
+        out.append((f0, J * problem.scale))
     return out
 
 
 def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
-                 iterations: int = REFIT_ITERATIONS) -> list[np.ndarray]:
-    """Per-fold refits, all folds in lockstep: each fold's parameters fitted on its own
-    training samples only (the held-out samples never enter its steps).
+                max_steps: int = REFIT_MAX_STEPS) -> list[np.ndarray]:
+    """Per-fold refits, all folds in lockstep, each from ``start[f]`` (a point that never saw
+    fold ``f``'s held-out samples) on its own training samples only, to a stated convergence:
+    a fold stops when a step lowers its training cost by less than :data:`REFIT_FTOL` of it, or
+    when a step taken with a Jacobian fresh at its point lowers it not at all; after
+    ``max_steps`` steps a fold still moving is counted in :attr:`Problem.unconverged`.
 
-    Each fold takes damped Gauss-Newton steps with its OWN forward-difference Jacobian, taken
-    once at its start (every fold's start and its ``p`` perturbations on the fold's training
-    runs, one batch), then held for the steps (the chord method); each iteration simulates
-    every fold's current parameters on that fold's training runs in one batch.  Why the fold's
-    own and not the all-runs fit's rows of it: on the real servo of examples/real_servo the
-    all-runs Jacobian's refits left the corrections 5 points of held-out gap behind fresh
-    per-fold fits (27 % removed against 32 %); the fold's own Jacobian at its start gives 33 %
-    for 23 % more physics steps (measured on that example).
-    """
+    The steps are damped Gauss-Newton with the fold's OWN forward-difference Jacobian (every
+    fold's point and its ``p`` perturbations on its training runs, one batch), held while the
+    steps lower the cost (the chord method) and taken again at the fold's point when a step does
+    not; each step simulates every moving fold's trial point on its training runs in one
+    batch.  Why the fold's own Jacobian and not the all-runs fit's rows of it: on the real
+    servo of examples/real_servo the all-runs Jacobian's refits left the corrections 5 points of
+    held-out gap behind fresh per-fold fits."""
     runs = problem.runs
-    # each fold's training runs (in run order; a run held out whole is not simulated at all)
-    # and its objective on their training samples
     fps = [fold_problem(problem, fold) for fold in folds]
     train = [idx for _, idx in fps]
-    xs = [np.asarray(x, float).copy() for x in start]
-    Jf = fold_jacobians(problem, fps, xs)
-    for _ in range(iterations):
-        models = [problem.model(x) for x in xs]
-        pairs = [(f, j) for f in range(len(folds)) for j in train[f]]
-        th = problem.rep.simulate(models, runs, pairs)
-        problem.nsim += len(xs)
-        b = 0
-        for f in range(len(folds)):
+    xs = [np.clip(np.asarray(x, float), problem.lower, problem.upper) for x in start]
+    f0, J = map(list, zip(*fold_jacobians(problem, fps, xs)))
+    cost = [float(f @ f) for f in f0]
+    fresh = [True] * len(folds)
+    moving = list(range(len(folds)))
+    for _ in range(max_steps):
+        if not moving:
+            break
+        trial = {f: np.clip(xs[f] + damped_step(J[f], f0[f]) * problem.scale, problem.lower, problem.upper)
+                 for f in moving}
+        pairs = [(m, j) for m, f in enumerate(moving) for j in train[f]]
+        th = problem.rep.simulate([problem.model(trial[f]) for f in moving], runs, pairs)
+        problem.nsim += len(moving)
+        b, stale = 0, []
+        for f in list(moving):
             raw = [th[b + k] - runs[j].theta for k, j in enumerate(train[f])]
             b += len(train[f])
             problem.unstable += unstable_count(raw)
-            dz = damped_step(Jf[f], fps[f][0].weighted(raw))
-            xs[f] = np.clip(xs[f] + dz * problem.scale, problem.lower, problem.upper)
+            fn = fps[f][0].weighted(raw)
+            cn = float(fn @ fn)
+            if cn < cost[f]:
+                small = cost[f] - cn < REFIT_FTOL * cost[f]
+                xs[f], f0[f], cost[f], fresh[f] = trial[f], fn, cn, False
+                if small:
+                    moving.remove(f)
+            elif fresh[f]:
+                moving.remove(f)  # no lower cost along a step from the fold's own Jacobian here
+            else:
+                stale.append(f)
+        if stale:
+            for f, (fs, Js) in zip(stale, fold_jacobians(problem, [fps[f] for f in stale], [xs[f] for f in stale])):
+                f0[f], J[f], cost[f], fresh[f] = fs, Js, float(fs @ fs), True
+    problem.unconverged += len(moving)
     return xs
 
 
 def polish_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray]) -> list[np.ndarray]:
     """Per-fold fits of a candidate with rough parameters: each fold's training samples, from its
-    one-step start, by :meth:`Problem.polish` (one cycle; the basin's first bracket at its
-    smallest width, as the fold's basin lies near the all-runs one)."""
+    start (a point that never saw the fold's held-out samples), by :meth:`Problem.polish` (one
+    cycle; the basin's first bracket at its smallest width: the start is already the best of the
+    effect's grid on the fold's training window, :func:`window_starts`)."""
     out = []
     for fold, x0 in zip(folds, start):
         pf, _ = fold_problem(problem, fold)

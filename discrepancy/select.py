@@ -40,8 +40,9 @@ import numpy as np
 
 from .fit import FitResult, Problem, gap, rough
 # the folds and the prescreen are named here too, where the search and the studies read them
-from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, REFIT_ITERATIONS, Fold, block_folds,  # noqa: F401
-                    heldout, heldout_replays, make_folds, onestep_folds, polish_folds, refit_folds, run_folds)
+from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, REFIT_FTOL, REFIT_MAX_STEPS, Fold, block_folds,  # noqa: F401
+                    fold_starts, heldout, heldout_replays, make_folds, onestep_folds, polish_folds, refit_folds,
+                    run_folds)
 from .prescreen import (N_SCREEN, NULL, PAIR_FITS, PAIR_GRID_POINTS, PAIR_GRID_S, PRESCREEN_ITERATIONS,  # noqa: F401
                         PRESCREEN_S, Prescreened, grid_minima, prescreen, thin_grid)
 from .runs import ReplayRun
@@ -123,6 +124,7 @@ class Scored:
     seconds: float = 0.0
     prescreen_gap: float = math.nan
     unstable: int = 0  # replays MuJoCo found unstable while fitting and scoring it (excluded)
+    unconverged: int = 0  # per-fold refits stopped by their step limit (still moving)
 
 
 def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> list[tuple[str | None, float]]:
@@ -196,10 +198,13 @@ class Scorer:
     rep: object
     folds: list
     log: object = None
+    #: Sets scored on these folds whose fold values start the fold refits of the sets that hold
+    #: them (:func:`~discrepancy.folds.fold_starts`): the corrections, the accepted set, the beam's pairs.
+    known: tuple = ()
 
-    def on(self, folds: list[Fold]) -> "Scorer":
-        """This scorer on other ``folds`` (the same runs)."""
-        return dataclasses.replace(self, folds=folds)
+    def on(self, folds: list[Fold], known: tuple = ()) -> "Scorer":
+        """This scorer on other ``folds`` (the same runs), with the sets ``known`` there."""
+        return dataclasses.replace(self, folds=folds, known=tuple(known))
 
     def problem(self, effects: list, runs: list[ReplayRun] | None = None) -> Problem:
         """The least-squares problem of ``effects`` free on ``runs`` (default: all the runs)."""
@@ -321,8 +326,10 @@ class Scorer:
         confirmed = sorted(scored[:n_confirm], key=lambda s: s.heldout_gap)
         return confirmed + scored[n_confirm:]
 
-    def _confirm(self, s: Scored, gap_start: float, nfev: int | None = None) -> None:
-        """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
+    def _confirm(self, s: Scored, gap_start: float, nfev: int | None = None, new_at=None) -> None:
+        """Converge the all-runs fit of ``s`` and score it with per-fold refits to convergence,
+        each from a start that never saw its held-out samples (:func:`~discrepancy.folds.fold_starts`; ``new_at``
+        as there), in place."""
         t0 = time.perf_counter()
         prob = self.problem(s.effects)
         # the screening fit already simulated its end point (same model, runs and effects): the
@@ -332,20 +339,25 @@ class Scorer:
         # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
         # minimum wherever it started; the basin search moves it to the basin's centre
         s.fit = prob.polish(s.fit)
-        s.fold_x = onestep_folds(prob, s.fit, self.folds)
-        if rough(s.effects):
-            # the folds are estimated the same way (so the jackknife sees the estimator's spread)
-            s.fold_x = polish_folds(prob, self.folds, s.fold_x)
-        else:
-            s.fold_x = refit_folds(prob, self.folds, s.fold_x)
+        s.fold_x = self._refit_folds(prob, s.effects, new_at)
         s.heldout_raw = heldout(prob, s.fold_x, self.folds)
         s.heldout_gap = gap(s.heldout_raw)
         s.share = share_of(s.heldout_gap, gap_start)
         s.method = "refit"
         s.unstable += prob.unstable
+        s.unconverged = prob.unconverged
         s.seconds += time.perf_counter() - t0
         if self.log:
-            self.log(f"  {s.name:18s} refit  held-out gap {s.heldout_gap:.3e} rad (share {s.share:+.2f})")
+            late = f"; {prob.unconverged} fold(s) unconverged" if prob.unconverged else ""
+            self.log(f"  {s.name:18s} refit  held-out gap {s.heldout_gap:.3e} rad (share {s.share:+.2f}{late})")
+
+    def _refit_folds(self, prob: Problem, effects: list, new_at=None) -> list[np.ndarray]:
+        """Each fold's parameters, fitted on its training samples from :func:`~discrepancy.folds.fold_starts`:
+        to convergence (:func:`refit_folds`), or, for a set with a rough parameter, by the basin
+        search (:func:`polish_folds`, the same estimator as the all-runs fit, so the jackknife
+        sees its spread)."""
+        start = fold_starts(prob, self.folds, self.known, new_at)
+        return polish_folds(prob, self.folds, start) if rough(effects) else refit_folds(prob, self.folds, start)
 
     # -- pairs -----------------------------------------------------------------------------------
     def score_pairs(self, gap_start: float, *, candidates: tuple[str, ...] | None = None,
@@ -407,22 +419,20 @@ class Scorer:
         prob = self.problem(effects)
         fit = prob.fit(np.asarray(x0, float), None, max_nfev=8)
         sc = self._screened(name, effects, prob, fit, gap_start, t0, width=18)
-        self._confirm(sc, gap_start)
+        self._confirm(sc, gap_start, new_at=np.asarray(x0, float))
         return sc
 
-    def rescore(self, s: Scored, gap_start: float) -> Scored:
-        """``s``'s all-runs fit scored held out on this scorer's folds (exact per-fold refits
-        from one-step starts; the all-runs fit is kept): e.g. the named set under the fold
-        scheme the verdict did not use (:meth:`on`)."""
+    def rescore(self, s: Scored, gap_start: float, new_at=None) -> Scored:
+        """``s``'s all-runs fit scored held out on this scorer's folds (per-fold refits from
+        :func:`~discrepancy.folds.fold_starts`, ``new_at`` as there; the all-runs fit is kept): e.g. the named set
+        under the fold scheme the verdict did not use (:meth:`on`)."""
         prob = self.problem(s.effects)
         prob.seed(s.fit)
-        fold_x = onestep_folds(prob, s.fit, self.folds)
-        fold_x = (polish_folds(prob, self.folds, fold_x) if rough(s.effects)
-                  else refit_folds(prob, self.folds, fold_x))
+        fold_x = self._refit_folds(prob, s.effects, new_at)
         raw = heldout(prob, fold_x, self.folds)
         g = gap(raw)
         return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, self.folds,
-                      unstable=prob.unstable)
+                      unstable=prob.unstable, unconverged=prob.unconverged)
 
     def score_removals(self, best: Scored, gap_start: float, keep: tuple[str, ...] = ()) -> list[Scored]:
         """The backward step of floating selection: ``best`` without each of its members,
@@ -435,7 +445,7 @@ class Scorer:
         fitted with Coulomb friction to part of a backlash's gap) that a later member made
         redundant.  The caller drops it.  Members named in ``keep`` (the nominal's corrections)
         are never removed."""
-        scorer = self.on(best.folds)
+        scorer = self.on(best.folds, known=(best,))
         out = []
         for m in range(len(best.effects)):
             if best.effects[m].name in keep:
