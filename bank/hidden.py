@@ -18,10 +18,11 @@ device's closed-loop engine, the reference path) on the compact experiment set
 device; the case ``none_exact`` has neither.  The workflow sees only these runs and the nominal
 model.
 
-Two cases are not the Omni: ``load_friction`` and ``asymmetric_friction`` (``truth="servo"``)
-are a pendulum on a geared servo (nominal model ``models/servo_pendulum/servo_pendulum.xml``, joint ``pivot``,
+Three cases are not the Omni: ``load_friction``, ``asymmetric_friction`` and ``current_limit``
+(``truth="servo"``) are a pendulum on a geared servo (nominal model ``models/servo_pendulum/servo_pendulum.xml``, joint ``pivot``,
 actuator ``servo``: see :func:`nominal`) whose gearbox friction grows with the torque it
-transmits, or whose Coulomb level depends on the direction of motion; their truth is a
+transmits, or whose Coulomb level depends on the direction of motion, or whose firmware
+limits the motor's current; their truth is a
 per-step simulation of its own and their runs are logged as a host logs a servo (irregular
 times at ~200 Hz, the goal held between writes, torque-off spans), :mod:`.servo_truth`.
 """
@@ -206,6 +207,17 @@ CASES: tuple[HiddenCase, ...] = (
                     "friction differs with the direction of rotation by up to about half); no "
                     "load-dependent friction (mu_drive = mu_back = 0); the load_friction case's 12 runs "
                     "and log (servo_truth.py)"),
+    HiddenCase("current_limit", (("current_limit", (servo_truth.CURRENT_LIMIT_NM,
+                                                    servo_truth.BACK_EMF_NMS_PER_RAD)),),
+               expect=("current_limit",), truth="servo",
+               note="the same geared servo and pendulum (models/servo_pendulum/servo_pendulum.xml: kt 1.2 "
+                    "N*m/A after the gear, R 4 ohm, stall 3.6 N*m at 12 V) whose firmware limits the "
+                    "winding's current to 1.5 A, half the stall current (an estimate of a protective "
+                    "setting; such servos ship a settable current limit): the motor's torque kt i = "
+                    "gear u - (kt^2/R) w stays within 1.8 N*m, so the bound in the direction of motion "
+                    "moves with the back-EMF 0.36 N*m*s/rad; it binds on the square waves and the "
+                    "lifts; no gearbox friction law (servo_truth.py, written from the motor's "
+                    "equations, not from the engine's law)"),
 )
 
 #: The geared-servo cases whose nominal is off (:attr:`HiddenCase.nominal_joint`): the workflow

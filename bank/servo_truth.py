@@ -120,6 +120,15 @@ BLEND_SPEED_RAD_S = 0.05
 NOISE_RAD = 0.4e-3
 #: Run length [s]: 5 s, 1000 log rows at 200 Hz.
 DURATION_S = 5.0
+#: The bank's ``current_limit`` case: the firmware limits the winding's current to
+#: ``i_max`` = 1.5 A (half the 3 A stall current of the 12 V supply on R = 4 ohm; servos of this
+#: class ship a settable current limit, and half the stall is an ESTIMATE of a protective
+#: setting, not a datasheet figure), so the motor's net torque ``kt i`` after the gear stays
+#: within ``kt i_max`` = 1.2 x 1.5 = 1.8 N*m.  ``kt^2/R`` = 0.36 N*m*s/rad is the back-EMF
+#: part of the model's joint damping (models/servo_pendulum/servo_pendulum.xml: 0.37 = 0.36 +
+#: 0.01 of bearing loss).
+CURRENT_LIMIT_NM = 1.8
+BACK_EMF_NMS_PER_RAD = 0.36
 
 
 def model_path() -> Path:
@@ -184,7 +193,7 @@ def _sign(w: float) -> float:
 def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BACK,
              asymmetry_nm: float = 0.0, kp: float = KP, command_limit: float = COMMAND_LIMIT, noise=None,
              step_rad: float = ENCODER_STEP_RAD, theta0: float = 0.0, path=None,
-             friction_law: bool = True) -> Trajectory:
+             friction_law: bool = True, current_limit: tuple | None = None) -> Trajectory:
     """Run the truth's servo loop from rest at ``theta0`` until the last log time.
 
     Parameters
@@ -206,6 +215,14 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
         The model file (default :func:`model_path`); compiled afresh (a private copy).
     friction_law : bool
         False: never write ``dof_frictionloss`` (the plain nominal loop, for comparison).
+    current_limit : (float, float), optional
+        ``(kt i_max, kt^2/R)`` [N*m, N*m*s/rad]: the firmware's current limit while the torque
+        is on.  The winding's current is ``i = (u - ke w)/R`` (``ke = kt`` in SI units), so the
+        motor's torque after the gear is ``kt i = gear u - (kt^2/R) w``; the firmware holds
+        ``|i| <= i_max`` by lowering the voltage it applies (the model's damping already holds
+        the back-EMF term, so the voltage applied is ``(clip(gear u - b w, +-kt i_max) + b w) /
+        gear``), with ``w`` the hinge velocity at the tick.  ``u`` (the P law's output) is what
+        the log records as the command.  None: no limit (the nominal servo).
     """
     m = mujoco.MjModel.from_xml_path(str(path or model_path()))
     d = mujoco.MjData(m)
@@ -240,6 +257,12 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
             m.dof_frictionloss[dof] = max(0.0, fc + asymmetry_nm * _sign(w) + mu * abs(tau))
         fl[k] = m.dof_frictionloss[dof]
         d.ctrl[aid] = u[k]
+        if current_limit is not None and on[k]:
+            limit, b = current_limit
+            w = d.qvel[dof]
+            net = gear * u[k] - b * w  # kt i: the motor's torque after the gear
+            if abs(net) > limit:
+                d.ctrl[aid] = (math.copysign(limit, net) + b * w) / gear
         mujoco.mj_step(m, d)
         tau = gear * float(d.actuator_force[aid])
         taus[k] = tau
@@ -350,14 +373,16 @@ EXPERIMENTS: tuple[Experiment, ...] = (
 
 
 def measure(e: Experiment, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BACK,
-            asymmetry_nm: float = 0.0, seed: int = 1, exact: bool = False, path=None) -> Run:
+            asymmetry_nm: float = 0.0, seed: int = 1, exact: bool = False, path=None,
+            current_limit: tuple | None = None) -> Run:
     """One run of the truth, logged as the host logs it (irregular times, goal held, encoder
     counts and noise; ``exact``: neither noise nor rounding, on the loop or in the log)."""
     def run(t_log, r, en, noise, step):
         return simulate(t_log, r, en, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry_nm,
-                        noise=noise, step_rad=step, path=path)
-    return _logged_run(e, run, seed, exact, "models/servo_pendulum/servo_pendulum.xml + load-dependent or "
-                       "direction-dependent gearbox friction")
+                        noise=noise, step_rad=step, path=path, current_limit=current_limit)
+    law = ("a firmware current limit" if current_limit is not None else
+           "load-dependent or direction-dependent gearbox friction")
+    return _logged_run(e, run, seed, exact, f"models/servo_pendulum/servo_pendulum.xml + {law}")
 
 
 def _logged_run(e: Experiment, run, seed: int, exact: bool, law: str) -> Run:
@@ -386,23 +411,23 @@ def _logged_run(e: Experiment, run, seed: int, exact: bool, law: str) -> Run:
 
 
 #: The effects this truth simulates (library names) and their parameters' order.
-SIMULATED = ("load_friction", "asymmetric_friction")
+SIMULATED = ("load_friction", "asymmetric_friction", "current_limit")
 
 
 def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK)),), seed: int = 1, exact: bool = False,
              experiments=EXPERIMENTS) -> list[Run]:
     """The "measured" runs of the truth with the hidden ``effects``: ``load_friction``
-    (mu_drive, mu_back) and ``asymmetric_friction`` (a [N*m]), either or both (none: the
-    nominal model)."""
+    (mu_drive, mu_back), ``asymmetric_friction`` (a [N*m]) and ``current_limit`` (kt i_max
+    [N*m], kt^2/R [N*m*s/rad]), any of them (none: the nominal model)."""
     effects = dict(effects)
     unknown = set(effects) - set(SIMULATED)
     if unknown:
-        raise ValueError("the servo truth simulates only load_friction and asymmetric_friction, "
-                         f"not {sorted(unknown)}")
+        raise ValueError(f"the servo truth simulates only {', '.join(SIMULATED)}, not {sorted(unknown)}")
     mu_drive, mu_back = effects.get("load_friction", (0.0, 0.0))
     (asymmetry,) = effects.get("asymmetric_friction", (0.0,))
+    limit = effects.get("current_limit")
     return [measure(e, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry, seed=seed,
-                    exact=exact) for e in experiments]
+                    exact=exact, current_limit=None if limit is None else tuple(limit)) for e in experiments]
 
 
 # -- a truth of another form: the gear's efficiency law with a smooth sign -----------------------

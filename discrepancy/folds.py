@@ -1,8 +1,11 @@
 """Held-out folds of a search's runs and the fits on them.
 
 A :class:`Fold` says which samples it holds out; each fold's parameters are fitted on every
-other sample (:func:`onestep_folds`, :func:`refit_folds`, :func:`polish_folds`) and predict
-the held-out ones (:func:`heldout`, :func:`heldout_replays`).  Used by
+other sample and predict the held-out ones (:func:`heldout`, :func:`heldout_replays`).  Two
+ways: :func:`onestep_folds`, one Gauss-Newton step from the all-runs fit (a screen that only
+ranks candidates), and the refits whose held-out gap decides (:func:`refit_folds`,
+:func:`polish_folds`), each from a start that never saw the fold's held-out samples
+(:func:`fold_starts`) and run to a stated convergence.  Used by
 :class:`discrepancy.select.Scorer`.
 """
 
@@ -116,6 +119,9 @@ def heldout(problem: Problem, fold_x: list[np.ndarray], folds: list[Fold]) -> li
 
 
 def onestep_folds(problem: Problem, fit: FitResult, folds: list[Fold]) -> list[np.ndarray]:
+    """Each fold's parameters one Gauss-Newton step from the all-runs ``fit`` with the fold's
+    held-out rows of its Jacobian removed: an approximation of the fold's fit that saw its
+    held-out samples (through ``fit``), so a screen that ranks candidates, never a verdict."""
     J = fit.jac
     r = fit.resid
     rows = np.cumsum([0] + [run.n for run in problem.runs])

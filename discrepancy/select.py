@@ -9,10 +9,13 @@ Scoring (per round):
    trade off).  A candidate costs a few short batches, not a campaign;
 2. *screen* the :data:`N_SCREEN` best on all runs: least squares from the prescreen's point,
    then the held-out gap with k-fold over runs, each fold's parameters from one Gauss-Newton
-   step from the all-runs fit with the held-out runs' rows removed (cheap: one Jacobian);
-3. *confirm*: the best candidates (``n_confirm``) are refitted exactly on each fold's training
-   runs (warm start) and their held-out runs simulated with those parameters; this held-out gap
-   decides.  The fold fits also give a jackknife spread of each parameter.
+   step from the all-runs fit with the held-out runs' rows removed (cheap: one Jacobian; a
+   ranking only, of which candidates to confirm);
+3. *confirm*: the best candidates (``n_confirm``) are refitted on each fold's training samples,
+   from a start that never saw the fold's held-out samples and to a stated convergence
+   (:func:`~discrepancy.folds.fold_starts`, :func:`~discrepancy.folds.refit_folds`), and their
+   held-out samples simulated with those parameters; this held-out gap decides.  The fold fits
+   also give a jackknife spread of each parameter.
 
 Acceptance (held-out stopping): the best candidate's held-out gap must fall by at least
 ``min_share`` of the gap it started from, and that starting gap must stand clearly above the
@@ -69,7 +72,7 @@ def share_of(g: float, gap_start: float) -> float:
     return 0.0 if g <= 0 else -math.inf
 
 
-#: Candidates (best by the screen's held-out gap) confirmed with exact per-fold refits.
+#: Candidates (best by the screen's held-out gap) confirmed with per-fold refits.
 N_CONFIRM = 2
 #: Pairs are searched when the best single candidate removes less than this share of the gap.
 PAIR_SEARCH_SHARE = 0.5
@@ -372,7 +375,7 @@ class Scorer:
         best point of the product of the two effects' grids (each thinned to ``grid_points``),
         all pairs' grid points simulated together on the first ``grid_s`` seconds of each run;
         the ``n_fit`` best pairs are fitted on all runs and screened on held-out samples like the
-        single candidates, and the best ``n_confirm`` are confirmed with exact per-fold refits.
+        single candidates, and the best ``n_confirm`` are confirmed with per-fold refits.
         """
         starts = self._pair_starts(candidates or self.builder.names, grid_s, grid_points, n_fit)
         scored = []
@@ -413,7 +416,7 @@ class Scorer:
     # -- given sets ------------------------------------------------------------------------------
     def score_set(self, name: str, effects: list, x0: np.ndarray, gap_start: float) -> Scored:
         """Fit a given set of effects from ``x0`` on all runs and score it held out like a
-        confirmed candidate (exact per-fold refits): e.g. the nominal's corrections alone, the
+        confirmed candidate (per-fold refits): e.g. the nominal's corrections alone, the
         start every named effect must beat."""
         t0 = time.perf_counter()
         prob = self.problem(effects)
@@ -437,7 +440,7 @@ class Scorer:
     def score_removals(self, best: Scored, gap_start: float, keep: tuple[str, ...] = ()) -> list[Scored]:
         """The backward step of floating selection: ``best`` without each of its members,
         refitted jointly from ``best``'s values and screened on ``best``'s folds, the
-        :data:`N_CONFIRM` best screened confirmed (exact per-fold refits) as a round's
+        :data:`N_CONFIRM` best screened confirmed (per-fold refits) as a round's
         candidates are; best first.
 
         A member whose removal leaves a held-out gap that the full set lowers by less than

@@ -392,7 +392,8 @@ def test_bank_covers_the_library():
     assert set(fx.NAMES) <= singles
     written = set(fx.NAMES) - SIMULATED  # the rest have a truth simulation of their own
     assert written <= set(omni_truths.TRUTH) and written <= set(ranges.RANGES)
-    assert SIMULATED == {"load_friction", "asymmetric_friction"} and not SIMULATED & set(omni_truths.TRUTH)
+    assert SIMULATED == {"load_friction", "asymmetric_friction", "current_limit"}
+    assert not SIMULATED & set(omni_truths.TRUTH)
     assert {c.name for c in hidden.CASES if c.expect == ("none",)} >= {"none", "none_exact"}
     assert hidden.case("none_exact").exact and not hidden.case("none").exact
     assert any(len(c.effects) == 2 for c in hidden.CASES) and any(len(c.effects) == 3 for c in hidden.CASES)

@@ -131,7 +131,7 @@ def test_a_parent_is_its_child_with_the_extra_parameters_at_nominal():
         np.testing.assert_array_equal(getattr(a, field)[:5], getattr(b, field)[:5], err_msg=field)
 
 
-@pytest.mark.parametrize("name", [e.name for e in fx.STAGED])
+@pytest.mark.parametrize("name", [e.name for e in fx.STAGED] + ["current_limit"])
 def test_staged_effects_write_read_and_xml_round_trip(name):
     """As the library's effects (tests/test_discrepancy.py): written off the nominal, read back
     equal; the patched MJCF text compiles, keeps the contract's names and reads back the values

@@ -215,7 +215,7 @@ def test_every_library_effect_is_native_mjcf_or_a_runtime_law():
     """Each library effect at a value off the nominal, written into the servo pendulum and
     read back from model.xml's text: plain MuJoCo (with the runtime when the header says it
     is needed) replays like the engine on the spec (1e-6 rad); the only custom numerics any
-    effect writes are drive laws the runtime applies.  (arm_mass needs the Omni's arm: it
+    effect writes are drive laws (and the current limit) the runtime applies.  (arm_mass needs the Omni's arm: it
     writes body masses, read back from the Omni scene's XML below.)"""
     spec = _servo_spec()
     t = np.arange(600) * 1e-3
@@ -230,9 +230,9 @@ def test_every_library_effect_is_native_mjcf_or_a_runtime_law():
         out = _outcome(patched, [{"name": eff.name, "parameters": {}}], 1e-3)
         xml = rp.model_xml(out)
         numerics = {n.name for n in mujoco.MjSpec.from_string(xml).numerics}
-        assert numerics <= set(DRIVE_LAWS) | {runtime.PERIOD_NUMERIC}, eff.name
+        assert numerics <= set(DRIVE_LAWS) | {runtime.PERIOD_NUMERIC, "current_limit"}, eff.name
         needs = "runtime:" in xml.split("<mujoco")[0]
-        assert needs == (eff.name == "load_friction"), eff.name
+        assert needs == (eff.name in ("load_friction", "current_limit")), eff.name
         got = _plain(xml, SERVO, runs, 1e-3, with_runtime=needs)
         want = _engine(patched.compile(), SERVO, runs, 1e-3, batch=False)
         assert np.max(np.abs(got - want)) < 1e-6, eff.name
@@ -264,7 +264,7 @@ def test_a_control_callback_would_not_be_the_engine():
     assert np.max(np.abs(late - want[0])) > 1e-4
 
 
-@pytest.mark.parametrize("name", [e.name for e in fx.STAGED])
+@pytest.mark.parametrize("name", [e.name for e in fx.STAGED] + ["current_limit"])
 def test_every_staged_effect_is_native_mjcf_or_a_runtime_law(name):
     """As the library's (above), for the staged effects (the friction family's variants, the
     current limit) at values where they act: written into the servo pendulum, read back from

@@ -297,8 +297,8 @@ def test_hidden_friction_shows_above_the_noise(runs):
         assert np.sqrt(np.mean((a.theta - b.theta) ** 2)) > 2 * st.ENCODER_STEP_RAD, a.name
 
 
-def test_only_load_friction_and_asymmetry_are_simulated():
-    with pytest.raises(ValueError, match="only load_friction and asymmetric_friction"):
+def test_only_its_own_laws_are_simulated():
+    with pytest.raises(ValueError, match="only load_friction, asymmetric_friction, current_limit"):
         st.generate(effects=(("coulomb_friction", (0.01,)),))
 
 

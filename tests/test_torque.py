@@ -260,3 +260,29 @@ def test_command_law_is_mujocos(name, x):
     made = eff.command(v, model.opt.timestep, [x])
     assert np.max(np.abs(np.array(force) - made)[10:]) < 1e-9 * np.max(np.abs(v))
     assert np.max(np.abs(made - v)) > 0.1  # the law does change the command
+
+
+def test_inverse_bounds_the_drive_by_the_current_limit():
+    """The bank's servo truth with a firmware current limit (servo_truth.py: its own loop, the
+    limit written from the motor's equations, not the engine's law), a saturating square wave:
+    given the truth's states at each 1 kHz tick and the P law's command, the inverse of the
+    model with the library's ``current_limit`` at the truth's values (1.8 N*m, 0.36 N*m*s/rad)
+    gives the torque the truth's motor transmitted to 1e-9 N*m (rounding); the nominal's
+    inverse, the command's torque unbounded, is off by > 0.5 N*m where the limit binds."""
+    from types import SimpleNamespace
+    from discrepancy import effects as fx
+    e = [e for e in st.EXPERIMENTS if e.name == "square_o060_a030"][0]
+    limit = (st.CURRENT_LIMIT_NM, st.BACK_EMF_NMS_PER_RAD)
+    t_log = np.arange(0.0, 2.0, st.LOG_PERIOD_S)
+    traj = st.simulate(t_log, e.goal(t_log), e.enabled(t_log), mu_drive=0.0, mu_back=0.0, step_rad=0.0,
+                       current_limit=limit)
+    n = len(traj.u)
+    qdd = np.diff(traj.omega) / 1e-3
+    sm = SimpleNamespace(q=traj.theta[:n], on=np.ones(n, bool), pose=None, v=traj.u)
+    spec = mujoco.MjSpec.from_file(PATH)
+    limited = fx.apply(spec, [(fx.get("current_limit"), np.array(limit))], TARGET).compile()
+    args = (sm, traj.theta[:n], traj.omega[:n], qdd, traj.u)
+    _, motor = tq.InverseModel(limited, TARGET).required(*args)
+    np.testing.assert_allclose(motor, traj.tau, rtol=0, atol=1e-9)
+    _, unbounded = tq.InverseModel(nominal(), TARGET).required(*args)
+    assert np.max(np.abs(unbounded - traj.tau)) > 0.5

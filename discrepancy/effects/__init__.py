@@ -35,6 +35,10 @@ cogging            new passive ``dcmotor`` ``yaw_cogging``,     ``amplitude_nm``
                    torque a*sin(n*q_yaw + phase), n fixed       ``phase_rad`` [rad]
 load_friction      ``<custom>`` numeric ``load_friction`` (the  ``mu_drive``, ``mu_back`` [-]
                    engine's law) + ``actuatorfrc`` sensor
+current_limit      ``<custom>`` numeric ``current_limit`` (the  ``torque_limit_nm`` [N*m],
+                   engine moves ``forcerange`` with the         ``back_emf_nms_per_rad``
+                   back-EMF), the bound at rest as              [N*m*s/rad]
+                   ``forcerange``; geared drives only
 =================  ==========================================  ===================================
 
 Staged (:data:`STAGED`, :mod:`.family`: written, read and tested like the library's, found by
@@ -42,9 +46,7 @@ Staged (:data:`STAGED`, :mod:`.family`: written, read and tested like the librar
 variants of one friction law, ``friction_family_coulomb`` (joint ``frictionloss``),
 ``friction_family_load``, ``friction_family_stribeck`` (+ ``<custom>`` numeric
 ``friction_family``, the engine's law, and an ``actuatorfrc`` sensor),
-``friction_family_viscous`` (+ joint ``damping``), and ``current_limit`` (``<custom>`` numeric
-``current_limit``, the engine moves the actuator's ``forcerange`` with the back-EMF; the
-bound at rest as ``forcerange``).
+``friction_family_viscous`` (+ joint ``damping``).
 
 (``yaw``/``yaw_motor`` stand for the :class:`Target`'s joint and actuator; added elements are
 named after the joint, with a suffix ``_2``... if the model already uses the name.  Passive
@@ -101,12 +103,13 @@ LIBRARY: tuple[Effect, ...] = (
     body.ARM_MASS,
     friction.COGGING,
     drive.LOAD_FRICTION_EFFECT,
+    family.CURRENT_LIMIT_EFFECT,
 )
 
 NAMES = tuple(e.name for e in LIBRARY)
 
 #: Effects written and tested like the library's but not yet among the search's candidates
-#: (:mod:`.family`: the friction family's nested variants and the current limit; the search
+#: (:mod:`.family`: the friction family's nested variants; the search
 #: takes them up with :func:`discrepancy.nesting.choose_variant`, and the bank then needs a
 #: case for each, tests/test_discrepancy_bank.py::test_bank_covers_the_library).
 STAGED: tuple[Effect, ...] = family.STAGED

@@ -1,6 +1,7 @@
 """Friction as ONE law with nested variants, and the drive's current limit that moves with the
 back-EMF: effects the engine applies (:data:`omni_sim.device.FRICTION_FAMILY`,
-:data:`omni_sim.device.CURRENT_LIMIT`), staged here for the search.
+:data:`omni_sim.device.CURRENT_LIMIT`): the family's variants staged for the search, the current
+limit among its candidates (:data:`discrepancy.effects.LIBRARY`).
 
 The law
 -------
@@ -185,8 +186,12 @@ def _current_grid(x0):
     return np.array([[t, b] for t in (0.02, 0.07, 0.2, 0.65, 2.0) for b in (0.0, 0.1, 0.4)])
 
 
-def _not_dcmotor(spec, target=OMNI) -> bool:
-    return actuator_of(spec, target).gaintype != mujoco.mjtGain.mjGAIN_DCMOTOR
+def _servo_drive(spec, target=OMNI) -> bool:
+    """A geared drive (:func:`~.drive._geared`: a user's own device, not the virtual Omni) whose
+    actuator is driven by its voltage (not a ``dcmotor``, whose force holds the back-EMF and whose
+    limit MuJoCo writes natively).  The Omni's amplifier limit stays ``torque_saturation``."""
+    return ((target != OMNI or spec.numeric(CURRENT_LIMIT) is not None)
+            and actuator_of(spec, target).gaintype != mujoco.mjtGain.mjGAIN_DCMOTOR)
 
 
 CURRENT_LIMIT_EFFECT = Effect(
@@ -194,11 +199,11 @@ CURRENT_LIMIT_EFFECT = Effect(
     "firmware current limit: the torque bound moves with the back-EMF (stall current, supply voltage)",
     (Param("torque_limit_nm", "N*m", 0.005, 20.0, 0.01),
      Param("back_emf_nms_per_rad", "N*m*s/rad", 0.0, 5.0, 0.02)),
-    _read_current, _write_current, _current_grid, applies=_not_dcmotor)
+    _read_current, _write_current, _current_grid, applies=_servo_drive)
 
-#: The effects of this module, in a fixed order (staged: not yet in the search's
-#: :data:`~discrepancy.effects.LIBRARY`).
-STAGED: tuple[Effect, ...] = (*VARIANTS, CURRENT_LIMIT_EFFECT)
+#: The effects of this module not yet in the search's :data:`~discrepancy.effects.LIBRARY`
+#: (staged; the current limit is in the library).
+STAGED: tuple[Effect, ...] = VARIANTS
 
 
 __all__ = ["VARIANTS", "PARENT", "COMPLEXITY", "STAGED", "CURRENT_LIMIT_EFFECT", "LAW_PARAMS"]
