@@ -91,8 +91,8 @@ def _other_truths(cases: dict) -> str:
         verb = "is" if len(servo) == 1 else "are"
         text += (f" Not the Omni: {', '.join(servo)} {verb} a pendulum on a geared servo (nominal model "
                  "`models/servo_pendulum/servo_pendulum.xml`, `--joint pivot --actuator servo`) whose truth "
-                 "`bank/servo_truth.py` simulates the hidden drive friction (load-"
-                 "dependent, or direction-dependent) step by step; 12 runs of 5 s logged as a host logs a servo (~200 Hz with "
+                 "`bank/servo_truth.py` simulates the hidden drive law (a load-"
+                 "dependent or direction-dependent friction, or a firmware current limit) step by step; 12 runs of 5 s logged as a host logs a servo (~200 Hz with "
                  "jitter, the goal held between writes, torque-off spans, 4096-count encoder, servo loop "
                  "1 kHz).")
     merged = _merged(cases)
