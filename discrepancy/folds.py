@@ -177,9 +177,10 @@ def fold_starts(problem: Problem, folds: list[Fold], known: tuple = (), new_at=N
     on these ``folds``) that the effects hold start at that set's values on the same fold
     (fitted on the fold's training samples, as these are); the other members at their nominal
     values, then -- unless ``new_at`` gives their values (a set refitted from the user's
-    values) -- at the best of their starting grids on the fold's training windows and a few
-    Gauss-Newton steps there (:func:`window_starts`: the prescreen's search, on training
-    samples only).  No fold starts from a fit on all samples."""
+    values) -- at the best of their starting grids on the fold's training windows, about those
+    values and about the user's values of every member, and a few Gauss-Newton steps there
+    (:func:`window_starts`: the prescreen's search, on training samples only).  No fold starts
+    from a fit on all samples."""
     effects, builder = problem.free, problem.builder
     names = [e.name for e in effects]
     refs = [k for k in known if k.method == "refit" and k.folds is folds
@@ -204,17 +205,23 @@ def fold_starts(problem: Problem, folds: list[Fold], known: tuple = (), new_at=N
         grids = [thin_grid(g, PAIR_GRID_POINTS) for g in grids]
     grid = [np.concatenate([effects[i].clip(np.asarray(g, float)) for i, g in zip(new, combo)])
             for combo in itertools.product(*grids)]
-    return window_starts(problem, folds, base, list(idx), grid)
+    own = np.clip(np.concatenate([builder.nominal_values(e) for e in effects]).astype(float),
+                  problem.lower, problem.upper)
+    return window_starts(problem, folds, base, list(idx), grid, own=own)
 
 
 def window_starts(problem: Problem, folds: list[Fold], base: list[np.ndarray], new: list[int],
-                  grid: list[np.ndarray], *, seconds: float = PRESCREEN_S,
+                  grid: list[np.ndarray], *, own: np.ndarray | None = None, seconds: float = PRESCREEN_S,
                   iterations: int = PRESCREEN_ITERATIONS) -> list[np.ndarray]:
-    """Each fold's start found on its own training samples only: the best of ``grid`` (points of
-    the ``new`` parameters, indices into the problem's vector) about ``base[f]`` and ``base[f]``
-    itself on the fold's training windows (:func:`training_window`), then ``iterations``
-    damped Gauss-Newton steps there with every parameter free (as the prescreen fits every
-    candidate, :mod:`.prescreen`).  Folds with the same windows and base share the work."""
+    """Each fold's start found on its own training samples only, by the prescreen's search
+    (:func:`discrepancy.prescreen.prescreen`) on the fold's training windows
+    (:func:`training_window`): the best of ``grid`` (points of the ``new`` parameters, indices
+    into the problem's vector) about ``base[f]``, and ``base[f]`` itself, then ``iterations``
+    damped Gauss-Newton steps there with every parameter free; with ``own`` (the user's values
+    of every member) also from the best of ``grid`` about it, the better end point kept -- the
+    prescreen's second start, for the same reason (the base fitted without the new member stands
+    in for it, so that from there every grid point of the member looks worse than none).  Folds
+    with the same windows and base share the work."""
     done: dict = {}
     out = []
     for fold, b in zip(folds, base):
@@ -226,15 +233,20 @@ def window_starts(problem: Problem, folds: list[Fold], base: list[np.ndarray], n
             runs = [w for w, _ in wins]
             wp = Problem(problem.builder, problem.fixed, problem.free, runs, problem.rep,
                          masks=[m for _, m in wins])
-            pts = [b.copy() for _ in grid]
-            for xp, g in zip(pts, grid):
-                xp[new] = g
-            pts = [np.clip(xp, problem.lower, problem.upper) for xp in pts] + [b]
-            (g0, x0), = grid_minima(problem.rep, [wp], [pts], runs)
-            (x,), _ = lockstep_gauss_newton(problem.rep, [wp], [x0], [g0], runs, iterations)
+            bases = [b] if own is None or np.array_equal(own, b) else [b, own]
+            grids = []
+            for about in bases:
+                pts = [about.copy() for _ in grid]
+                for xp, g in zip(pts, grid):
+                    xp[new] = g
+                grids.append([np.clip(xp, problem.lower, problem.upper) for xp in pts])
+            grids[0].append(b)
+            minima = grid_minima(problem.rep, [wp] * len(bases), grids, runs)
+            xs, gaps = lockstep_gauss_newton(problem.rep, [wp] * len(bases), [x for _, x in minima],
+                                             [g for g, _ in minima], runs, iterations)
             problem.unstable += wp.unstable
-            problem.nsim += len(pts) + iterations * (len(b) + 1) + 1
-            done[key] = x
+            problem.nsim += sum(len(g) for g in grids) + len(bases) * (iterations * (len(b) + 1) + 1)
+            done[key] = xs[int(np.argmin(gaps))]
         out.append(done[key].copy())
     return out
 
