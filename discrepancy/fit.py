@@ -345,6 +345,7 @@ class Problem:
         sol = least_squares(fun, x0, jac=jac, bounds=(self.lower, self.upper),
                             x_scale=self.scale, method="trf", max_nfev=max_nfev,
                             xtol=1e-3, ftol=1e-4, gtol=1e-8)
+        self.converged = sol.status > 0  # 0: stopped by max_nfev
         x = sol.x
         if chord:
             (f, raw), J = self.residual(x), J0

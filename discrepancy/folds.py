@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fit import BASIN_SMALLEST, FitResult, Problem, damped_step, gap, split_values, unstable_count
+from .fit import BASIN_SMALLEST, FitResult, Problem, gap, split_values, unstable_count
 from .prescreen import (PAIR_GRID_POINTS, PRESCREEN_ITERATIONS, PRESCREEN_S, grid_minima, lockstep_gauss_newton,
                         thin_grid)
 from .runs import ReplayRun
@@ -145,13 +145,6 @@ def fold_problem(problem: Problem, fold: Fold) -> tuple[Problem, list[int]]:
     return pf, idx
 
 
-#: A fold's refit stops when a step lowers its training cost by less than this share of it
-#: (scipy's ``ftol`` of :meth:`Problem.fit` is 1e-4 on the all-runs fit; a fold's gap is
-#: read to 2-3 digits, and 1e-3 of the cost is 5e-4 of the gap).
-REFIT_FTOL = 1e-3
-#: Steps at most of a fold's refit (a fold still moving after them is counted unconverged,
-#: :attr:`Problem.unconverged`, and its held-out replay scored as it stands).
-REFIT_MAX_STEPS = 10
 #: Least-squares evaluations of a confirmed candidate's all-runs fit, from the screening fit's
 #: end point (each evaluation simulates the point and its p perturbations in one batch).
 CONFIRM_NFEV = 10
@@ -251,83 +244,26 @@ def window_starts(problem: Problem, folds: list[Fold], base: list[np.ndarray], n
     return out
 
 
-def fold_jacobians(problem: Problem, fps: list, xs: list[np.ndarray]) -> list[tuple]:
-    """Each fold's weighted training residual and forward-difference Jacobian at ``xs[f]``
-    (``(f0, J)``, the Jacobian times the parameters' scale): every fold's point and its ``p``
-    perturbations (:meth:`Problem.steps`) on the fold's training runs in ONE replay batch."""
-    runs, p = problem.runs, len(problem.scale)
-    points, steps, pairs = [], [], []
-    for (_, idx), x in zip(fps, xs):
-        pts, h = problem.perturbed(x)
-        pairs += [(len(points) + m, j) for m in range(p + 1) for j in idx]
-        points += pts
-        steps.append(h)
-    th = problem.rep.simulate([problem.model(x) for x in points], runs, pairs)
-    problem.nsim += len(points)
-    out, b = [], 0
-    for (pf, idx), h in zip(fps, steps):
-        raws = []
-        for _ in range(p + 1):
-            raws.append([th[b + k] - runs[j].theta for k, j in enumerate(idx)])
-            b += len(idx)
-            problem.unstable += unstable_count(raws[-1])
-        f0, J = pf.jacobian(raws, h)
-        out.append((f0, J * problem.scale))
-    return out
-
-
 def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
-                max_steps: int = REFIT_MAX_STEPS) -> list[np.ndarray]:
-    """Per-fold refits, all folds in lockstep, each from ``start[f]`` (a point that never saw
-    fold ``f``'s held-out samples) on its own training samples only, to a stated convergence:
-    a fold stops when a step lowers its training cost by less than :data:`REFIT_FTOL` of it, or
-    when a step taken with a Jacobian fresh at its point lowers it not at all; after
-    ``max_steps`` steps a fold still moving is counted in :attr:`Problem.unconverged`.
-
-    The steps are damped Gauss-Newton with the fold's OWN forward-difference Jacobian (every
-    fold's point and its ``p`` perturbations on its training runs, one batch), held while the
-    steps lower the cost (the chord method) and taken again at the fold's point when a step does
-    not; each step simulates every moving fold's trial point on its training runs in one
-    batch.  Why the fold's own Jacobian and not the all-runs fit's rows of it: on the real
-    servo of examples/real_servo the all-runs Jacobian's refits left the corrections 5 points of
-    held-out gap behind fresh per-fold fits."""
-    runs = problem.runs
-    fps = [fold_problem(problem, fold) for fold in folds]
-    train = [idx for _, idx in fps]
-    xs = [np.clip(np.asarray(x, float), problem.lower, problem.upper) for x in start]
-    f0, J = map(list, zip(*fold_jacobians(problem, fps, xs)))
-    cost = [float(f @ f) for f in f0]
-    fresh = [True] * len(folds)
-    moving = list(range(len(folds)))
-    for _ in range(max_steps):
-        if not moving:
-            break
-        trial = {f: np.clip(xs[f] + damped_step(J[f], f0[f]) * problem.scale, problem.lower, problem.upper)
-                 for f in moving}
-        pairs = [(m, j) for m, f in enumerate(moving) for j in train[f]]
-        th = problem.rep.simulate([problem.model(trial[f]) for f in moving], runs, pairs)
-        problem.nsim += len(moving)
-        b, stale = 0, []
-        for f in list(moving):
-            raw = [th[b + k] - runs[j].theta for k, j in enumerate(train[f])]
-            b += len(train[f])
-            problem.unstable += unstable_count(raw)
-            fn = fps[f][0].weighted(raw)
-            cn = float(fn @ fn)
-            if cn < cost[f]:
-                small = cost[f] - cn < REFIT_FTOL * cost[f]
-                xs[f], f0[f], cost[f], fresh[f] = trial[f], fn, cn, False
-                if small:
-                    moving.remove(f)
-            elif fresh[f]:
-                moving.remove(f)  # no lower cost along a step from the fold's own Jacobian here
-            else:
-                stale.append(f)
-        if stale:
-            for f, (fs, Js) in zip(stale, fold_jacobians(problem, [fps[f] for f in stale], [xs[f] for f in stale])):
-                f0[f], J[f], cost[f], fresh[f] = fs, Js, float(fs @ fs), True
-    problem.unconverged += len(moving)
-    return xs
+                max_nfev: int = CONFIRM_NFEV) -> list[np.ndarray]:
+    """Per-fold refits, each from ``start[f]`` (a point that never saw fold ``f``'s held-out
+    samples) on the fold's training samples only, by the same least squares as the all-runs fit
+    (:meth:`Problem.fit`: scipy's trust-region reflective method, ``ftol`` 1e-4, ``xtol`` 1e-3,
+    the fold's own forward-difference Jacobian at every evaluation) and to its convergence test;
+    a fold stopped by ``max_nfev`` evaluations is counted in :attr:`Problem.unconverged`.  The
+    same estimator as the all-runs fit, so the folds' spread is the estimator's (the jackknife
+    of :mod:`.uncertainty`).  Why the fold's own Jacobian and not the all-runs fit's rows of it:
+    on the real servo of examples/real_servo the all-runs Jacobian's refits left the corrections
+    5 points of held-out gap behind fresh per-fold fits."""
+    out = []
+    for fold, x0 in zip(folds, start):
+        pf, _ = fold_problem(problem, fold)
+        fit = pf.fit(np.asarray(x0, float), None, max_nfev=max_nfev)
+        problem.nsim += pf.nsim
+        problem.unstable += pf.unstable
+        problem.unconverged += not pf.converged
+        out.append(fit.x)
+    return out
 
 
 def polish_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray]) -> list[np.ndarray]:

@@ -43,7 +43,7 @@ import numpy as np
 
 from .fit import FitResult, Problem, gap, rough
 # the folds and the prescreen are named here too, where the search and the studies read them
-from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, REFIT_FTOL, REFIT_MAX_STEPS, Fold, block_folds,  # noqa: F401
+from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, Fold, block_folds,  # noqa: F401
                     fold_starts, heldout, heldout_replays, make_folds, onestep_folds, polish_folds, refit_folds,
                     run_folds)
 from .prescreen import (N_SCREEN, NULL, PAIR_FITS, PAIR_GRID_POINTS, PAIR_GRID_S, PRESCREEN_ITERATIONS,  # noqa: F401
