@@ -75,7 +75,7 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
             grids.append(pts)
             owner.append(c)
     best_gap, starts = zip(*grid_minima(rep, probs, grids, short))
-    best_x, best_gap = lockstep_gauss_newton(rep, probs, list(starts), list(best_gap), short, iterations)
+    best_x, best_gap = _lockstep_gauss_newton(rep, probs, list(starts), list(best_gap), short, iterations)
     out = []
     for c, name in enumerate(labels):
         k = min((i for i in range(len(owner)) if owner[i] == c), key=lambda i: best_gap[i])
@@ -149,14 +149,14 @@ def grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
         for _ in pts:
             res = [th[m * nr + j] - runs[j].theta for j in range(nr)]
             prob.unstable += unstable_count(res)
-            gaps.append(gap(prob.used(res)))  # on the samples the problem uses (its masks)
+            gaps.append(gap(res))
             m += 1
         i = int(np.argmin(gaps))
         out.append((gaps[i], pts[i].copy()))
     return out
 
 
-def lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], best_gap: list[float],
+def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], best_gap: list[float],
                            runs: list[ReplayRun], iterations: int) -> tuple[list, list]:
     """Damped Gauss-Newton from each candidate's start (its best grid point, gap ``best_gap``),
     all candidates in lockstep: each iteration evaluates every candidate's point and its
@@ -182,7 +182,7 @@ def lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], b
             raws = [[th[(first + i) * nr + j] - runs[j].theta for j in range(nr)]
                     for i in range(len(h) + 1)]
             prob.unstable += sum(unstable_count(raw) for raw in raws)
-            g0 = gap(prob.used(raws[0]))
+            g0 = gap(raws[0])
             if g0 <= best_gap[c]:
                 best_gap[c], best_x[c] = g0, xs[c].copy()
                 lam[c] = max(lam[c] / 3, 1e-6)
