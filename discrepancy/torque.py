@@ -173,7 +173,7 @@ class InverseModel:
         # a firmware current limit (omni_sim.device.CURRENT_LIMIT) bounds the actuator's force
         # with the velocity, as the engine sets it at every control period
         law = dev.drive_friction
-        self.limit = None if law is None or law.limit is None else (*law.limit, law.gear)
+        self.limited_drive = law if law is not None and law.limit is not None else None
         self.calls = 0
 
     def _inverse_copy(self, model: mujoco.MjModel) -> mujoco.MjModel:
@@ -206,9 +206,8 @@ class InverseModel:
             m = self.on_model if sm.on[i] else self.off_model
             d.qpos[self.qadr], d.qvel[dof], d.qacc[dof] = q[i], qd[i], qdd[i]
             d.ctrl[act] = ctrl[i] if sm.on[i] else 0.0
-            if self.limit is not None and sm.on[i]:
-                tau_i, b, gear = self.limit
-                m.actuator_forcerange[act] = ((b * qd[i] - tau_i) / gear, (b * qd[i] + tau_i) / gear)
+            if self.limited_drive is not None and sm.on[i]:
+                m.actuator_forcerange[act] = self.limited_drive.force_range(qd[i])
             mujoco.mj_inverse(m, d)
             mujoco.mj_fwdActuation(m, d)
             req[i] = d.qfrc_inverse[dof] - d.qfrc_actuator[dof]

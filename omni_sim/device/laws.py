@@ -62,6 +62,13 @@ FRICTION_FAMILY = "friction_family"
 CURRENT_LIMIT = "current_limit"
 
 
+def current_limit_range(tau_i, b, gear, w):
+    """:data:`CURRENT_LIMIT`'s actuator force range ``(lower, upper)`` at joint velocity ``w``:
+    the net motor torque ``gear * force - b w`` within ``+-tau_i``, i.e. ``force`` in
+    ``[(b w - tau_i) / gear, (b w + tau_i) / gear]`` (numbers or arrays of rows)."""
+    return (b * w - tau_i) / gear, (b * w + tau_i) / gear
+
+
 def _numeric(model: mujoco.MjModel, name: str) -> np.ndarray | None:
     """The data of the model's ``<custom><numeric name=...>``, or None."""
     i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
@@ -254,6 +261,11 @@ class DriveFriction:
         return cls(dof, float(model.dof_frictionloss[dof]), values, adr, float(model.actuator_gear[act, 0]),
                    limit, act)
 
+    def force_range(self, w: float) -> tuple[float, float]:
+        """The actuator force range :data:`CURRENT_LIMIT` allows at joint velocity ``w``
+        (:func:`current_limit_range`; the model must declare the limit)."""
+        return current_limit_range(*self.limit, self.gear, w)
+
     @classmethod
     def none(cls, dof: int, base_nm: float, act: int = -1) -> "DriveFriction":
         """A row without laws (batched with rows that have some): its own level, always."""
@@ -290,8 +302,7 @@ class _DriveLaws:
         velocities ``w``: the net motor torque ``gear * force - b w`` within ``+-tau_i``, i.e.
         ``force`` in ``[(b w - tau_i) / gear, (b w + tau_i) / gear]`` (meaningful for the
         :attr:`limited` rows only)."""
-        tau_i, b = self.limit[:, 0], self.limit[:, 1]
-        return (b * w - tau_i) / self.gear, (b * w + tau_i) / self.gear
+        return current_limit_range(self.limit[:, 0], self.limit[:, 1], self.gear, w)
 
     def write(self, models, w: np.ndarray, force: np.ndarray, frictionloss: list | None = None) -> np.ndarray:
         """Write the rows' Coulomb levels (joint ``frictionloss``) and, for the rows with a
