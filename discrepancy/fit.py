@@ -185,6 +185,7 @@ class Problem:
                         for r, m in zip(runs, self.masks)]
         self.nsim = 0
         self.unstable = 0  # replays of this problem MuJoCo found unstable (excluded)
+        self.unconverged = 0  # per-fold refits stopped by their step limit (discrepancy.folds)
         self._cache: dict = {}
         self._fcache: dict = {}  # the last point replayed alone (:meth:`residual`)
 
@@ -344,6 +345,7 @@ class Problem:
         sol = least_squares(fun, x0, jac=jac, bounds=(self.lower, self.upper),
                             x_scale=self.scale, method="trf", max_nfev=max_nfev,
                             xtol=1e-3, ftol=1e-4, gtol=1e-8)
+        self.converged = sol.status > 0  # 0: stopped by max_nfev
         x = sol.x
         if chord:
             (f, raw), J = self.residual(x), J0

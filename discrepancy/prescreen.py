@@ -75,7 +75,7 @@ def prescreen(builder, accepted: list, accepted_x: np.ndarray, names: list[str],
             grids.append(pts)
             owner.append(c)
     best_gap, starts = zip(*grid_minima(rep, probs, grids, short))
-    best_x, best_gap = _lockstep_gauss_newton(rep, probs, list(starts), list(best_gap), short, iterations)
+    best_x, best_gap = lockstep_gauss_newton(rep, probs, list(starts), list(best_gap), short, iterations)
     out = []
     for c, name in enumerate(labels):
         k = min((i for i in range(len(owner)) if owner[i] == c), key=lambda i: best_gap[i])
@@ -132,10 +132,11 @@ def _candidate_grid(builder, base: list, base_x: np.ndarray, name: str, runs: li
     return prob, x0, grids
 
 
-def grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
-                 runs: list[ReplayRun]) -> list[tuple[float, np.ndarray]]:
-    """Each problem's best grid point on ``runs`` and its gap, ``(gap, point)``: every point of
-    every grid simulated together (one batch per group of models that can share one)."""
+def grid_ranked(rep, probs: list[Problem], grids: list[list[np.ndarray]],
+                runs: list[ReplayRun]) -> list[list[tuple[float, np.ndarray]]]:
+    """Each problem's grid points on ``runs`` with their gaps, ``(gap, point)``, best first
+    (a stable sort: equal gaps keep the grid's order): every point of every grid simulated
+    together (one batch per group of models that can share one)."""
     nr = len(runs)
     models, pairs = [], []
     for prob, pts in zip(probs, grids):
@@ -149,14 +150,21 @@ def grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
         for _ in pts:
             res = [th[m * nr + j] - runs[j].theta for j in range(nr)]
             prob.unstable += unstable_count(res)
-            gaps.append(gap(res))
+            gaps.append(gap(prob.used(res)))  # on the samples the problem uses (its masks)
             m += 1
-        i = int(np.argmin(gaps))
-        out.append((gaps[i], pts[i].copy()))
+        order = np.argsort(gaps, kind="stable")
+        out.append([(gaps[i], pts[i].copy()) for i in order])
     return out
 
 
-def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], best_gap: list[float],
+def grid_minima(rep, probs: list[Problem], grids: list[list[np.ndarray]],
+                runs: list[ReplayRun]) -> list[tuple[float, np.ndarray]]:
+    """Each problem's best grid point on ``runs`` and its gap, ``(gap, point)``
+    (:func:`grid_ranked`'s first)."""
+    return [ranked[0] for ranked in grid_ranked(rep, probs, grids, runs)]
+
+
+def lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], best_gap: list[float],
                            runs: list[ReplayRun], iterations: int) -> tuple[list, list]:
     """Damped Gauss-Newton from each candidate's start (its best grid point, gap ``best_gap``),
     all candidates in lockstep: each iteration evaluates every candidate's point and its
@@ -182,7 +190,7 @@ def _lockstep_gauss_newton(rep, probs: list[Problem], starts: list[np.ndarray], 
             raws = [[th[(first + i) * nr + j] - runs[j].theta for j in range(nr)]
                     for i in range(len(h) + 1)]
             prob.unstable += sum(unstable_count(raw) for raw in raws)
-            g0 = gap(raws[0])
+            g0 = gap(prob.used(raws[0]))
             if g0 <= best_gap[c]:
                 best_gap[c], best_x[c] = g0, xs[c].copy()
                 lam[c] = max(lam[c] / 3, 1e-6)

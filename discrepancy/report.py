@@ -135,6 +135,7 @@ def _candidate_row(s: Scored) -> dict:
     """One scored candidate as the report lists it."""
     return {"name": s.name, "heldout_gap_rad": s.heldout_gap, "share": s.share,
             "method": s.method, "prescreen_gap_rad": s.prescreen_gap, "unstable_replays": s.unstable,
+            "unconverged_folds": s.unconverged,
             "parameters": {p.name: float(v) for e, x in split_values(s.effects, s.fit.x)
                            for p, v in zip(e.params, x)}}
 

@@ -191,6 +191,9 @@ class Search:
                 starts = {f.name: f.x for f in evidence.fits if f.name in shortlist and f.x is not None}
                 self.log(f"round 1: equation error leaves out {', '.join(left_out) or 'none'}; "
                          f"prescreening {', '.join(shortlist)}")
+            # every fold refit of the round starts from the fold values of the largest set it
+            # holds among the accepted one and the beam's confirmed pairs
+            self.scorer.known = tuple(k for k in [state.best] + state.pairs_scored if k is not None)
             # a beam grows every confirmed pair by any candidate not in it (the accepted pair's
             # members included)
             scored = self.scorer.score_round(state.accepted, state.accepted_x, state.gap,
@@ -363,7 +366,12 @@ class Search:
                         row["after_unstable_replays"] = row["corrected_unstable_replays"]
                     continue
                 if sch != self.scheme:
-                    sc = scorer.rescore(sc, gap_nominal)
+                    # the corrections from the user's values, the named set from the corrections'
+                    # fold values there (:meth:`Scorer.fold_starts`)
+                    users = (np.concatenate([self.builder.nominal_values(e) for e in sc.effects])
+                             if key == "corrected" else None)
+                    sc = scorer.rescore(sc, gap_nominal, new_at=users)
+                    scorer = scorer.on(scorer.folds, known=(sc,))
                 row[key] = sc.heldout_gap
                 row[f"{key}_unstable_replays"] = sc.unstable
             row["share_removed_by_effects"] = sel.share_of(row["after"], row["corrected"])

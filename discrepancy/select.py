@@ -9,10 +9,13 @@ Scoring (per round):
    trade off).  A candidate costs a few short batches, not a campaign;
 2. *screen* the :data:`N_SCREEN` best on all runs: least squares from the prescreen's point,
    then the held-out gap with k-fold over runs, each fold's parameters from one Gauss-Newton
-   step from the all-runs fit with the held-out runs' rows removed (cheap: one Jacobian);
-3. *confirm*: the best candidates (``n_confirm``) are refitted exactly on each fold's training
-   runs (warm start) and their held-out runs simulated with those parameters; this held-out gap
-   decides.  The fold fits also give a jackknife spread of each parameter.
+   step from the all-runs fit with the held-out runs' rows removed (cheap: one Jacobian; a
+   ranking only, of which candidates to confirm);
+3. *confirm*: the best candidates (``n_confirm``) are refitted on each fold's training samples,
+   from a start that never saw the fold's held-out samples and to a stated convergence
+   (:func:`~discrepancy.folds.fold_starts`, :func:`~discrepancy.folds.refit_folds`), and their
+   held-out samples simulated with those parameters; this held-out gap decides.  The fold fits
+   also give a jackknife spread of each parameter.
 
 Acceptance (held-out stopping): the best candidate's held-out gap must fall by at least
 ``min_share`` of the gap it started from, and that starting gap must stand clearly above the
@@ -40,8 +43,9 @@ import numpy as np
 
 from .fit import FitResult, Problem, gap, rough
 # the folds and the prescreen are named here too, where the search and the studies read them
-from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, REFIT_ITERATIONS, Fold, block_folds,  # noqa: F401
-                    heldout, heldout_replays, make_folds, onestep_folds, polish_folds, refit_folds, run_folds)
+from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, Fold, block_folds,  # noqa: F401
+                    fold_starts, heldout, heldout_replays, make_folds, onestep_folds, polish_folds, refit_folds,
+                    run_folds)
 from .prescreen import (N_SCREEN, NULL, PAIR_FITS, PAIR_GRID_POINTS, PAIR_GRID_S, PRESCREEN_ITERATIONS,  # noqa: F401
                         PRESCREEN_S, Prescreened, grid_minima, prescreen, thin_grid)
 from .runs import ReplayRun
@@ -68,7 +72,7 @@ def share_of(g: float, gap_start: float) -> float:
     return 0.0 if g <= 0 else -math.inf
 
 
-#: Candidates (best by the screen's held-out gap) confirmed with exact per-fold refits.
+#: Candidates (best by the screen's held-out gap) confirmed with per-fold refits.
 N_CONFIRM = 2
 #: Pairs are searched when the best single candidate removes less than this share of the gap.
 PAIR_SEARCH_SHARE = 0.5
@@ -123,6 +127,7 @@ class Scored:
     seconds: float = 0.0
     prescreen_gap: float = math.nan
     unstable: int = 0  # replays MuJoCo found unstable while fitting and scoring it (excluded)
+    unconverged: int = 0  # per-fold refits stopped by their step limit (still moving)
 
 
 def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> list[tuple[str | None, float]]:
@@ -196,10 +201,13 @@ class Scorer:
     rep: object
     folds: list
     log: object = None
+    #: Sets scored on these folds whose fold values start the fold refits of the sets that hold
+    #: them (:func:`~discrepancy.folds.fold_starts`): the corrections, the accepted set, the beam's pairs.
+    known: tuple = ()
 
-    def on(self, folds: list[Fold]) -> "Scorer":
-        """This scorer on other ``folds`` (the same runs)."""
-        return dataclasses.replace(self, folds=folds)
+    def on(self, folds: list[Fold], known: tuple = ()) -> "Scorer":
+        """This scorer on other ``folds`` (the same runs), with the sets ``known`` there."""
+        return dataclasses.replace(self, folds=folds, known=tuple(known))
 
     def problem(self, effects: list, runs: list[ReplayRun] | None = None) -> Problem:
         """The least-squares problem of ``effects`` free on ``runs`` (default: all the runs)."""
@@ -321,8 +329,10 @@ class Scorer:
         confirmed = sorted(scored[:n_confirm], key=lambda s: s.heldout_gap)
         return confirmed + scored[n_confirm:]
 
-    def _confirm(self, s: Scored, gap_start: float, nfev: int | None = None) -> None:
-        """Converge the all-runs fit of ``s`` and score it with exact per-fold refits (in place)."""
+    def _confirm(self, s: Scored, gap_start: float, nfev: int | None = None, new_at=None) -> None:
+        """Converge the all-runs fit of ``s`` and score it with per-fold refits to convergence,
+        each from a start that never saw its held-out samples (:func:`~discrepancy.folds.fold_starts`; ``new_at``
+        as there), in place."""
         t0 = time.perf_counter()
         prob = self.problem(s.effects)
         # the screening fit already simulated its end point (same model, runs and effects): the
@@ -332,20 +342,25 @@ class Scorer:
         # a rough parameter (a backlash's slack): the trust-region fit stops in a jagged local
         # minimum wherever it started; the basin search moves it to the basin's centre
         s.fit = prob.polish(s.fit)
-        s.fold_x = onestep_folds(prob, s.fit, self.folds)
-        if rough(s.effects):
-            # the folds are estimated the same way (so the jackknife sees the estimator's spread)
-            s.fold_x = polish_folds(prob, self.folds, s.fold_x)
-        else:
-            s.fold_x = refit_folds(prob, self.folds, s.fold_x)
+        s.fold_x = self._refit_folds(prob, s.effects, new_at)
         s.heldout_raw = heldout(prob, s.fold_x, self.folds)
         s.heldout_gap = gap(s.heldout_raw)
         s.share = share_of(s.heldout_gap, gap_start)
         s.method = "refit"
         s.unstable += prob.unstable
+        s.unconverged = prob.unconverged
         s.seconds += time.perf_counter() - t0
         if self.log:
-            self.log(f"  {s.name:18s} refit  held-out gap {s.heldout_gap:.3e} rad (share {s.share:+.2f})")
+            late = f"; {prob.unconverged} fold(s) unconverged" if prob.unconverged else ""
+            self.log(f"  {s.name:18s} refit  held-out gap {s.heldout_gap:.3e} rad (share {s.share:+.2f}{late})")
+
+    def _refit_folds(self, prob: Problem, effects: list, new_at=None) -> list[np.ndarray]:
+        """Each fold's parameters, fitted on its training samples from :func:`~discrepancy.folds.fold_starts`:
+        to convergence (:func:`refit_folds`), or, for a set with a rough parameter, by the basin
+        search (:func:`polish_folds`, the same estimator as the all-runs fit, so the jackknife
+        sees its spread)."""
+        start = fold_starts(prob, self.folds, self.known, new_at)
+        return polish_folds(prob, self.folds, start) if rough(effects) else refit_folds(prob, self.folds, start)
 
     # -- pairs -----------------------------------------------------------------------------------
     def score_pairs(self, gap_start: float, *, candidates: tuple[str, ...] | None = None,
@@ -360,7 +375,7 @@ class Scorer:
         best point of the product of the two effects' grids (each thinned to ``grid_points``),
         all pairs' grid points simulated together on the first ``grid_s`` seconds of each run;
         the ``n_fit`` best pairs are fitted on all runs and screened on held-out samples like the
-        single candidates, and the best ``n_confirm`` are confirmed with exact per-fold refits.
+        single candidates, and the best ``n_confirm`` are confirmed with per-fold refits.
         """
         starts = self._pair_starts(candidates or self.builder.names, grid_s, grid_points, n_fit)
         scored = []
@@ -401,33 +416,31 @@ class Scorer:
     # -- given sets ------------------------------------------------------------------------------
     def score_set(self, name: str, effects: list, x0: np.ndarray, gap_start: float) -> Scored:
         """Fit a given set of effects from ``x0`` on all runs and score it held out like a
-        confirmed candidate (exact per-fold refits): e.g. the nominal's corrections alone, the
+        confirmed candidate (per-fold refits): e.g. the nominal's corrections alone, the
         start every named effect must beat."""
         t0 = time.perf_counter()
         prob = self.problem(effects)
         fit = prob.fit(np.asarray(x0, float), None, max_nfev=8)
         sc = self._screened(name, effects, prob, fit, gap_start, t0, width=18)
-        self._confirm(sc, gap_start)
+        self._confirm(sc, gap_start, new_at=np.asarray(x0, float))
         return sc
 
-    def rescore(self, s: Scored, gap_start: float) -> Scored:
-        """``s``'s all-runs fit scored held out on this scorer's folds (exact per-fold refits
-        from one-step starts; the all-runs fit is kept): e.g. the named set under the fold
-        scheme the verdict did not use (:meth:`on`)."""
+    def rescore(self, s: Scored, gap_start: float, new_at=None) -> Scored:
+        """``s``'s all-runs fit scored held out on this scorer's folds (per-fold refits from
+        :func:`~discrepancy.folds.fold_starts`, ``new_at`` as there; the all-runs fit is kept): e.g. the named set
+        under the fold scheme the verdict did not use (:meth:`on`)."""
         prob = self.problem(s.effects)
         prob.seed(s.fit)
-        fold_x = onestep_folds(prob, s.fit, self.folds)
-        fold_x = (polish_folds(prob, self.folds, fold_x) if rough(s.effects)
-                  else refit_folds(prob, self.folds, fold_x))
+        fold_x = self._refit_folds(prob, s.effects, new_at)
         raw = heldout(prob, fold_x, self.folds)
         g = gap(raw)
         return Scored(s.name, s.effects, s.fit, g, share_of(g, gap_start), "refit", raw, fold_x, self.folds,
-                      unstable=prob.unstable)
+                      unstable=prob.unstable, unconverged=prob.unconverged)
 
     def score_removals(self, best: Scored, gap_start: float, keep: tuple[str, ...] = ()) -> list[Scored]:
         """The backward step of floating selection: ``best`` without each of its members,
         refitted jointly from ``best``'s values and screened on ``best``'s folds, the
-        :data:`N_CONFIRM` best screened confirmed (exact per-fold refits) as a round's
+        :data:`N_CONFIRM` best screened confirmed (per-fold refits) as a round's
         candidates are; best first.
 
         A member whose removal leaves a held-out gap that the full set lowers by less than
@@ -435,7 +448,7 @@ class Scorer:
         fitted with Coulomb friction to part of a backlash's gap) that a later member made
         redundant.  The caller drops it.  Members named in ``keep`` (the nominal's corrections)
         are never removed."""
-        scorer = self.on(best.folds)
+        scorer = self.on(best.folds, known=(best,))
         out = []
         for m in range(len(best.effects)):
             if best.effects[m].name in keep:
