@@ -201,7 +201,7 @@ def fold_starts(problem: Problem, folds: list[Fold], known: tuple = (), new_at=N
             for combo in itertools.product(*grids)]
     own = np.clip(np.concatenate([builder.nominal_values(e) for e in effects]).astype(float),
                   problem.lower, problem.upper)
-    return window_starts(problem, folds, base, list(idx), grid, own=own, seconds=math.inf)
+    return window_starts(problem, folds, base, list(idx), grid, own=own)
 
 
 #: Starts of a fold's refit when a set has a new member (:func:`window_starts`): each base's best
