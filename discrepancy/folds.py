@@ -217,7 +217,7 @@ FOLD_STARTS = 3
 #: (:func:`refit_folds`): chord steps, the start's Jacobian serving all four (each evaluation one
 #: replay; with the fold's own Jacobian at every evaluation the bank's servo case cost 117.5 M
 #: physics steps, with chord steps 84.5 M, both cases that were tried passing alike).
-RACE_NFEV = 4
+RACE_NFEV = 0
 
 
 def window_starts(problem: Problem, folds: list[Fold], base: list[np.ndarray], new: list[int],
@@ -289,18 +289,21 @@ def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
         for x in starts:  # a race: every start a few evaluations, the lowest training cost goes on
             pf, _ = fold_problem(problem, fold)
             if len(starts) == 1:
-                fit = pf.fit(x, None, max_nfev=max_nfev)
+                xe, resid, conv = pf.converge(x), np.zeros(0), pf.converged
+            elif RACE_NFEV == 0:  # the starts ranked by their training cost as they are
+                xe, resid, conv = x, pf.residual(x)[0], False
             else:  # the race ranks the starts: the start's Jacobian serves its few steps
                 fit = pf.fit(x, None, max_nfev=RACE_NFEV, chord=True)
+                xe, resid, conv = fit.x, fit.resid, pf.converged
             problem.nsim += pf.nsim
             problem.unstable += pf.unstable
-            cost = float(fit.resid @ fit.resid) if np.all(np.isfinite(fit.resid)) else math.inf
+            cost = float(resid @ resid) if np.all(np.isfinite(resid)) else math.inf
             if best is None or cost < best[0]:
-                best = (cost, fit.x, pf.converged)
+                best = (cost, xe, conv)
         x, converged = best[1], best[2]
         if len(starts) > 1:  # the race's chord steps: converge with the fold's own Jacobian
             pf, _ = fold_problem(problem, fold)
-            x = pf.fit(x, None, max_nfev=max_nfev).x
+            x = pf.converge(x)
             problem.nsim += pf.nsim
             problem.unstable += pf.unstable
             converged = pf.converged
