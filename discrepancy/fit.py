@@ -152,11 +152,6 @@ def split_values(effects: list, x) -> list[tuple]:
     return out
 
 
-#: Passes of :meth:`Problem.converge` (each from a fresh Jacobian) and the evaluations of each.
-CONVERGE_PASSES = 6
-CONVERGE_NFEV = 6
-
-
 class Problem:
     """Simulation-error least squares of some effects' parameters on some runs.
 
@@ -357,36 +352,6 @@ class Problem:
         else:
             f, J, raw = self.evaluate(x)
         return FitResult(list(self.free), x, x0, gap(self.used(raw)), J, f, self.nsim, raw, jac_at_x=not chord)
-
-    def converge(self, x0: np.ndarray, passes: int = CONVERGE_PASSES, nfev: int = CONVERGE_NFEV) -> np.ndarray:
-        """Least squares from ``x0`` by passes of chord steps: each pass computes the Jacobian at
-        its start (the point and its ``p`` perturbations, one batch) and runs the trust-region
-        fit (as :meth:`fit`: ``ftol`` 1e-4, ``xtol`` 1e-3) with that Jacobian held, at most
-        ``nfev`` evaluations of one replay each.  Converged (:attr:`converged`) when a pass from
-        a fresh Jacobian stops on scipy's tests having changed the cost by less than ``ftol``
-        (relative) or moved the point by less than ``xtol`` (relative, scipy's step test): the
-        fit's own tests met with the Jacobian at the end point.  At most ``passes`` passes.
-        Why: a fold's refit from a good start takes 4-5 trust-region evaluations with a fresh
-        Jacobian each (the bank's servo case, p = 4-6: 7 replays per evaluation, 40 M of its
-        74 M physics steps); a held Jacobian costs one replay per evaluation."""
-        eps = 1e-9 * (self.upper - self.lower)
-        x = np.clip(np.asarray(x0, float), self.lower + eps, self.upper - eps)
-        self.converged = False
-        for _ in range(passes):
-            f0, J0, _ = self.evaluate(x)
-            c0 = float(f0 @ f0)
-            sol = least_squares(lambda z: self.residual(z)[0], x, jac=lambda z: J0,
-                                bounds=(self.lower, self.upper), x_scale=self.scale, method="trf",
-                                max_nfev=nfev, xtol=1e-3, ftol=1e-4, gtol=1e-8)
-            c1 = float(sol.fun @ sol.fun)
-            moved = float(np.linalg.norm(sol.x - x))
-            small = (c0 - c1 <= 1e-4 * c0) or moved <= 1e-3 * (1e-3 + float(np.linalg.norm(sol.x)))
-            if c1 <= c0:
-                x = np.clip(sol.x, self.lower + eps, self.upper - eps)
-            if sol.status > 0 and small:
-                self.converged = True
-                break
-        return x
 
     def _cost(self, raw: list) -> float:
         return float(np.sum(self.weighted(raw) ** 2))
