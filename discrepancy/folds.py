@@ -21,6 +21,7 @@ from scipy.optimize import least_squares
 from .fit import BASIN_SMALLEST, FitResult, Problem, gap, split_values, unstable_count
 from .prescreen import (PAIR_GRID_POINTS, PRESCREEN_ITERATIONS, PRESCREEN_S, grid_ranked, lockstep_gauss_newton,
                         thin_grid)
+from .lockstep import lockstep_fit
 from .runs import ReplayRun
 
 
@@ -308,31 +309,30 @@ def converge(problem: Problem, x0: np.ndarray, passes: int = CONVERGE_PASSES,
 def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
                 passes: int = CONVERGE_PASSES) -> list[np.ndarray]:
     """Per-fold refits, each from ``start[f]`` (a point, or a list of points, that never saw fold
-    ``f``'s held-out samples) on the fold's training samples only.  From several points
-    (:data:`FOLD_STARTS`) the one with the lowest training cost as it is goes on (one replay
-    each).  The fit: the all-runs fit's least squares (scipy's trust-region reflective method,
-    ``ftol`` 1e-4, ``xtol`` 1e-3) by passes of chord steps, each pass from the fold's own
-    forward-difference Jacobian at its start, until a pass from a fresh Jacobian meets those
-    tests (:func:`converge`, at most ``passes``; a fold that does not is counted in
-    :attr:`Problem.unconverged`).  The folds' spread is then the estimator's (the jackknife of
-    :mod:`.uncertainty`).  Why the fold's own Jacobian and not the all-runs fit's rows of it: on
-    the real servo of examples/real_servo the all-runs Jacobian's refits left the corrections 5
-    points of held-out gap behind fresh per-fold fits."""
-    out = []
-    for fold, x0 in zip(folds, start):
-        starts = _starts(x0)
-        pf, _ = fold_problem(problem, fold)
-        if len(starts) > 1:  # a race: one pass each, the lowest training cost goes on
-            ends = [converge(pf, x, passes=1, nfev=RACE_NFEV)[0] for x in starts]
-            costs = [_cost(pf.residual(x)[0]) for x in ends]
-            x0 = ends[int(np.argmin(costs))]  # the first of equals: the best on the windows
-        else:
-            x0 = starts[0]
-        x, converged = converge(pf, x0, passes=passes)
+    ``f``'s held-out samples) on the fold's training samples only, every fold in lockstep
+    (:func:`discrepancy.lockstep.lockstep_fit`).  From several points (:data:`FOLD_STARTS`): a
+    race, each one pass of :data:`RACE_NFEV` evaluations, the lowest training cost goes on; then
+    passes to the stated convergence (at most ``passes``; a fold that does not converge is
+    counted in :attr:`Problem.unconverged`).  Why the fold's own Jacobian and not the all-runs
+    fit's rows of it: on the real servo of examples/real_servo the all-runs Jacobian's refits
+    left the corrections 5 points of held-out gap behind fresh per-fold fits."""
+    made = [fold_problem(problem, fold) for fold in folds]
+    probs, sets = [m[0] for m in made], [m[1] for m in made]
+    starts = [_starts(x0) for x0 in start]
+    x0 = [s[0] for s in starts]
+    race = [(f, x) for f, s in enumerate(starts) if len(s) > 1 for x in s]
+    if race:
+        ends, costs, _ = lockstep_fit(problem.rep, [probs[f] for f, _ in race], [sets[f] for f, _ in race],
+                                      problem.runs, [x for _, x in race], 1, RACE_NFEV)
+        for f in range(len(folds)):
+            mine = [(c, e) for (g, _), c, e in zip(race, costs, ends) if g == f]
+            if mine:
+                x0[f] = min(mine, key=lambda ce: ce[0])[1]  # the first of equals: the best on the windows
+    out, _, converged = lockstep_fit(problem.rep, probs, sets, problem.runs, x0, passes, CONVERGE_NFEV)
+    for pf, ok in zip(probs, converged):
         problem.nsim += pf.nsim
         problem.unstable += pf.unstable
-        problem.unconverged += passes > 0 and not converged
-        out.append(x)
+        problem.unconverged += passes > 0 and not ok
     return out
 
 
