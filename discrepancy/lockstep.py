@@ -23,6 +23,8 @@ import numpy as np
 from .fit import Problem, damped_step, unstable_count
 
 FTOL = 1e-4
+#: Trajectories per replay call at most (the memory of one batch grows with it).
+MAX_BATCH = 96
 XTOL = 1e-3
 
 
@@ -36,7 +38,9 @@ def _batch(rep, probs: list[Problem], points: list[list[np.ndarray]], run_sets: 
             models.append(probs[c].model(x))
             pairs += [(len(models) - 1, j) for j in run_sets[c]]
         spans.append(first)
-    th = rep.simulate_grouped(models, runs, pairs) if pairs else []
+    th = []
+    for k0 in range(0, len(pairs), MAX_BATCH):  # a model's runs may straddle two chunks: fine
+        th += rep.simulate_grouped(models, runs, pairs[k0:k0 + MAX_BATCH])
     out, k = [], 0
     for c, pts in enumerate(points):
         raws = []
