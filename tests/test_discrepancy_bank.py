@@ -7,6 +7,7 @@ whole bank through the workflow (slow) and the coverage study's script (slow, sm
 import ast
 import json
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -597,9 +598,10 @@ def test_assess_outside_effects_are_checked_against_expect():
 #: Cases the workflow fails, by the bank's criteria, on record (docs/studies/discrepancy/bank.md): run
 #: as strict xfails, so each still runs, and a change of its outcome either way is reported.
 KNOWN_FAILURES = {
-    "end_stop": "names viscous_damping with low confidence (x2.0), a stand-in not on the case's "
+    "end_stop": "names presliding_friction with low confidence (x2.58), a stand-in not on the case's "
                 "expect list (none, torque_saturation, joint_stiffness); the list was set before any "
-                "run and is not widened to the result (docs/studies/discrepancy/bank.json at 84fc339)",
+                "run and is not widened to the result (docs/studies/discrepancy/bank.json at 397d76b; "
+                "viscous_damping, low, x2.0 at 84fc339)",
     "asymmetric_friction": "with the effect in the library (commit 33a9091) it was named with high "
                            "confidence and a = 7.57 +- 0.33 mN*m covered the truth 7.5, but the "
                            "held-out gap shrank only x2.6 (1.54e-3 -> 6.04e-4 rad, noise floor "
@@ -777,37 +779,41 @@ def test_docs_coverage_figures_are_the_json():
     assert f"percentile of |error| / half-width is {np.percentile(ratio, 95):.2f}" in sec
 
 
-def test_docs_honest_fold_figures_are_the_record():
-    """The known-weakness paragraph of docs/method/discrepancy.md quotes the honest-fold trials as
-    docs/studies/discrepancy/honest_folds.json records them (bank totals, the stribeck case, the
-    bench), and this bank's own record is the "688 M" it compares with."""
+def test_docs_fold_cost_figures_are_the_record():
+    """The method page's "What it costs" quotes this bank's record (bank.json) and the bench's
+    (docs/reference/bench.json) beside the estimator before held-out folds and the variants
+    tried, as docs/studies/discrepancy/honest_folds.json records them."""
     rec = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "honest_folds.json").read_text())
     text = PAGE.read_text()
-    par = _flat(text[text.index("A known weakness"):text.index("From the second round on (and")])
+    par = _flat(text[text.index("The count and the race were set"):text.index("From the second round on (and")])
     bank, bench = rec["bank"], rec["bench"]
     here = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "bank.json").read_text())["cases"]
-    assert sum(c["report"]["timings"]["physics_steps"] for c in here.values()
-               if isinstance(c.get("report"), dict)) == bank["main"]["physics_steps"]
-    raced, ranked = bank["raced"], bank["ranked"]
-    assert raced["failed"] == bank["main"]["failed"]  # "the same two cases failing"
-    assert (f"({raced['passed']} of {raced['cases']}, the same two cases failing), at "
-            f"{raced['physics_steps'] / 1e6:.0f} M physics steps against this record's "
-            f"{bank['main']['physics_steps'] / 1e6:.0f} M") in par
+    total = sum(c["report"]["timings"]["physics_steps"] for c in here.values() if isinstance(c.get("report"), dict))
+    passed = sum(bool(c["pass"]) for c in here.values())
+    before = bank["earlier"]
+    assert (f"the whole bank took {total / 1e6:.0f} M physics steps ({passed} of {len(here)} passing), where "
+            f"the folds that started from the all-runs fit took {before['physics_steps'] / 1e6:.0f} M "
+            f"({before['passed']} of {before['cases']})") in par
+    ranked = bank["ranked"]
     st = ranked["stribeck_friction"]
     assert st["named"] == ["stribeck_friction", "presliding_friction"]
-    assert set(ranked["failed"]) - set(bank["main"]["failed"]) == {"stribeck_friction"}
-    assert (f"passed {ranked['passed']} of {ranked['cases']}: `stribeck_friction` named `presliding_friction` "
-            f"second (round 1 held out {st['round1_heldout_gap_rad']:.2e} rad, here "
-            f"{bank['main']['stribeck_friction']['round1_heldout_gap_rad']:.2e};").replace("e-0", "e-") in par
+    assert set(ranked["failed"]) - set(before["failed"]) == {"stribeck_friction"}
+    mine = here["stribeck_friction"]
+    assert mine["pass"]
+    r1 = next(c for c in mine["report"]["candidates"][0] if c["name"] == "stribeck_friction" and c["method"] == "refit")
+    assert (f"`presliding_friction` named second, round 1 held out {st['round1_heldout_gap_rad']:.2e} rad "
+            f"against {r1['heldout_gap_rad']:.2e} with the race)").replace("e-0", "e-") in par
 
-    def steps(b):
-        return f"{b['physics_steps'] / 1e6:.1f} M steps"
-    r, lk, cap, m = bench["raced"], bench["raced_lockstep"], bench["raced_lockstep_capped"], bench["main"]
-    assert f"took {steps(r)} and {r['wall_s']:.0f} s" in par
-    assert f"and {steps(lk)}, {lk['wall_s']:.0f} s and {lk['peak_rss_mb']:.0f} MB with every fold" in par
-    assert f"({cap['wall_s']:.0f} s and {cap['peak_rss_mb']:.0f} MB with batches" in par
-    assert f"against this estimator's {steps(m)}, {m['wall_s']:.0f} s and {m['peak_rss_mb']:.0f} MB" in par
-    assert all(b["passes_bank_criteria"] for b in bench.values())
+    def figures(b):
+        return f"{b['physics_steps'] / 1e6:.1f} M steps, {b['wall_s']:.0f} s and {b['peak_rss_mb']:.0f} MB"
+    srv = json.loads((ROOT / "docs" / "reference" / "bench.json").read_text())["discrepancy_servo"]
+    s, steps, mb = map(float, re.search(r"right after: ([\d.]+) s, ([\d.]+) M physics steps \([\d.]+ M naming\), "
+                                        r"(\d+) MB peak", srv["measured"]).groups())
+    before_bench = {"physics_steps": steps * 1e6, "wall_s": s, "peak_rss_mb": mb}
+    assert (f"`omni bench --only discrepancy_servo` {figures(srv)} against {figures(before_bench)} for the "
+            "estimator before, on one machine one after the other") in par
+    assert srv["wall_s"] > 180  # "over the bench's 180 s target"
+    assert all(b["passes_bank_criteria"] for b in bench.values()) and srv["passes_bank_criteria"]
 
 
 BANK_TABLE_START = "<!-- bank table: made by `python scripts/discrepancy_bank.py --table` from docs/studies/discrepancy/bank.json -->"

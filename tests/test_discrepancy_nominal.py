@@ -357,10 +357,10 @@ def test_load_friction_verdicts_on_the_pages():
 
 def test_performance_page_servo_time_is_the_bench_record():
     """docs/reference/performance.md's paragraphs on the geared-servo figure quote
-    docs/reference/bench.json: its wall time, and from its ``measured`` field the previous
-    commit's steps, naming steps and time on the same machine, the entry before's time, the
-    CPU share and the older profile's shares (half of the samples in the rollout, a sixth in
-    the friction writes)."""
+    docs/reference/bench.json: its wall time and peak memory, and from its ``measured`` field the
+    commit before's steps, naming steps, time and memory on the same machine, the entry before's
+    time, the CPU share and the older profile's shares (half of the samples in the rollout, a
+    sixth in the friction writes); the lockstep's gain from docs/studies/discrepancy/honest_folds.json."""
     import json
     import re
     from pathlib import Path
@@ -369,16 +369,24 @@ def test_performance_page_servo_time_is_the_bench_record():
     srv = json.loads((root / "docs/reference/bench.json").read_text())["discrepancy_servo"]
     text = " ".join((root / "docs/reference/performance.md").read_text().split())
     m = srv["measured"]
-    prev_s, prev_steps, prev_naming = map(float, re.search(
-        r"right after: ([\d.]+) s, ([\d.]+) M physics steps \(([\d.]+) M naming\)", m).groups())
-    held = float(re.search(r"the entry before \(\w+: ([\d.]+) s", m)[1])
+    prev_s, prev_steps, prev_naming, prev_mb = map(float, re.search(
+        r"right after: ([\d.]+) s, ([\d.]+) M physics steps \(([\d.]+) M naming\), (\d+) MB peak", m).groups())
+    held = float(re.search(r"The entry before \(\w+: ([\d.]+) s", m)[1])
     cpu = re.search(r"(\d+) % of the 2 cores", m)[1]
     rollout, total, friction = map(int, re.search(
         r"(\d+) of (\d+) samples in mujoco.rollout and (\d+) in", m).groups())
     assert (f"took {prev_steps:.1f} M steps ({prev_naming:.1f} M naming) and {prev_s:.0f} s on the same "
             "machine right after") in text
-    assert f"Its time, {srv['wall_s']:.0f} s where the entry before held {held:.0f} s" in text
-    assert f"took {prev_s:.0f} s on it, {held:.0f} s on the machine of that entry" in text
+    steps_x, time_x = srv["physics_steps"] / 1e6 / prev_steps, srv["wall_s"] / prev_s
+    assert f"{steps_x:.1f}" == f"{time_x:.1f}"  # the page says "the steps and the time" with one figure
+    assert f"cost {steps_x:.1f} times the steps and the time" in text
+    assert f"{time_x:.1f} times its steps and its time" in m
+    assert (f"Its time, {srv['wall_s']:.0f} s where the entry before held {held:.0f} s on an earlier machine "
+            f"(the commit before took {prev_s:.0f} s on this one, {held:.0f} s on that)") in text
+    assert f"peak memory is {srv['peak_rss_mb']:.0f} MB here against the commit before's {prev_mb:.0f} MB" in text
+    hf = json.loads((root / "docs/studies/discrepancy/honest_folds.json").read_text())["bench"]
+    assert (f"from {hf['raced']['wall_s']:.0f} s to {hf['raced_lockstep_capped']['wall_s']:.0f} s where those "
+            "variants were measured") in text
     assert f"At {cpu} % of 2 cores" in text
     assert "spent half of its samples in `rollout` and a sixth in the engine's per-period friction writes" in text
     # "half" and "a sixth" are the shares rounded to those words: within 2 points of them
