@@ -16,12 +16,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .fit import BASIN_SMALLEST, FitResult, Problem, gap, split_values, unstable_count
 from .prescreen import (PAIR_GRID_POINTS, PRESCREEN_ITERATIONS, PRESCREEN_S, grid_ranked, lockstep_gauss_newton,
                         thin_grid)
-from .lockstep import lockstep_fit
+from .lockstep import NFEV, PASSES, lockstep_fit
 from .runs import ReplayRun
 
 
@@ -269,45 +268,8 @@ def window_starts(problem: Problem, folds: list[Fold], base: list[np.ndarray], n
     return out
 
 
-#: Passes of :func:`converge` (each from a fresh Jacobian) and the evaluations of each.
-CONVERGE_PASSES = 6
-CONVERGE_NFEV = 6
-
-
-def converge(problem: Problem, x0: np.ndarray, passes: int = CONVERGE_PASSES,
-             nfev: int = CONVERGE_NFEV) -> tuple[np.ndarray, bool]:
-    """Least squares of ``problem`` from ``x0`` by passes of chord steps; the end point and
-    whether it converged.  Each pass computes the Jacobian at its start (the point and its ``p``
-    perturbations, one batch) and runs the trust-region fit (as :meth:`Problem.fit`: ``ftol``
-    1e-4, ``xtol`` 1e-3) with that Jacobian held, at most ``nfev`` evaluations of one replay
-    each.  Converged when a pass from a fresh Jacobian stops on scipy's tests having changed the
-    cost by less than ``ftol`` (relative) or moved the point by less than ``xtol`` (relative,
-    scipy's step test): the fit's own tests met with the Jacobian at the end point.  At most
-    ``passes`` passes.  Why: a fold's refit from a good start took 4-5 trust-region evaluations
-    with a fresh Jacobian each (the bank's servo case, p = 4-6: 5-7 replays per evaluation, 40 M
-    of its 74 M physics steps); a held Jacobian costs one replay per evaluation (that case: 62 M
-    in all, the same answer)."""
-    lo, hi = problem.lower, problem.upper
-    eps = 1e-9 * (hi - lo)
-    x = np.clip(np.asarray(x0, float), lo + eps, hi - eps)
-    for _ in range(passes):
-        f0, J0, _ = problem.evaluate(x)
-        c0 = float(f0 @ f0)
-        sol = least_squares(lambda z: problem.residual(z)[0], x, jac=lambda z: J0, bounds=(lo, hi),
-                            x_scale=problem.scale, method="trf", max_nfev=nfev, xtol=1e-3, ftol=1e-4,
-                            gtol=1e-8)
-        c1 = float(sol.fun @ sol.fun)
-        small = (c0 - c1 <= 1e-4 * c0
-                 or np.linalg.norm(sol.x - x) <= 1e-3 * (1e-3 + np.linalg.norm(sol.x)))
-        if c1 <= c0:
-            x = np.clip(sol.x, lo + eps, hi - eps)
-        if sol.status > 0 and small:
-            return x, True
-    return x, False
-
-
 def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
-                passes: int = CONVERGE_PASSES) -> list[np.ndarray]:
+                passes: int = PASSES) -> list[np.ndarray]:
     """Per-fold refits, each from ``start[f]`` (a point, or a list of points, that never saw fold
     ``f``'s held-out samples) on the fold's training samples only, every fold in lockstep
     (:func:`discrepancy.lockstep.lockstep_fit`).  From several points (:data:`FOLD_STARTS`): a
@@ -323,12 +285,12 @@ def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
     race = [(f, x) for f, s in enumerate(starts) if len(s) > 1 for x in s]
     if race:
         ends, costs, _ = lockstep_fit(problem.rep, [probs[f] for f, _ in race], [sets[f] for f, _ in race],
-                                      problem.runs, [x for _, x in race], 1, RACE_NFEV)
+                                      problem.runs, [x for _, x in race], passes=1, nfev=RACE_NFEV)
         for f in range(len(folds)):
             mine = [(c, e) for (g, _), c, e in zip(race, costs, ends) if g == f]
             if mine:
                 x0[f] = min(mine, key=lambda ce: ce[0])[1]  # the first of equals: the best on the windows
-    out, _, converged = lockstep_fit(problem.rep, probs, sets, problem.runs, x0, passes, CONVERGE_NFEV)
+    out, _, converged = lockstep_fit(problem.rep, probs, sets, problem.runs, x0, passes=passes, nfev=NFEV)
     for pf, ok in zip(probs, converged):
         problem.nsim += pf.nsim
         problem.unstable += pf.unstable

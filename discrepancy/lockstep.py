@@ -5,15 +5,16 @@ by its per-control-period Python, so such a batch costs nearly what a batch of 5
 (measured on the bank's servo case: 0.126 M physics steps/s for batches of <= 12 trajectories,
 0.37-0.44 M/s for 49 and more).  Here the folds (and the starts of a race) step together.
 
-The iteration is a Levenberg-damped Gauss-Newton step in passes of chord steps, the stated
-convergence test of :func:`discrepancy.folds.converge`: each pass takes the Jacobian at its start
+The iteration is a Levenberg-damped Gauss-Newton step in passes of chord steps, with a stated
+convergence test: each pass takes the Jacobian at its start
 (the point and its ``p`` forward-difference perturbations), then up to ``nfev - 1`` steps with
 that Jacobian held (one replay each; a step that does not lower the cost is undone and the
 damping raised tenfold, one that does lowers it threefold).  A pass ends when an accepted
 step lowers the cost by less than ``FTOL`` of it or moves the point by less than ``XTOL``
 (relative, scipy's step test), or its evaluations are spent; the problem has converged when a
-pass from a fresh Jacobian changed the cost by less than ``FTOL`` or moved the point by less
-than ``XTOL``.
+pass from a fresh Jacobian that tried a step changed the cost by less than ``FTOL`` or moved the
+point by less than ``XTOL``.  A problem whose replay goes unstable at a pass's start stops there,
+unconverged.
 """
 
 from __future__ import annotations
@@ -25,6 +26,12 @@ from .fit import Problem, damped_step, unstable_count
 FTOL = 1e-4
 #: Trajectories per replay call at most (the memory of one batch grows with it).
 MAX_BATCH = 96
+#: Evaluations of a pass (its Jacobian, then up to ``NFEV - 1`` chord steps) and passes at most.
+#: Why: a fold's refit from a good start took 4-5 trust-region evaluations with a fresh Jacobian
+#: each (the bank's servo case, p = 4-6: 5-7 replays per evaluation); a held Jacobian costs one
+#: replay per step.
+NFEV = 6
+PASSES = 6
 XTOL = 1e-3
 
 
@@ -59,11 +66,12 @@ def _cost(f: np.ndarray) -> float:
 
 
 def lockstep_fit(rep, probs: list[Problem], run_sets: list[list[int]], runs, starts: list[np.ndarray],
-                 passes: int, nfev: int) -> tuple[list[np.ndarray], list[float], list[bool]]:
+                 passes: int = PASSES, nfev: int = NFEV) -> tuple[list[np.ndarray], list[float], list[bool]]:
     """Each problem fitted from its start, all in lockstep (module docstring); returns the end
     points, their costs and whether each converged.  ``probs[c]`` replays ``runs[j]`` for ``j``
     in ``run_sets[c]`` (in that order: the problem's own runs)."""
     n = len(probs)
+    ok = [False] * n  # converged: a pass from a fresh Jacobian that tried a step changed little
     eps = [1e-9 * (p.upper - p.lower) for p in probs]
     x = [np.clip(np.asarray(s, float), p.lower + e, p.upper - e) for s, p, e in zip(starts, probs, eps)]
     cost = [np.inf] * n
@@ -82,7 +90,11 @@ def lockstep_fit(rep, probs: list[Problem], run_sets: list[list[int]], runs, sta
             cost[c] = _cost(f[c])
         x0 = {c: x[c].copy() for c in active}
         c0 = {c: cost[c] for c in active}
+        for c in active:
+            if not np.isfinite(cost[c]):  # its replay went unstable: stays where it is, unconverged
+                done[c] = True
         stepping = [c for c in active if np.isfinite(cost[c])]
+        tried = set(stepping) if nfev > 1 else set()  # a pass that tried no step proves nothing
         for _ in range(nfev - 1):
             if not stepping:
                 break
@@ -109,8 +121,8 @@ def lockstep_fit(rep, probs: list[Problem], run_sets: list[list[int]], runs, sta
                     if lam[c] < 1e6:
                         still.append(c)
             stepping = still
-        for c in active:
+        for c in tried:
             if (c0[c] - cost[c] <= FTOL * c0[c]
                     or np.linalg.norm(x[c] - x0[c]) <= XTOL * (XTOL + np.linalg.norm(x[c]))):
-                done[c] = True
-    return x, cost, done
+                done[c] = ok[c] = True
+    return x, cost, ok

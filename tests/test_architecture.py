@@ -389,7 +389,7 @@ DISCREPANCY = "discrepancy"
 #: Its layers (module names inside the package; ``effects`` stands for the package and its modules).
 DISCREPANCY_LAYERS = {
     "runs": ("runs",),  # a run prepared for replay: plain data
-    "statistics": ("localise", "fit", "folds", "prescreen", "select", "uncertainty", "nesting", "report"),
+    "statistics": ("localise", "fit", "folds", "lockstep", "prescreen", "select", "uncertainty", "nesting", "report"),
     # MuJoCo: the replay, the effect library, the missing torque and its equation-error naming
     "simulation": ("replay", "effects", "smoothing", "bristles", "torque", "shape", "evidence"),
     "workflow": ("workflow", "search", "result"),  # joins statistics and simulation; its result

@@ -9,7 +9,8 @@ from discrepancy import effects as fx
 from discrepancy import experiment_set
 from discrepancy import select as sel
 from discrepancy.fit import Problem
-from discrepancy.folds import converge, fold_starts, refit_folds, training_window
+from discrepancy.folds import fold_starts, refit_folds, training_window
+from discrepancy.lockstep import lockstep_fit
 from discrepancy.replay import Replayer, prepare_runs
 from discrepancy.runs import ReplayRun
 from omni_sim import experiments as ex
@@ -110,14 +111,21 @@ def test_a_fold_goes_on_from_its_start_with_the_lowest_training_cost(damped_runs
         assert b[0] == pytest.approx(TRUE_DAMPING) and c[0] == pytest.approx(TRUE_DAMPING)
 
 
-def test_converge_stops_on_a_pass_from_a_fresh_jacobian(damped_runs):
-    """converge from four times the hidden damping: converged (a pass from a fresh
-    Jacobian met the trust-region tests) at the truth, to the 1e-3 of the test above."""
+def test_lockstep_fit_stops_on_a_pass_from_a_fresh_jacobian(damped_runs):
+    """lockstep_fit from four times the hidden damping, beside a second problem started at the
+    truth (one replay batch per evaluation): both converged (a pass from a fresh Jacobian that
+    tried a step changed the cost by < FTOL or moved < XTOL) at the truth, to the 1e-3 of the
+    test above, and each as it ends alone; one evaluation per pass (a Jacobian, no step) never
+    converges."""
     spec, runs = damped_runs
+    idx = list(range(len(runs)))
+    far, near = np.array([4 * TRUE_DAMPING]), np.array([1.01 * TRUE_DAMPING])
     with Replayer(1) as rep:
         prob = Problem(fx.ModelBuilder(spec), [], [fx.get("viscous_damping")], runs, rep)
-        x, converged = converge(prob, np.array([4 * TRUE_DAMPING]))
-        assert converged
-        assert x[0] == pytest.approx(TRUE_DAMPING, rel=1e-3)
-        _, converged = converge(prob, np.array([4 * TRUE_DAMPING]), passes=1, nfev=1)  # one evaluation
-        assert not converged
+        x, cost, converged = lockstep_fit(rep, [prob, prob], [idx, idx], runs, [far, near])
+        assert converged == [True, True]
+        assert x[0][0] == pytest.approx(TRUE_DAMPING, rel=1e-3) and x[1][0] == pytest.approx(TRUE_DAMPING, rel=1e-3)
+        alone, _, ok = lockstep_fit(rep, [prob], [idx], runs, [far])
+        assert ok == [True] and alone[0][0] == pytest.approx(x[0][0], rel=1e-6)  # the batch changes nothing
+        _, _, converged = lockstep_fit(rep, [prob], [idx], runs, [far], passes=3, nfev=1)
+        assert converged == [False]
