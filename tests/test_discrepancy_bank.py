@@ -781,7 +781,7 @@ def test_docs_coverage_figures_are_the_json():
 
 
 def test_docs_fold_cost_figures_are_the_record():
-    """The method page's "What it costs" quotes this bank's record (bank.json) and the bench's
+    """The method page's "The cost" quotes this bank's record (bank.json) and the bench's
     (docs/reference/bench.json) beside the estimator before held-out folds and the variants
     tried, as docs/studies/discrepancy/honest_folds.json records them."""
     rec = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "honest_folds.json").read_text())
