@@ -254,7 +254,10 @@ class Search:
         state, best_single = self.selection, singles[0]
         self.log(f"round 1: the best single candidate removes {best_single.share:.0%} and leaves "
                  f"{best_single.heldout_gap / max(self.noise, 1e-300):.1f} x the noise floor: scoring pairs")
-        pairs = self.scorer.score_pairs(state.gap, candidates=tuple(names))
+        pairs = self.scorer.score_pairs(state.gap, candidates=tuple(names)) if len(names) > 1 else []
+        if not pairs:  # one candidate (e.g. a study restricted to one effect), or none pairs with another
+            self.log("round 1: no pair of candidates to score")
+            return False
         best_pair = pairs[0]
         gain = sel.share_of(best_pair.heldout_gap, best_single.heldout_gap)
         pair_ok = (best_pair.share >= sel.MIN_SHARE and gain >= sel.MIN_SHARE

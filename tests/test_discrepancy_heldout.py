@@ -129,3 +129,22 @@ def test_lockstep_fit_stops_on_a_pass_from_a_fresh_jacobian(damped_runs):
         assert ok == [True] and alone[0][0] == pytest.approx(x[0][0], rel=1e-6)  # the batch changes nothing
         _, _, converged = lockstep_fit(rep, [prob], [idx], runs, [far], passes=3, nfev=1)
         assert converged == [False]
+
+
+def test_pair_search_with_one_candidate_scores_no_pair():
+    """Round 1's pair search when the candidates cannot make a pair (a study restricted to one
+    effect, as the coverage study is): nothing accepted, one log line, no pair scored (it raised
+    an IndexError when the best single effect left enough of the gap to ask for pairs)."""
+    from types import SimpleNamespace
+
+    from discrepancy.search import Search
+
+    logged, asked = [], []
+    single = SimpleNamespace(share=0.3, heldout_gap=1e-2)
+    fake = SimpleNamespace(selection=SimpleNamespace(gap=2e-2), noise=1e-4, log=logged.append,
+                           scorer=SimpleNamespace(score_pairs=lambda gap, candidates: asked.append(candidates) or []))
+    entry = {}
+    assert Search._search_pairs(fake, ["drive_compliance"], entry, [single]) is False
+    assert asked == [] and entry == {} and logged[-1] == "round 1: no pair of candidates to score"
+    assert Search._search_pairs(fake, ["a", "b"], entry, [single]) is False  # the scorer found no pair
+    assert asked == [("a", "b")] and entry == {}
