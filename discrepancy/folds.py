@@ -12,7 +12,6 @@ ranks candidates), and the refits whose held-out gap decides (:func:`refit_folds
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -296,10 +295,6 @@ def refit_folds(problem: Problem, folds: list[Fold], start: list[np.ndarray],
         problem.unstable += pf.unstable
         problem.unconverged += passes > 0 and not ok
     return out
-
-
-def _cost(f: np.ndarray) -> float:
-    return float(f @ f) if np.all(np.isfinite(f)) else math.inf
 
 
 def _starts(x0) -> list[np.ndarray]:

@@ -38,13 +38,11 @@ XTOL = 1e-3
 def _batch(rep, probs: list[Problem], points: list[list[np.ndarray]], run_sets: list[list[int]], runs) -> list:
     """Raw residuals of every problem's points, one replay batch: ``out[c][i]`` the residuals of
     problem ``c``'s point ``i`` on its runs (``run_sets[c]``: indices into ``runs``)."""
-    models, pairs, spans = [], [], []
+    models, pairs = [], []
     for c, pts in enumerate(points):
-        first = len(models)
         for x in pts:
             models.append(probs[c].model(x))
             pairs += [(len(models) - 1, j) for j in run_sets[c]]
-        spans.append(first)
     th = []
     for k0 in range(0, len(pairs), MAX_BATCH):  # a model's runs may straddle two chunks: fine
         th += rep.simulate_grouped(models, runs, pairs[k0:k0 + MAX_BATCH])
