@@ -28,6 +28,7 @@ from omni_sim import experiments as ex
 from omni_sim import model as om
 from omni_sim.device import (ENCODER_STEP_RAD, Device, Encoder, Engine, p_law, read_encoder,
                              run_p_loop)
+from omni_sim.device.engine import SERIAL_BELOW
 from discrepancy.replay import Replayer, prepare_runs
 from omni_sim.env import OmniYawEnv
 
@@ -84,13 +85,16 @@ def test_p_law_clips_to_the_drive():
 
 
 @pytest.mark.parametrize("frictionloss", [0.0, 0.02])
-def test_one_row_equals_batch_bit_for_bit(device, frictionloss):
+@pytest.mark.parametrize("rows", [2, SERIAL_BELOW])
+def test_one_row_equals_batch_bit_for_bit(device, frictionloss, rows):
     """mj_step on one row and mujoco.rollout on a batch are the same physics, bit for bit, with
-    the LuGre model and with a hard-stick Coulomb frictionloss (constraints, noslip)."""
+    the LuGre model and with a hard-stick Coulomb frictionloss (constraints, noslip); a small
+    batch is stepped on the calling thread, a larger one on the pool's threads (SERIAL_BELOW)."""
     m = om.load_model()
     m.dof_frictionloss[om.index(m).yaw_dof] = frictionloss
     dev = Device(m)
     exps = [_short(ex.square_experiment(45, 90), 1500), _short(ex.sine_experiment(25, 115, 3.0), 1500)]
+    exps = (exps * rows)[:rows]
     r = np.array([e.r for e in exps])
     noise = np.array([Encoder(noise_rad=2e-4, seed=1).noise(e.name, 1500) for e in exps])
     starts = ([e.theta0_rad for e in exps], [(e.gamma1_set_deg, e.gamma2_set_deg) for e in exps])

@@ -26,6 +26,13 @@ from .laws import DriveFriction, _DriveLaws
 CONTROL_PERIOD_S = 1e-3
 #: The physics state the engine carries between control periods.
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+#: Batches of fewer rows are stepped on the calling thread, not handed to a pool's threads at
+#: every control period: the hand-off costs ~40 us a period, more than a small batch's steps.
+#: Measured (2 cores, one rollout call of one physics step per row, best of 3 x 3000 calls):
+#: the bank's servo pendulum 24 rows 44 us on the calling thread, 73 us on two threads; 32
+#: rows 59 / 82 us; 48 rows 88 / 81 us; the Omni 24 rows 64 / 98 us, 32 rows 85 / 79 us, 48
+#: rows 127 / 99 us.  The trajectories are the same either way (tests/test_device.py).
+SERIAL_BELOW = 32
 #: The environment variable that sets how many threads a batch uses when a caller names none
 #: (a machine shared with other jobs, several test processes on one machine); unset: all cores.
 THREADS_ENV = "OMNI_THREADS"
@@ -141,6 +148,7 @@ class Engine:
             self._force = np.zeros(self.B)  # each row's actuator force of its last step
             self._law_models = [copy.deepcopy(d.model) for d in devices]
             self._law_fl = [m.dof_frictionloss for m in self._law_models]  # written every period
+            self._fl_now = self._law_fl  # a batch's: those of the models its rows step now
         # torque-off periods (run_p_loop's ``enabled``) step each row's off model
         self._on_models = self._law_models if self._laws else [d.model for d in devices]
         self._off_models = None  # made at the first torque-off period
@@ -162,6 +170,8 @@ class Engine:
         self._models = list(self._on_models)
         self._models_on = np.ones(self.B, bool)  # which rows _models steps with the drive on
         nthread = max(1, nthread or default_threads())
+        if self.B < SERIAL_BELOW:  # a small batch: the calling thread steps it (see SERIAL_BELOW)
+            nthread, pool = 1, None
         self._own_pool = pool is None
         # one thread: the calling thread steps the batch (no hand-off to a pool thread at
         # every control period); same trajectories either way
@@ -171,6 +181,12 @@ class Engine:
         # unstable row's data (time back to 0) and warns without saying which row: a row whose
         # time fell behind is flagged in ``unstable`` for good (its trajectory is not physics)
         self._period = np.array([d.model.opt.timestep * self.substeps for d in devices])
+        self._half_period = 0.5 * self._period
+        self._vel = 1 + d0.model.nq + d0.ix.yaw_dof  # the yaw velocity's column of the state
+        if self._laws:  # each row's actuatorfrc sensor (its address, 0 where a row has none)
+            self._has_sensor = self._laws.sensor >= 0
+            self._sensor_adr = np.maximum(self._laws.sensor, 0)
+            self._rows = np.arange(self.B)
         self.unstable = np.zeros(self.B, bool)
         self._state = np.empty((self.B, self.substeps, d0.nstate))
         self._sens = np.empty((self.B, self.substeps, d0.model.nsensordata))
@@ -240,6 +256,8 @@ class Engine:
         if self._off_models is None:
             self._off_models = [copy.deepcopy(d.off_model()) if self._laws else d.off_model()
                                 for d in self.devices]
+            if self._laws:
+                self._off_fl = [m.dof_frictionloss for m in self._off_models]
         return self._off_models
 
     def apply(self, v, on=None) -> np.ndarray:
@@ -293,12 +311,15 @@ class Engine:
             if not np.array_equal(state, self._models_on):  # the rows' models change only at a switch
                 self._models = [mo if state[b] else off[b] for b, mo in enumerate(self._on_models)]
                 self._models_on = state.copy()
+                if self._laws:  # the friction level goes to the model each row steps
+                    self._fl_now = [fl if state[b] else self._off_fl[b] for b, fl in enumerate(self._law_fl)]
         if self._laws:
             self._set_friction()
         x_before = self.x
-        first = x_before[:, 0] < 0.5 * self._period
+        first = x_before[:, 0] < self._half_period
+        in_first = bool(first.any())
         warnings = []
-        if first.any():  # count MuJoCo's warnings of this period (the handler chains to the caller's)
+        if in_first:  # count MuJoCo's warnings of this period (the handler chains to the caller's)
             prev = mujoco.get_mju_user_warning()
             mujoco.set_mju_user_warning(lambda msg: (warnings.append(msg), prev and prev(msg)))
         try:
@@ -306,26 +327,27 @@ class Engine:
                               skip_checks=True, state=self._state, sensordata=self._sens,
                               chunk_size=self._chunk)
         finally:
-            if first.any():
+            if in_first:
                 mujoco.set_mju_user_warning(prev)
         self.x = self._state[:, -1, :].copy()
-        self.unstable |= self.x[:, 0] < x_before[:, 0] + 0.5 * self._period
+        self.unstable |= self.x[:, 0] < x_before[:, 0] + self._half_period
         if warnings:
             # a reset at a row's very first physics step leaves its time as expected: the rows
             # in their first period are stepped again one by one, each on its own MjData, to see
             # which of them warned
             self.unstable[first] |= [_warns(self._models[b], x_before[b], self._ctrl[b])
                                      for b in np.flatnonzero(first)]
-        if self._laws and np.any(self._laws.sensor >= 0):
-            adr = self._laws.sensor
-            self._force = np.where(adr >= 0, self._sens[np.arange(self.B), -1, np.maximum(adr, 0)], 0.0)
+        if self._laws and self._has_sensor.any():
+            self._force = np.where(self._has_sensor, self._sens[self._rows, -1, self._sensor_adr], 0.0)
 
     def _set_friction(self) -> None:
         """Every row's :class:`DriveFriction` level for the coming control period, written into
         the row's own model."""
-        w = self.yaw_velocity()
+        if self._data is None:  # a batch: each row's level into the model it steps this period
+            self._laws.write(self._law_models, self.x[:, self._vel], self._force, self._fl_now)
+            return
         # the one row's model is _law_models[0]
-        levels = self._laws.write(self._law_models, w, self._force, self._law_fl)
+        levels = self._laws.write(self._law_models, self.yaw_velocity(), self._force, self._law_fl)
         if self._off_models is not None:  # the drive off: no force, only the friction level
             if self._off_fl is None:
                 self._off_fl = [m.dof_frictionloss for m in self._off_models]

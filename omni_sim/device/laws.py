@@ -313,7 +313,7 @@ class _DriveLaws:
         levels."""
         levels = self.levels(w, force)
         for fl, f in zip(frictionloss if frictionloss is not None else [m.dof_frictionloss for m in models],
-                         levels):
+                         levels.tolist()):  # Python floats: the same doubles, written faster
             fl[self.dof] = f
         if self.limited.any():
             lo, hi = self.force_ranges(w)
