@@ -148,3 +148,37 @@ def test_pair_search_with_one_candidate_scores_no_pair():
     assert asked == [] and entry == {} and logged[-1] == "round 1: no pair of candidates to score"
     assert Search._search_pairs(fake, ["a", "b"], entry, [single]) is False  # the scorer found no pair
     assert asked == [("a", "b")] and entry == {}
+
+
+def test_a_runner_up_far_behind_on_the_screen_is_not_confirmed():
+    """After the best screened candidate is confirmed, the next is confirmed (per-fold refits)
+    only when its screen gap is below CONFIRM_WITHIN times the best confirmed gap; the pair
+    search confirms all of its best (``within=inf``: they are the next round's beam)."""
+    from types import SimpleNamespace
+
+    refit = {"a": 1.0, "b": 2.5, "c": 0.5}  # the gap each would have after its refits
+
+    def scorer(gaps: dict, refits: dict):
+        done = []
+
+        def confirm(s, gap_start):
+            done.append(s.name)
+            s.heldout_gap, s.method = refits[s.name], "refit"
+
+        return SimpleNamespace(_confirm=confirm, log=None), done, [
+            SimpleNamespace(name=n, heldout_gap=g, method="one-step") for n, g in gaps.items()]
+
+    w = sel.CONFIRM_WITHIN
+    assert w == 2.0
+    fake, done, scored = scorer({"a": 1.0, "b": 2.0 * 1.0}, refit)  # b at exactly 2x the best's refit
+    out = sel.Scorer._confirm_best(fake, scored, 1.0, 2)
+    assert done == ["a"] and [s.name for s in out] == ["a", "b"] and out[1].method == "one-step"
+    fake, done, scored = scorer({"a": 0.8, "b": 1.9}, refit)  # b below 2x a's refit (1.0): confirmed
+    out = sel.Scorer._confirm_best(fake, scored, 1.0, 2)
+    assert done == ["a", "b"] and [s.name for s in out] == ["a", "b"]
+    fake, done, scored = scorer({"b": 0.9, "c": 1.5}, refit)  # the best's refit got worse (2.5):
+    out = sel.Scorer._confirm_best(fake, scored, 1.0, 2)  # c is within 2x of it, confirmed, and leads
+    assert done == ["b", "c"] and [s.name for s in out] == ["c", "b"]
+    fake, done, scored = scorer({"a": 1.0, "b": 5.0, "c": 9.0}, refit)
+    out = sel.Scorer._confirm_best(fake, scored, 1.0, 2, within=float("inf"))
+    assert done == ["a", "b"] and [s.name for s in out] == ["a", "b", "c"]
