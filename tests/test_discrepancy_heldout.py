@@ -171,14 +171,14 @@ def test_a_runner_up_far_behind_on_the_screen_is_not_confirmed():
     w = sel.CONFIRM_WITHIN
     assert w == 2.0
     fake, done, scored = scorer({"a": 1.0, "b": 2.0 * 1.0}, refit)  # b at exactly 2x the best's refit
-    out = sel.Scorer._confirm_best(fake, scored, 1.0, 2)
+    out = sel.Scorer.confirm_best(fake, scored, 1.0, 2)
     assert done == ["a"] and [s.name for s in out] == ["a", "b"] and out[1].method == "one-step"
     fake, done, scored = scorer({"a": 0.8, "b": 1.9}, refit)  # b below 2x a's refit (1.0): confirmed
-    out = sel.Scorer._confirm_best(fake, scored, 1.0, 2)
+    out = sel.Scorer.confirm_best(fake, scored, 1.0, 2)
     assert done == ["a", "b"] and [s.name for s in out] == ["a", "b"]
     fake, done, scored = scorer({"b": 0.9, "c": 1.5}, refit)  # the best's refit got worse (2.5):
-    out = sel.Scorer._confirm_best(fake, scored, 1.0, 2)  # c is within 2x of it, confirmed, and leads
+    out = sel.Scorer.confirm_best(fake, scored, 1.0, 2)  # c is within 2x of it, confirmed, and leads
     assert done == ["b", "c"] and [s.name for s in out] == ["c", "b"]
     fake, done, scored = scorer({"a": 1.0, "b": 5.0, "c": 9.0}, refit)
-    out = sel.Scorer._confirm_best(fake, scored, 1.0, 2, within=float("inf"))
+    out = sel.Scorer.confirm_best(fake, scored, 1.0, 2, within=float("inf"))
     assert done == ["a", "b"] and [s.name for s in out] == ["a", "b", "c"]

@@ -357,10 +357,10 @@ def test_load_friction_verdicts_on_the_pages():
 
 def test_performance_page_servo_time_is_the_bench_record():
     """docs/reference/performance.md's paragraphs on the geared-servo figure quote
-    docs/reference/bench.json: its wall time and peak memory, and from its ``measured`` field the
-    commit before's steps, naming steps, time and memory on the same machine, the entry before's
-    time, the CPU share and the older profile's shares (half of the samples in the rollout, a
-    sixth in the friction writes); the lockstep's gain from docs/studies/discrepancy/honest_folds.json."""
+    docs/reference/bench.json: its wall time, peak memory and CPU share, and from its ``measured``
+    field the same machine's figures before it (every runner-up refitted; then the engine's
+    small batches on the calling thread) and the record when the held-out folds landed;
+    those before-figures are docs/studies/discrepancy/honest_folds.json's."""
     import json
     import re
     from pathlib import Path
@@ -369,25 +369,22 @@ def test_performance_page_servo_time_is_the_bench_record():
     srv = json.loads((root / "docs/reference/bench.json").read_text())["discrepancy_servo"]
     text = " ".join((root / "docs/reference/performance.md").read_text().split())
     m = srv["measured"]
-    prev_s, prev_steps, prev_naming, prev_mb = map(float, re.search(
-        r"right after: ([\d.]+) s, ([\d.]+) M physics steps \(([\d.]+) M naming\), (\d+) MB peak", m).groups())
-    held = float(re.search(r"The entry before \(\w+: ([\d.]+) s", m)[1])
-    cpu = re.search(r"(\d+) % of the 2 cores", m)[1]
-    rollout, total, friction = map(int, re.search(
-        r"(\d+) of (\d+) samples in mujoco.rollout and (\d+) in", m).groups())
-    assert (f"took {prev_steps:.1f} M steps ({prev_naming:.1f} M naming) and {prev_s:.0f} s on the same "
-            "machine right after") in text
-    steps_x, time_x = srv["physics_steps"] / 1e6 / prev_steps, srv["wall_s"] / prev_s
-    assert f"{steps_x:.1f}" == f"{time_x:.1f}"  # the page says "the steps and the time" with one figure
-    assert f"cost {steps_x:.1f} times the steps and the time" in text
-    assert f"{time_x:.1f} times its steps and its time" in m
-    assert (f"Its time, {srv['wall_s']:.0f} s where the entry before held {held:.0f} s on an earlier machine "
-            f"(the commit before took {prev_s:.0f} s on this one, {held:.0f} s on that)") in text
-    assert f"peak memory is {srv['peak_rss_mb']:.0f} MB here against the commit before's {prev_mb:.0f} MB" in text
+    cpu, mb = re.search(r"(\d+) % of the 2 cores, (\d+) MB peak", m).groups()
+    assert int(mb) == round(srv["peak_rss_mb"])
+    every_s, every_steps, every_naming, every_mb = map(float, re.search(
+        r"at 47ec9e1 \(every runner-up refitted, [^)]*\) ([\d.]+) s, ([\d.]+) M physics steps \(([\d.]+) M naming\), "
+        r"(\d+) MB peak", m).groups())
+    serial_s = float(re.search(r"at 190107f \([^)]*\) ([\d.]+) s", m)[1])
+    landed_s, before_s = map(float, re.search(r"\(397d76b, an earlier machine\): ([\d.]+) s; the estimator before "
+                                              r"them \(affc711, that machine\): ([\d.]+) s", m).groups())
     hf = json.loads((root / "docs/studies/discrepancy/honest_folds.json").read_text())["bench"]
-    assert (f"from {hf['raced']['wall_s']:.0f} s to {hf['raced_lockstep_capped']['wall_s']:.0f} s where those "
-            "variants were measured") in text
+    every, serial = hf["every_runner_up_confirmed"], hf["serial_small_batches"]
+    assert (every["wall_s"], round(every["physics_steps"] / 1e6, 2), round(every["peak_rss_mb"]),
+            round(every["physics_steps_per_stage"]["naming"] / 1e6, 2)) == (every_s, every_steps, every_mb, every_naming)
+    assert serial["wall_s"] == serial_s and serial["physics_steps"] == every["physics_steps"]  # "the same steps"
+    assert (f"with every runner-up refitted, {every_steps:.1f} M steps ({every_naming:.1f} M naming), "
+            f"{every_s:.0f} s and {every_mb:.0f} MB peak; then with the engine's small batches on the calling "
+            f"thread (the same steps, bit for bit), {serial_s:.0f} s") in text
+    assert (f"Its time, {srv['wall_s']:.0f} s where the record when the held-out folds landed held {landed_s:.0f} s "
+            f"on an earlier machine (the estimator before them {before_s:.0f} s there)") in text
     assert f"At {cpu} % of 2 cores" in text
-    assert "spent half of its samples in `rollout` and a sixth in the engine's per-period friction writes" in text
-    # "half" and "a sixth" are the shares rounded to those words: within 2 points of them
-    assert abs(rollout / total - 1 / 2) < 0.02 and abs(friction / total - 1 / 6) < 0.02
