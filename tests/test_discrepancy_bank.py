@@ -600,7 +600,7 @@ def test_assess_outside_effects_are_checked_against_expect():
 KNOWN_FAILURES = {
     "end_stop": "names presliding_friction with low confidence (x2.58), a stand-in not on the case's "
                 "expect list (none, torque_saturation, joint_stiffness); the list was set before any "
-                "run and is not widened to the result (docs/studies/discrepancy/bank.json at 397d76b; "
+                "run and is not widened to the result (docs/studies/discrepancy/bank.json at 397d76b and 86e7a53; "
                 "viscous_damping, low, x2.0 at 84fc339)",
     "asymmetric_friction": "with the effect in the library (commit 33a9091) it was named with high "
                            "confidence and a = 7.57 +- 0.33 mN*m covered the truth 7.5, but the "
@@ -629,7 +629,7 @@ def test_bank(case_name):
 #: (servo_truth.assess_efficiency), else the measured figures of its failure (the docs test checks
 #: them against the record).
 GEAR_EFFICIENCY_FAILURE = (
-    "the workflow (commit 397d76b) names none and flags the gap unexplained: the nominal's "
+    "the workflow (commit 86e7a53) names none and flags the gap unexplained: the nominal's "
     "corrections alone take the held-out gap 0.0194 -> 0.00996 rad (x1.95; damping 0.37 -> 0.4737, "
     "frictionloss 0.03 -> 0.05911 N*m), after which no candidate removes a share ((no new effect) 0 "
     "is the round's best; load_friction -0.41 at mu_drive 0.0994 < mu_back 0.193, the direction the "
