@@ -168,8 +168,7 @@ def test_a_runner_up_far_behind_on_the_screen_is_not_confirmed():
         return SimpleNamespace(_confirm=confirm, log=None), done, [
             SimpleNamespace(name=n, heldout_gap=g, method="one-step") for n, g in gaps.items()]
 
-    w = sel.CONFIRM_WITHIN
-    assert w == 2.0
+    assert sel.CONFIRM_WITHIN == 2.0
     fake, done, scored = scorer({"a": 1.0, "b": 2.0 * 1.0}, refit)  # b at exactly 2x the best's refit
     out = sel.Scorer.confirm_best(fake, scored, 1.0, 2)
     assert done == ["a"] and [s.name for s in out] == ["a", "b"] and out[1].method == "one-step"

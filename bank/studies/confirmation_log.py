@@ -30,7 +30,7 @@ def case_log(name: str) -> dict:
     log = []
     orig = sel.Scorer.confirm_best
 
-    def confirm_best(self, scored, gap_start, n_confirm, within=None):
+    def confirm_best(self, scored, gap_start, n_confirm, within=None):  # within: the caller's, overridden
         scored = sorted(scored, key=lambda s: s.heldout_gap)
         screen = [[s.name, s.heldout_gap, s.method] for s in scored]
         out = orig(self, scored, gap_start, n_confirm, within=math.inf)

@@ -152,7 +152,7 @@ class Engine:
         # torque-off periods (run_p_loop's ``enabled``) step each row's off model
         self._on_models = self._law_models if self._laws else [d.model for d in devices]
         self._off_models = None  # made at the first torque-off period
-        self._off_fl = None  # their dof_frictionloss arrays (with drive laws)
+        self._off_fl = None  # their dof_frictionloss arrays (with drive laws; made with them)
         if self.B == 1:
             m1 = self._law_models[0] if self._laws else d0.model
             self._data = d0.start_data(float(theta0_rad[0]), _pose(gamma_set_deg[0]), data)
@@ -180,8 +180,7 @@ class Engine:
         # a row's simulated time advances by one control period per apply; MuJoCo resets an
         # unstable row's data (time back to 0) and warns without saying which row: a row whose
         # time fell behind is flagged in ``unstable`` for good (its trajectory is not physics)
-        self._period = np.array([d.model.opt.timestep * self.substeps for d in devices])
-        self._half_period = 0.5 * self._period
+        self._half_period = 0.5 * np.array([d.model.opt.timestep * self.substeps for d in devices])
         self._vel = 1 + d0.model.nq + d0.ix.yaw_dof  # the yaw velocity's column of the state
         if self._laws:  # each row's actuatorfrc sensor (its address, 0 where a row has none)
             self._has_sensor = self._laws.sensor >= 0
@@ -232,7 +231,7 @@ class Engine:
         dof = self.devices[0].ix.yaw_dof
         if self._data is not None:
             return np.array([self._data.qvel[dof]])
-        return self.x[:, 1 + self.devices[0].model.nq + dof].copy()
+        return self.x[:, self._vel].copy()
 
     def time(self) -> np.ndarray:
         """Simulated time [s] of every row since its start, shape ``(B,)``."""
@@ -297,8 +296,7 @@ class Engine:
             raise ValueError("apply_per_step steps a batch engine (two rows or more)")
         v = np.asarray(v, dtype=float).reshape(self.B, self.substeps)
         self._advance(np.clip(v, -self.vmax[:, None], self.vmax[:, None]))
-        d0 = self.devices[0]
-        return self._state[:, :, 1 + d0.model.nq + d0.ix.yaw_dof].copy()
+        return self._state[:, :, self._vel].copy()
 
     def _advance(self, v: np.ndarray, on=None) -> None:
         """A batch's :meth:`apply` after the clip: ``v`` (B,) or (B, substeps) already within
@@ -349,8 +347,6 @@ class Engine:
         # the one row's model is _law_models[0]
         levels = self._laws.write(self._law_models, self.yaw_velocity(), self._force, self._law_fl)
         if self._off_models is not None:  # the drive off: no force, only the friction level
-            if self._off_fl is None:
-                self._off_fl = [m.dof_frictionloss for m in self._off_models]
             dof = self._laws.dof
             for fl, f in zip(self._off_fl, levels):
                 fl[dof] = f
