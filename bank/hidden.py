@@ -18,10 +18,11 @@ device's closed-loop engine, the reference path) on the compact experiment set
 device; the case ``none_exact`` has neither.  The workflow sees only these runs and the nominal
 model.
 
-Three cases are not the Omni: ``load_friction``, ``asymmetric_friction`` and ``current_limit``
-(``truth="servo"``) are a pendulum on a geared servo (nominal model ``models/servo_pendulum/servo_pendulum.xml``, joint ``pivot``,
-actuator ``servo``: see :func:`nominal`) whose gearbox friction grows with the torque it
-transmits, or whose Coulomb level depends on the direction of motion, or whose firmware
+Four cases are not the Omni: ``load_friction``, ``friction_family_stribeck``, ``asymmetric_friction``
+and ``current_limit`` (``truth="servo"``) are a pendulum on a geared servo (nominal model
+``models/servo_pendulum/servo_pendulum.xml``, joint ``pivot``, actuator ``servo``: see :func:`nominal`)
+whose gearbox friction grows with the torque it transmits (with a Stribeck rise at low speed, the
+second), or whose Coulomb level depends on the direction of motion, or whose firmware
 limits the motor's current; their truth is a
 per-step simulation of its own and their runs are logged as a host logs a servo (irregular
 times at ~200 Hz, the goal held between writes, torque-off spans), :mod:`.servo_truth`.
@@ -198,6 +199,14 @@ CASES: tuple[HiddenCase, ...] = (
                     "gearbox, 0.96-0.97 per mesh) and mu_back 0.45 (back-driving efficiency 0.69, an "
                     "estimate: back-driving such servos loses markedly more, up to self-locking); 12 runs "
                     "of 5 s logged at ~200 Hz with jitter, 4096-count encoder (servo_truth.py)"),
+    HiddenCase("friction_family_stribeck",
+               (("friction_family_stribeck", (servo_truth.MU_DRIVE, servo_truth.MU_BACK, servo_truth.STRIBECK_RISE_NM,
+                                              servo_truth.STRIBECK_SPEED_RAD_S, servo_truth.STRIBECK_SHAPE)),),
+               expect=("friction_family_stribeck",), truth="servo",
+               note="the load_friction case's geared servo and gearbox (mu_drive 0.15, mu_back 0.45) whose "
+                    "Coulomb level also rises at low speed: + 0.03 N*m exp(-|w| / 0.1 rad/s) (a static level "
+                    "twice the model's Coulomb level at rest; the friction family's Stribeck variant, "
+                    "discrepancy/effects/family.py); the load_friction case's 12 runs and log (servo_truth.py)"),
     HiddenCase("asymmetric_friction", (("asymmetric_friction", (servo_truth.ASYMMETRY_NM,)),),
                expect=("asymmetric_friction",), truth="servo",
                note="the same geared servo and pendulum (models/servo_pendulum/servo_pendulum.xml, Fc 30 mN*m) whose "

@@ -177,27 +177,43 @@ def fold_starts(problem: Problem, folds: list[Fold], known: tuple = (), new_at=N
     from a fit on all samples."""
     effects, builder = problem.free, problem.builder
     names = [e.name for e in effects]
+    # a nested variant (ModelBuilder.parent) starts where a known set holds its
+    # parent: the parent's fold values for the parameters they share, its own searched
+    parent = {e.name: builder.parent(e.name) for e in effects}
     refs = [k for k in known if k.method == "refit" and k.folds is folds
-            and all(e.name in names for e in k.effects)]
+            and all(e.name in names or e.name in parent.values() for e in k.effects)]
     ref = max(refs, key=lambda k: len(k.effects), default=None)
     own = [{} for _ in folds] if ref is None else [
         {e.name: v for e, v in split_values(ref.effects, x)} for x in ref.fold_x]
-    new = [i for i, e in enumerate(effects) if e.name not in own[0]]
     cols = np.cumsum([0] + [e.nparam for e in effects])
+    # each member's first parameter not started from a known set (its nparam: none)
+    first_new = [0 if e.name not in own[0] and parent[e.name] not in own[0] else
+                 e.nparam if e.name in own[0] else len(own[0][parent[e.name]]) for e in effects]
+    new = [i for i, e in enumerate(effects) if first_new[i] < e.nparam]
+
+    def start(e, f: int) -> np.ndarray:
+        if e.name in own[f]:
+            return own[f][e.name]
+        x = np.asarray(builder.nominal_values(e), float).copy()
+        if parent[e.name] in own[f]:
+            x[:len(own[f][parent[e.name]])] = own[f][parent[e.name]]
+        return x
+
     base = []
     for f in range(len(folds)):
-        x = np.concatenate([own[f].get(e.name, builder.nominal_values(e)) for e in effects]).astype(float)
+        x = np.concatenate([start(e, f) for e in effects]).astype(float)
         if new_at is not None:
             for i in new:
-                x[cols[i]:cols[i + 1]] = np.asarray(new_at, float)[cols[i]:cols[i + 1]]
+                x[cols[i] + first_new[i]:cols[i + 1]] = np.asarray(new_at, float)[cols[i] + first_new[i]:cols[i + 1]]
         base.append(np.clip(x, problem.lower, problem.upper))
     if not new or new_at is not None:
         return base
-    idx = np.concatenate([np.arange(cols[i], cols[i + 1]) for i in new])
-    grids = [np.asarray(effects[i].grid(builder.nominal_values(effects[i])), float) for i in new]
+    idx = np.concatenate([np.arange(cols[i] + first_new[i], cols[i + 1]) for i in new])
+    grids = [np.asarray(effects[i].grid(builder.nominal_values(effects[i])), float)[:, first_new[i]:] for i in new]
     if len(grids) > 1:  # several new members: the product of their thinned grids (as a pair's)
         grids = [thin_grid(g, PAIR_GRID_POINTS) for g in grids]
-    grid = [np.concatenate([effects[i].clip(np.asarray(g, float)) for i, g in zip(new, combo)])
+    bounds = [tuple(b[first_new[i]:] for b in effects[i].bounds()) for i in new]
+    grid = [np.concatenate([np.clip(np.asarray(g, float), *b) for g, b in zip(combo, bounds)])
             for combo in itertools.product(*grids)]
     own = np.clip(np.concatenate([builder.nominal_values(e) for e in effects]).astype(float),
                   problem.lower, problem.upper)

@@ -412,6 +412,8 @@ def round_entry(rnd: int, scored: list[Scored], gap_start: float, noise: float) 
              "runner_up_share": runner.share if runner else None, "margin": margin,
              "gap_start_rad": gap_start, "gap_heldout_rad": best.heldout_gap,
              "accepted": bool(ok)}
+    if best.variants:  # a nested family's variants, confirmed and chosen among (select.nested_variants)
+        entry["variants"] = {**best.variants, "chosen": best.effects[-1].name}
     if runner and margin < sel.TIE_MARGIN and sel.NULL not in (best.name, runner.name):
         entry["tie"] = True
         entry["separating_experiment"] = fx.separating_experiment(best.name, runner.name)

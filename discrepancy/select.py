@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .fit import FitResult, Problem, gap, rough
+from .nesting import choose_variant
 # the folds and the prescreen are named here too, where the search and the studies read them
 from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, Fold, block_folds,  # noqa: F401
                     fold_starts, heldout, heldout_replays, make_folds, onestep_folds, polish_folds, refit_folds,
@@ -136,6 +137,11 @@ class Scored:
     prescreen_gap: float = math.nan
     unstable: int = 0  # replays MuJoCo found unstable while fitting and scoring it (excluded)
     unconverged: int = 0  # per-fold refits stopped by their step limit (still moving)
+    #: A nested family's variants confirmed in its place ({name: held-out gap}), empty otherwise.
+    variants: dict = field(default_factory=dict)
+    #: Its screen's held-out gap before its per-fold refits (a nested variant: the record of what a
+    #: gate on the screen would have decided), NaN otherwise.
+    screen_gap: float = math.nan
 
 
 def pair_runner_up(best: Scored, pairs: list[Scored], singles: list[Scored]) -> list[tuple[str | None, float]]:
@@ -260,8 +266,7 @@ class Scorer:
             ``{name: values}``: one more starting point of a candidate's prescreen (its own
             parameters, e.g. its equation-error fit).
         """
-        names = [n for n in (candidates or self.builder.names) if n not in [e.name for e in accepted]]
-        jobs = None
+        names, jobs = [n for n in (candidates or self.builder.names) if n not in [e.name for e in accepted]], None
         if bases:
             jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or self.builder.names)
                     if n not in [e.name for e in b]]
@@ -281,13 +286,15 @@ class Scorer:
                 self.log(f"  {NULL:18s} refit  held-out gap {null.heldout_gap:.3e} rad (as confirmed before)")
         nulls = [sc for sc in scored if sc.name == NULL]
         if not nulls:
-            return self.confirm_best(scored, gap_start, n_confirm)
+            out = self.confirm_best(scored, gap_start, n_confirm)
+            return nested_variants(self, out, gap_start) if not bases else out
         # the set so far is always confirmed, and each share is against its held-out gap: a
         # candidate must beat the set re-fitted with the same effort, not the set as the last
         # round left it
         if not given:
             self._confirm(nulls[0], gap_start)
         out = self.confirm_best([sc for sc in scored if sc.name != NULL], gap_start, n_confirm)
+        out = nested_variants(self, out, gap_start) if not bases else out
         for sc in out + nulls:
             sc.share = share_of(sc.heldout_gap, nulls[0].heldout_gap)
         return sorted(out + nulls, key=lambda sc: sc.heldout_gap)
@@ -482,3 +489,65 @@ class Scorer:
         # their screen are confirmed (each confirm of a rough set is a minute of replays)
         return scorer.confirm_best(out, gap_start, N_CONFIRM)
 
+
+
+# -- a nested family's variants ------------------------------------------------------------------
+def run_gaps(raw: list[np.ndarray]) -> list[float]:
+    """Each run's held-out gap [rad] (the rms of its held-out residual; inf when unstable)."""
+    return [float(np.sqrt(np.mean(r**2))) if np.all(np.isfinite(r)) else math.inf for r in raw]
+
+
+def nested_variants(scorer: Scorer, out: list[Scored], gap_start: float) -> list[Scored]:
+    """Each confirmed candidate with nested variants (:data:`discrepancy.effects.family.NESTED`:
+    ``load_friction`` and the friction family's Stribeck variant): the variants fitted from its
+    fit (their own parameters over their grid's best point on the prescreen's short records),
+    screened and confirmed as it was, and the one :func:`~discrepancy.nesting.choose_variant`
+    picks on the per-run held-out gaps put in its place, the variants' held-out gaps recorded in
+    its :attr:`Scored.variants` (the one not kept is not listed: a richer variant the rule judged
+    a tie must not outrank the one it kept).  Returns ``out`` so changed, as
+    :meth:`Scorer.confirm_best` orders it: the refitted best first, then the others as screened."""
+    res = list(out)
+    for s in out:
+        kids = scorer.builder.nested(s.effects[-1].name) if s.method == "refit" and s.effects else ()
+        if not kids or s.name == NULL:
+            continue
+        tried = [s] + [_confirm_child(scorer, s, kid, gap_start) for kid in kids]
+        gaps = {t.effects[-1].name: run_gaps(t.heldout_raw) for t in tried}
+        pick = choose_variant(gaps, {t.effects[-1].name: t.effects[-1].nparam for t in tried})
+        chosen = [t for t in tried if t.effects[-1].name == pick][0]
+        chosen.variants = {t.effects[-1].name: {"heldout_gap_rad": t.heldout_gap, "screen_gap_rad": t.screen_gap}
+                           for t in tried}
+        if scorer.log:
+            scorer.log(f"  friction family: {', '.join(f'{t.effects[-1].name} {t.heldout_gap:.3e}' for t in tried)} "
+                       f"rad held out; kept {pick} (nesting.choose_variant)")
+        res = [t for t in res if t is not s] + [chosen]
+    refit = sorted((t for t in res if t.method == "refit"), key=lambda t: t.heldout_gap)
+    return refit + [t for t in res if t.method != "refit"]
+
+
+def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float) -> Scored:
+    """Nested variant ``kid`` of ``parent``'s candidate, fitted from ``parent``'s fit and
+    confirmed as ``parent`` was, each fold from ``parent``'s values on it (named as ``parent``'s
+    set with ``kid`` in its candidate's place)."""
+    t0 = time.perf_counter()
+    effects = parent.effects[:-1] + [scorer.builder.effect(kid)]
+    parts = parent.fit.split()
+    base = np.concatenate([x for _, x in parts[:-1]]) if len(parts) > 1 else np.zeros(0)
+    grid_runs = [r.first_seconds(PRESCREEN_S) for r in scorer.runs]
+    short = scorer.problem(effects, grid_runs)
+    # the parent's values kept, the variant's own over its grid
+    own = np.asarray(effects[-1].grid(np.concatenate([parts[-1][1], np.zeros(effects[-1].nparam - len(parts[-1][1]))])))
+    n = len(parts[-1][1])
+    points = [np.clip(np.concatenate([base, effects[-1].clip(np.concatenate([parts[-1][1], k[n:]]))]),
+                      short.lower, short.upper) for k in own]
+    (_, x0), = grid_minima(scorer.rep, [short], [points], grid_runs)
+    prob = scorer.problem(effects)
+    fit = prob.fit(x0, None, max_nfev=4, chord=True)
+    name = kid if parent.name == parent.effects[-1].name else parent.name.replace(parent.effects[-1].name, kid)
+    child = scorer._screened(name, effects, prob, fit, gap_start, t0)
+    child.unstable += short.unstable
+    child.screen_gap = child.heldout_gap
+    # each fold's refit starts from the parent's fold values (fold_starts: a nested variant of a
+    # known set's member), its own parameters searched on the fold's training windows
+    scorer.on(scorer.folds, known=tuple(scorer.known) + (parent,))._confirm(child, gap_start)
+    return child

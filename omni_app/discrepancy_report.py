@@ -492,6 +492,12 @@ def _md_candidates(rep: dict) -> list[str]:
             L.append(f"| {c['name']} | {_fmt(c['heldout_gap_rad'])} | {c['share']:+.2f} | {c['method']} | "
                      f"{c.get('unstable_replays', 0)} | {ps} |")
         L.append("")
+        var = rep["rounds"][i].get("variants") if i < len(rep["rounds"]) else None
+        if var:
+            gaps = ", ".join(f"{k} {_fmt(g['heldout_gap_rad'])} rad" for k, g in var.items() if k != "chosen")
+            L += [f"The friction family's nested variants, both refitted per fold: {gaps}; kept "
+                  f"**{var['chosen']}** (the simplest the held-out runs cannot tell from the best: "
+                  "within one paired standard error or 10 % of it).", ""]
     return L
 
 

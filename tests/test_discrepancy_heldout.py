@@ -181,3 +181,64 @@ def test_a_runner_up_far_behind_on_the_screen_is_not_confirmed():
     fake, done, scored = scorer({"a": 1.0, "b": 5.0, "c": 9.0}, refit)
     out = sel.Scorer.confirm_best(fake, scored, 1.0, 2, within=float("inf"))
     assert done == ["a", "b"] and [s.name for s in out] == ["a", "b", "c"]
+
+
+def test_the_friction_familys_variant_is_confirmed_with_load_friction_and_chosen_by_the_rule(monkeypatch):
+    """A confirmed load_friction brings its nested Stribeck variant (confirmed beside it); the
+    variant stands in its place only when nesting.choose_variant picks it (clearly better on the
+    held-out runs), and it is recorded with both gaps; a candidate only screened, or one without
+    variants, is left as it was; the order stays confirm_best's (refitted best first) and the
+    variant not kept is not listed (a tie must not outrank the one kept)."""
+    from types import SimpleNamespace
+
+    runs = np.linspace(1.0, 2.0, 6)  # six held-out runs' rms gaps of the parent [rad * 1e-3]
+
+    def scored(name, factor, method="refit"):
+        raw = [np.full(10, 1e-3 * g * factor) for g in runs]
+        effect = SimpleNamespace(name=name, nparam=fx.get(name).nparam)
+        return sel.Scored(name, [effect], None, sel.gap(raw), 0.0, method, raw)
+
+    def with_child(factor):
+        monkeypatch.setattr(sel, "_confirm_child",
+                            lambda scorer, s, kid, g0: scored(kid, factor))
+        return SimpleNamespace(log=None, builder=fx.ModelBuilder(None))
+
+    other = scored("coulomb_friction", 1.3)
+    screened = scored("armature", 0.5, method="one-step")
+    out = sel.nested_variants(with_child(0.7), [scored("load_friction", 1.0), other, screened], 1.0)
+    assert [s.name for s in out] == ["friction_family_stribeck", "coulomb_friction", "armature"]
+    parent_gap = sel.gap([np.full(10, 1e-3 * g) for g in runs])
+    gaps = {k: v["heldout_gap_rad"] for k, v in out[0].variants.items()}
+    assert gaps == pytest.approx({"load_friction": parent_gap, "friction_family_stribeck": 0.7 * parent_gap})
+    out = sel.nested_variants(with_child(0.95), [scored("load_friction", 1.0), other], 1.0)
+    assert [s.name for s in out] == ["load_friction", "coulomb_friction"]  # 5 % better: a tie, the simpler
+    gaps = {k: v["heldout_gap_rad"] for k, v in out[0].variants.items()}
+    assert gaps == pytest.approx({"load_friction": parent_gap, "friction_family_stribeck": 0.95 * parent_gap})
+    asked = []
+    monkeypatch.setattr(sel, "_confirm_child", lambda *a: asked.append(a))
+    same = [other, scored("load_friction", 1.0, method="one-step")]  # as confirm_best orders them
+    assert sel.nested_variants(SimpleNamespace(log=None, builder=fx.ModelBuilder(None)), same, 1.0) == same
+    assert not asked
+
+
+def test_a_nested_variant_starts_each_fold_at_its_parents_fold_values():
+    """fold_starts for the friction family's Stribeck variant, with a confirmed set holding its
+    parent load_friction known: each fold starts at that set's fold values (the corrections' and
+    load_friction's coefficients, fitted without the fold's held-out samples), the variant's own
+    parameters where the caller puts them (``new_at``: no replay needed here)."""
+    from types import SimpleNamespace
+
+    spec = mujoco.MjSpec.from_file(str(om.SERVO_PENDULUM))
+    builder = fx.ModelBuilder(spec, om.Target("pivot", "servo"))
+    damping, load, child = (builder.effect(n) for n in ("viscous_damping", "load_friction", "friction_family_stribeck"))
+    runs = [_run(100), _run(100)]
+    folds = sel.block_folds(runs, 2)
+    fold_x = [np.array([0.36, 0.10, 0.40]), np.array([0.38, 0.20, 0.60])]
+    known = SimpleNamespace(method="refit", folds=folds, effects=[damping, load], fold_x=fold_x)
+    prob = Problem(builder, [], [damping, child], runs, None)
+    new = np.array([0.0, 0.0, 0.0, 0.02, 0.3, 1.5])
+    starts = fold_starts(prob, folds, known=(known,), new_at=new)
+    for f in range(2):
+        np.testing.assert_array_equal(starts[f], [*fold_x[f], 0.02, 0.3, 1.5])
+    alone = fold_starts(prob, folds, known=(), new_at=new)  # no parent known: all from new_at
+    np.testing.assert_array_equal(alone[0], np.clip(new, prob.lower, prob.upper))

@@ -101,34 +101,44 @@ def test_family_values_that_are_not_a_law_are_refused():
 
 # --- the variants: nesting, write/read round trip -------------------------------------------
 def test_the_variants_are_nested():
-    """Each variant's parameters contain its parent's (names and order), one root, and the
-    complexity is the parameter count, growing along the chain."""
+    """Each variant's parameters contain its parent's (names and order), one root (the library's
+    load_friction), and the complexity is the parameter count, growing along the chain; the
+    search confirms the Stribeck variant with load_friction (NESTED)."""
     by = {v.name: v for v in family.VARIANTS}
     roots = [n for n, p in family.PARENT.items() if p is None]
-    assert roots == ["friction_family_coulomb"] and set(family.PARENT) == set(by)
+    assert roots == ["load_friction"] and set(family.PARENT) == set(by)
     for name, parent in family.PARENT.items():
         if parent is not None:
             mine, theirs = [p.name for p in by[name].params], [p.name for p in by[parent].params]
             assert mine[:len(theirs)] == theirs and len(mine) > len(theirs)
             assert family.COMPLEXITY[name] > family.COMPLEXITY[parent]
-    assert family.COMPLEXITY == {"friction_family_coulomb": 1, "friction_family_load": 3,
-                                 "friction_family_stribeck": 6, "friction_family_viscous": 7}
+    assert family.COMPLEXITY == {"load_friction": 2, "friction_family_stribeck": 5}
+    assert family.NESTED == {"load_friction": ("friction_family_stribeck",)}
+    assert by["load_friction"] is fx.get("load_friction") and "load_friction" in fx.NAMES
     assert all(fx.get(e.name) is e for e in fx.STAGED) and not set(fx.NAMES) & {e.name for e in fx.STAGED}
 
 
-def test_a_parent_is_its_child_with_the_extra_parameters_at_nominal():
-    """Writing a parent's values equals writing the child's with the child's extra parameters at
-    the values the nominal model holds (the same compiled model)."""
+def test_a_parent_is_its_child_with_the_extra_parameters_at_zero():
+    """load_friction (its own numeric) and the Stribeck variant with its rise at 0 (the family's
+    numeric) are one law: the engine replays them bit for bit alike; with a rise they differ."""
     spec = mujoco.MjSpec.from_file(str(om.SERVO_PENDULUM))
-    x_load = np.array([0.04, 0.15, 0.45])
-    a = fx.apply(spec, [(family.LOAD, x_load)], SERVO).compile()
-    viscous = fx.for_model(family.VISCOUS, spec, SERVO)  # the servo's damping 0.37 widens fv's bound
-    full = fx.nominal_values(viscous, spec, SERVO).copy()
-    full[:3] = x_load
-    full[3] = 0.0  # the nominal has no rise (omega_s, delta then do nothing)
-    b = fx.apply(spec, [(viscous, full)], SERVO).compile()
-    for field in ("dof_frictionloss", "dof_damping", "numeric_data"):
-        np.testing.assert_array_equal(getattr(a, field)[:5], getattr(b, field)[:5], err_msg=field)
+    mu = np.array([0.15, 0.45])
+    a = fx.apply(spec, [(family.LOAD_FRICTION_EFFECT, mu)], SERVO).compile()
+    b = fx.apply(spec, [(family.STRIBECK, np.array([*mu, 0.0, 0.2, 1.5]))], SERVO).compile()
+    c = fx.apply(spec, [(family.STRIBECK, np.array([*mu, 0.05, 0.2, 1.5]))], SERVO).compile()
+    assert "load_friction" in [a.numeric(i).name for i in range(a.nnumeric)]
+    assert "friction_family" in [b.numeric(i).name for i in range(b.nnumeric)]
+
+    def run(m):
+        eng = Engine([Device(m, 0.001, SERVO)], [0.0], [None])
+        out = []
+        for k in range(1500):
+            eng.apply([6.0 * math.sin(2 * math.pi * 1.3 * k * 1e-3)])
+            out.append(float(eng.yaw()[0]))
+        return np.array(out)
+    ya, yb, yc = run(a), run(b), run(c)
+    np.testing.assert_array_equal(ya, yb)
+    assert np.max(np.abs(yc - ya)) > 1e-4
 
 
 @pytest.mark.parametrize("name", [e.name for e in fx.STAGED] + ["current_limit"])
@@ -146,11 +156,11 @@ def test_staged_effects_write_read_and_xml_round_trip(name):
     np.testing.assert_allclose(fx.nominal_values(e, back, SERVO), x, rtol=5e-6)
 
 
-def test_a_coulomb_only_variant_needs_no_runtime_and_the_others_do():
+def test_the_family_needs_the_runtime():
     from omni_sim import runtime
     spec = mujoco.MjSpec.from_file(str(om.SERVO_PENDULUM))
-    assert not runtime.runtime_note(fx.apply(spec, [(family.COULOMB, np.array([0.05]))], SERVO))[0]
-    needs, lines = runtime.runtime_note(fx.apply(spec, [(family.LOAD, np.array([0.05, 0.2, 0.5]))], SERVO))
+    assert not runtime.runtime_note(spec)[0]
+    needs, lines = runtime.runtime_note(fx.apply(spec, [(family.STRIBECK, np.array([0.2, 0.5, 0.0, 0.0, 0.0]))], SERVO))
     assert needs and "friction_family (k_drive=0.2, k_back=0.5" in lines[0]
     needs, lines = runtime.runtime_note(fx.apply(spec, [(family.CURRENT_LIMIT_EFFECT, np.array([1.0, 0.3]))], SERVO))
     assert needs and "current_limit (torque_limit_nm=1, back_emf_nms_per_rad=0.3)" in lines[0]
@@ -237,7 +247,10 @@ def test_current_limit_at_zero_back_emf_is_torque_saturation():
 
 
 # --- the selection rule, on synthetic scores ----------------------------------------------------
-C = family.COMPLEXITY
+#: The rule is generic: a four-variant chain (the law's full nesting with its dry level and
+#: viscous term as parameters of their own: 1, 3, 6, 7 parameters).
+C = {"friction_family_coulomb": 1, "friction_family_load": 3, "friction_family_stribeck": 6,
+     "friction_family_viscous": 7}
 RNG = np.random.default_rng(41)
 BASE = 1e-3 * (1 + 0.3 * RNG.random(12))  # 12 held-out runs of different difficulty [rad]
 

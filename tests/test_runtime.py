@@ -269,17 +269,13 @@ def test_every_staged_effect_is_native_mjcf_or_a_runtime_law(name):
     """As the library's (above), for the staged effects (the friction family's variants, the
     current limit) at values where they act: written into the servo pendulum, read back from
     the MJCF text with the runtime's declarations, plain MuJoCo (with the runtime when the
-    header says so) replays like the engine on the spec (1e-6 rad).  Only the Coulomb-only
-    variant runs without the runtime."""
-    values = {"friction_family_coulomb": [0.05], "friction_family_load": [0.04, 0.2, 0.6],
-              "friction_family_stribeck": [0.04, 0.2, 0.6, 0.03, 0.2, 1.5],
-              "friction_family_viscous": [0.04, 0.2, 0.6, 0.03, 0.2, 1.5, 0.4],
-              "current_limit": [0.8, 0.36]}
+    header says so) replays like the engine on the spec (1e-6 rad); both need the runtime."""
+    values = {"friction_family_stribeck": [0.2, 0.6, 0.03, 0.2, 1.5], "current_limit": [0.8, 0.36]}
     spec = _servo_spec()
     e = fx.for_model(fx.get(name), spec, SERVO)
     patched = fx.apply(spec, [(e, np.array(values[name]))], SERVO)
     needs = runtime.runtime_note(patched)[0]
-    assert needs == (name != "friction_family_coulomb")
+    assert needs
     xml = runtime.declare(patched, SERVO.joint, SERVO.actuator, 1e-3).to_xml()
     numerics = {n.name for n in mujoco.MjSpec.from_string(xml).numerics}
     assert numerics <= set(DRIVE_LAWS) | {runtime.PERIOD_NUMERIC, "current_limit"}

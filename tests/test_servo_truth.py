@@ -300,6 +300,27 @@ def test_hidden_friction_shows_above_the_noise(runs):
 def test_only_its_own_laws_are_simulated():
     with pytest.raises(ValueError, match="only load_friction, asymmetric_friction, current_limit"):
         st.generate(effects=(("coulomb_friction", (0.01,)),))
+    with pytest.raises(ValueError, match="one law"):
+        st.generate(effects=(("load_friction", (0.1, 0.2)), ("friction_family_stribeck", (0.1, 0.2, 0.03, 0.1, 1.0))))
+
+
+def test_the_stribeck_rise_is_the_devices_family_law(nominal):
+    """On regular times with an exact encoder, the truth's loop with the load law and a Stribeck
+    rise agrees with the device's engine on the nominal model declaring the same
+    ``friction_family`` (omni_sim.device: written apart, one law); the rise shows."""
+    law = (st.MU_DRIVE, st.MU_BACK, st.STRIBECK_RISE_NM, st.STRIBECK_SPEED_RAD_S, st.STRIBECK_SHAPE)
+    spec = mujoco.MjSpec.from_file(str(st.model_path()))
+    spec.add_numeric(name="friction_family", data=list(law))
+    m = spec.compile()
+    t = np.arange(2001) * DT
+    r = 0.4 * np.sin(2 * np.pi * 1.5 * t) + 0.3
+    tr = st.simulate(t, r, np.ones_like(t), mu_drive=law[0], mu_back=law[1], stribeck=law[2:], step_rad=0.0)
+    no_rise = st.simulate(t, r, np.ones_like(t), mu_drive=law[0], mu_back=law[1], step_rad=0.0)
+    dev = Device(m, DT, target=st.target())
+    with dev.engine([0.0], [None], nthread=1) as engine:
+        out = run_p_loop(engine, r[None, :], st.KP, command_limit=st.COMMAND_LIMIT)
+    np.testing.assert_allclose(out["theta"][0], tr.theta[: len(t)], rtol=0, atol=1e-9)
+    assert np.max(np.abs(tr.theta - no_rise.theta)) > 1e-4
 
 
 def test_the_bank_case():

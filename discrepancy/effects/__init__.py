@@ -42,11 +42,11 @@ current_limit      ``<custom>`` numeric ``current_limit`` (the  ``torque_limit_n
 =================  ==========================================  ===================================
 
 Staged (:data:`STAGED`, :mod:`.family`: written, read and tested like the library's, found by
-:func:`get`, not yet among the search's candidates :data:`LIBRARY`/:data:`NAMES`): the nested
-variants of one friction law, ``friction_family_coulomb`` (joint ``frictionloss``),
-``friction_family_load``, ``friction_family_stribeck`` (+ ``<custom>`` numeric
-``friction_family``, the engine's law, and an ``actuatorfrc`` sensor),
-``friction_family_viscous`` (+ joint ``damping``).
+:func:`get`, not candidates of their own in :data:`LIBRARY`/:data:`NAMES`): the friction
+family's Stribeck variant ``friction_family_stribeck`` (``load_friction``'s coefficients and a
+Stribeck rise of its own shape, ``<custom>`` numeric ``friction_family``, the engine's law, and
+an ``actuatorfrc`` sensor), which the search confirms beside ``load_friction`` and keeps when
+:func:`discrepancy.nesting.choose_variant` picks it (:data:`.family.NESTED`).
 
 (``yaw``/``yaw_motor`` stand for the :class:`Target`'s joint and actuator; added elements are
 named after the joint, with a suffix ``_2``... if the model already uses the name.  Passive
@@ -108,10 +108,10 @@ LIBRARY: tuple[Effect, ...] = (
 
 NAMES = tuple(e.name for e in LIBRARY)
 
-#: Effects written and tested like the library's but not yet among the search's candidates
-#: (:mod:`.family`: the friction family's nested variants; the search
-#: takes them up with :func:`discrepancy.nesting.choose_variant`, and the bank then needs a
-#: case for each, tests/test_discrepancy_bank.py::test_bank_covers_the_library).
+#: Effects written and tested like the library's, not candidates of their own: the friction
+#: family's nested variants (:mod:`.family`), confirmed with their parent and chosen by
+#: :func:`discrepancy.nesting.choose_variant`; the bank has a case for each
+#: (tests/test_discrepancy_bank.py::test_bank_covers_the_library).
 STAGED: tuple[Effect, ...] = family.STAGED
 
 
@@ -199,6 +199,15 @@ class ModelBuilder:
         """The library effect called ``name`` (:func:`get`), its bounds fitted to the nominal
         model (:func:`for_model`)."""
         return for_model(get(name), self.spec, self.target)
+
+    def nested(self, name: str) -> tuple[str, ...]:
+        """The richer nested variants of candidate ``name`` the search confirms with it
+        (:data:`.family.NESTED`; none for most)."""
+        return family.NESTED.get(name, ())
+
+    def parent(self, name: str) -> str | None:
+        """The variant effect ``name`` is nested in (:data:`.family.PARENT`), None if none."""
+        return family.PARENT.get(name)
 
     def nominal_values(self, effect: Effect) -> np.ndarray:
         """The values the nominal model holds for ``effect`` (:func:`nominal_values`)."""

@@ -24,29 +24,31 @@ integrated by MuJoCo); ``k_drive, k_back, rise_nm = Fs - Fc0, omega_s, delta`` a
 ``dof_frictionloss`` at every control period, the torque read from an ``actuatorfrc`` sensor
 this module adds, as ``load_friction``'s).
 
-The variants (nested: each one's parameters contain its parent's; a variant is the full law
-with the parameters it does not free held at the nominal model's values, the numeric's at 0 when
-the model has none)
+The variants the search chooses among (nested: each one's parameters contain its parent's; a
+variant is the full law with the parameters it does not free held at the nominal model's values,
+the numeric's at 0 when the model has none).  ``Fc0`` and ``Fv`` are the joint's own
+``frictionloss`` and ``damping``, which the library frees as ``coulomb_friction`` and
+``viscous_damping`` (a user's device: corrections of the nominal when it states them, candidates
+when it does not); a variant that freed them too would free the same MJCF attribute twice in one
+fit.  So the family's own variants are its load-dependent part and the Stribeck rise on top:
 
 =========================  ===========================  ===============================  ==
 name                       parent                       adds                             k
 =========================  ===========================  ===============================  ==
-friction_family_coulomb    (root)                       ``fc0_nm``                       1
-friction_family_load       friction_family_coulomb      ``k_drive``, ``k_back``          3
-friction_family_stribeck   friction_family_load         ``rise_nm``, ``omega_s_rad_s``,  6
+load_friction              (root; :mod:`.drive`)        ``mu_drive``, ``mu_back``        2
+friction_family_stribeck   load_friction                ``rise_nm``, ``omega_s_rad_s``,  5
                                                         ``delta``
-friction_family_viscous    friction_family_stribeck     ``fv_nms_per_rad``               7
 =========================  ===========================  ===============================  ==
 
-(:data:`PARENT`, :data:`COMPLEXITY`; which variant a search keeps is decided by
-:func:`discrepancy.nesting.choose_variant`, a rule fixed before any result.)  Bounds: ``fc0`` and
-``rise`` 0-0.3 N*m as ``coulomb_friction``/``stribeck_friction``; ``k_drive`` 0-0.9 and
+(:data:`PARENT`, :data:`COMPLEXITY`; ``load_friction`` is the library's effect, the same law as
+the family's with the rise at 0, written as its own numeric.)  The search confirms the Stribeck
+variant whenever it confirms ``load_friction`` in a round of single candidates and keeps the one
+:func:`discrepancy.nesting.choose_variant` picks (a rule fixed before any result;
+:data:`NESTED`).  Bounds: ``rise`` 0-0.3 N*m as ``stribeck_friction``'s; ``k_drive`` 0-0.9 and
 ``k_back`` 0-9 as ``load_friction``'s (forward and back-driven efficiency down to 0.1, see
 :mod:`.drive`); ``omega_s`` 0.01-3 rad/s as ``stribeck_friction``'s; ``delta`` 0.5-2.5 (1: the
-exponential of Tustin's model, 2: the Gaussian of Armstrong's; the survey's range, estimate);
-``fv`` 0-0.1 N*m*s/rad as ``viscous_damping`` (a servo whose damping holds its back-EMF, 0.37
-on the servo pendulum, gets its bound widened by :func:`~discrepancy.effects.for_model`).  The
-family applies to geared drives only (as ``load_friction``: not the Omni's capstan).
+exponential of Tustin's model, 2: the Gaussian of Armstrong's; the survey's range, estimate).
+The family applies to geared drives only (as ``load_friction``: not the Omni's capstan).
 
 The current limit
 -----------------
@@ -72,99 +74,61 @@ import numpy as np
 
 from omni_sim.device import CURRENT_LIMIT, FRICTION_FAMILY
 from .actuator import _read_limit
-from .base import OMNI, Effect, Param, Target, actuator_of, joint_of
-from .drive import _ensure_torque_sensor, _geared, _set_numeric
+from .base import OMNI, Effect, Param, actuator_of
+from .drive import LOAD_FRICTION_EFFECT, _ensure_torque_sensor, _geared, _set_numeric
 
-#: Every parameter of the law, in the order of the full variant.
-FC0 = Param("fc0_nm", "N*m", 0.0, 0.3, 0.003)
-K_DRIVE = Param("k_drive", "-", 0.0, 0.9, 0.02)
-K_BACK = Param("k_back", "-", 0.0, 9.0, 0.02)
+#: The parameters of the law's numeric (``friction_family``), in its order; the load
+#: coefficients named as ``load_friction``'s (the engine's law calls them k_drive, k_back).
+K_DRIVE = Param("mu_drive", "-", 0.0, 0.9, 0.02)
+K_BACK = Param("mu_back", "-", 0.0, 9.0, 0.02)
 RISE = Param("rise_nm", "N*m", 0.0, 0.3, 0.003)
 OMEGA_S = Param("omega_s_rad_s", "rad/s", 0.01, 3.0, 0.05)
 DELTA = Param("delta", "-", 0.5, 2.5, 0.1)
-FV = Param("fv_nms_per_rad", "N*m*s/rad", 0.0, 0.1, 0.002)
-LAW_PARAMS = (FC0, K_DRIVE, K_BACK, RISE, OMEGA_S, DELTA, FV)
+LAW_PARAMS = (K_DRIVE, K_BACK, RISE, OMEGA_S, DELTA)
 
 
-def _read_law(spec: mujoco.MjSpec, target: Target) -> np.ndarray:
-    """The full law's 7 values the spec holds: frictionloss, the numeric's 5 (0 if absent),
-    damping."""
-    j = joint_of(spec, target)
+def _read_law(spec: mujoco.MjSpec) -> np.ndarray:
+    """The law's 5 numeric values the spec holds (0 if it has none)."""
     n = spec.numeric(FRICTION_FAMILY)
-    mid = np.zeros(5) if n is None else np.array(list(n.data)[:5], float)
-    return np.concatenate([[float(j.frictionloss)], mid, [float(j.damping[0])]])
+    return np.zeros(5) if n is None else np.array(list(n.data)[:5], float)
 
 
-def _write_law(spec: mujoco.MjSpec, full: np.ndarray, target: Target) -> None:
-    j = joint_of(spec, target)
-    j.frictionloss = float(full[0])
-    j.damping[0] = float(full[6])
-    if np.any(full[1:6] != 0) or spec.numeric(FRICTION_FAMILY) is not None:
-        _set_numeric(spec, FRICTION_FAMILY, full[1:6])
-        _ensure_torque_sensor(spec, target)
+def _read_stribeck(spec, target=OMNI):
+    return _read_law(spec)
 
 
-def _variant(name: str, parent: str | None, description: str, free: tuple[int, ...], grid) -> Effect:
-    """An effect over the law's parameters ``free`` (indices into :data:`LAW_PARAMS`), the others
-    kept as the spec holds them."""
-    def read(spec, target=OMNI):
-        return _read_law(spec, target)[list(free)]
-
-    def write(spec, x, target=OMNI):
-        full = _read_law(spec, target)
-        full[list(free)] = x
-        _write_law(spec, full, target)
-
-    eff = Effect(name, description, tuple(LAW_PARAMS[i] for i in free), read, write, grid,
-                 applies=lambda spec, target=OMNI: _geared(spec, target))
-    PARENT[name] = parent
-    return eff
+def _write_stribeck(spec, x, target=OMNI):
+    _set_numeric(spec, FRICTION_FAMILY, x[:5])
+    _ensure_torque_sensor(spec, target)
 
 
-#: Each variant's parent (None: the root).
-PARENT: dict[str, str | None] = {}
-
-
-def _coulomb_grid(x0):
-    base = x0[0] if x0[0] > 0 else 0.03
-    return np.array([[base * f] for f in (0.3, 0.6, 1.0, 1.5, 2.5)])
-
-
-#: load_friction's starting pairs (forward, back-driven coefficients over their estimated ranges).
-_LOAD_PAIRS = ((0.0, 0.0), (0.1, 0.2), (0.1, 0.5), (0.2, 0.4), (0.2, 0.8), (0.3, 0.3), (0.05, 1.0))
-
-
-def _load_grid(x0):
-    return np.array([[x0[0], d, b] for d, b in _LOAD_PAIRS])
+#: The rise's starting levels [N*m]: from the library's smallest Stribeck rise (stribeck_friction's
+#: grid, Fs - Fc = 0.01) to a small servo's gear-train Coulomb level (the servo pendulum's 0.03-0.05
+#: N*m, models/servo_pendulum); Stribeck speeds a decade apart as stribeck_friction's grid; delta 1
+#: (Tustin's exponential) and 2 (Armstrong's Gaussian).  Estimates, fixed before any fit.
+_RISES, _SPEEDS, _SHAPES = (0.01, 0.05), (0.05, 0.5), (1.0, 2.0)
 
 
 def _stribeck_grid(x0):
-    rise = max(x0[0], 0.01)  # a static level up to twice the Coulomb level
-    return np.array([[*x0[:3], r, ws, dl] for r in (0.5 * rise, rise) for ws in (0.05, 0.3)
-                     for dl in (1.0, 2.0)])
+    """The load coefficients as given (load_friction's fit when the search starts the variant
+    from it), the rise's shape over :data:`_RISES` x :data:`_SPEEDS` x :data:`_SHAPES`."""
+    return np.array([[x0[0], x0[1], r, ws, dl] for r in _RISES for ws in _SPEEDS for dl in _SHAPES])
 
 
-def _viscous_grid(x0):
-    fv = x0[6]
-    return np.array([[*row, v] for row in _stribeck_grid(x0[:6])[::2] for v in (fv, 1.3 * fv + 0.002)])
+STRIBECK = Effect("friction_family_stribeck",
+                  "load-dependent gear friction with a Stribeck rise of its own shape (friction family)",
+                  LAW_PARAMS, _read_stribeck, _write_stribeck, _stribeck_grid,
+                  applies=lambda spec, target=OMNI: _geared(spec, target))
 
-
-COULOMB = _variant("friction_family_coulomb", None,
-                   "friction family, Coulomb level only (Fc0)", (0,), _coulomb_grid)
-LOAD = _variant("friction_family_load", COULOMB.name,
-                "friction family: Coulomb level rising with the transmitted torque, driving/back-driven",
-                (0, 1, 2), _load_grid)
-STRIBECK = _variant("friction_family_stribeck", LOAD.name,
-                    "friction family: load-dependent Coulomb level and a Stribeck rise of its own shape",
-                    (0, 1, 2, 3, 4, 5), _stribeck_grid)
-VISCOUS = _variant("friction_family_viscous", STRIBECK.name,
-                   "friction family: the full law (load, Stribeck, viscous)",
-                   (0, 1, 2, 3, 4, 5, 6), _viscous_grid)
-
+#: Each variant's parent (None: the root), root first.
+PARENT: dict[str, str | None] = {LOAD_FRICTION_EFFECT.name: None, STRIBECK.name: LOAD_FRICTION_EFFECT.name}
 #: The variants, root first.
-VARIANTS: tuple[Effect, ...] = (COULOMB, LOAD, STRIBECK, VISCOUS)
+VARIANTS: tuple[Effect, ...] = (LOAD_FRICTION_EFFECT, STRIBECK)
 #: Each variant's number of free parameters (the complexity the selection rule penalises).
 COMPLEXITY: dict[str, int] = {v.name: v.nparam for v in VARIANTS}
+#: A library candidate -> its richer nested variants, which the search confirms with it and
+#: chooses among (:func:`discrepancy.nesting.choose_variant`).
+NESTED: dict[str, tuple[str, ...]] = {LOAD_FRICTION_EFFECT.name: (STRIBECK.name,)}
 
 
 def _read_current(spec, target=OMNI):
@@ -201,9 +165,10 @@ CURRENT_LIMIT_EFFECT = Effect(
      Param("back_emf_nms_per_rad", "N*m*s/rad", 0.0, 5.0, 0.02)),
     _read_current, _write_current, _current_grid, applies=_servo_drive)
 
-#: The effects of this module not yet in the search's :data:`~discrepancy.effects.LIBRARY`
-#: (staged; the current limit is in the library).
-STAGED: tuple[Effect, ...] = VARIANTS
+#: The effects of this module the search names but does not score as candidates of their own
+#: (nested variants, :data:`NESTED`; the current limit is in the library).
+STAGED: tuple[Effect, ...] = (STRIBECK,)
 
 
-__all__ = ["VARIANTS", "PARENT", "COMPLEXITY", "STAGED", "CURRENT_LIMIT_EFFECT", "LAW_PARAMS"]
+__all__ = ["VARIANTS", "PARENT", "COMPLEXITY", "NESTED", "STAGED", "STRIBECK", "CURRENT_LIMIT_EFFECT",
+           "LAW_PARAMS"]
