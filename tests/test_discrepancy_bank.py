@@ -894,3 +894,24 @@ def test_docs_confirmation_gate_figures_are_the_record():
             f"LuGre fit's, to {s['lowest_r2_over_s2']:.2f} of its screen, where the screen had put it at "
             f"{worst['s2'] / worst['r1']:.0f} times the best") in par
     assert worst["runner_up"] == "presliding_friction"  # "a LuGre fit's"
+
+
+def test_docs_friction_family_figures_are_the_record():
+    """The method page's sentence on the friction family in the bank quotes bank.json: the
+    Stribeck case's kept variant, both held-out gaps, its fitted rise, speed and shape with their
+    intervals; the load_friction case's tie and its physics steps."""
+    here = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "bank.json").read_text())["cases"]
+    par = _flat(PAGE.read_text())
+    ffs, lf = here["friction_family_stribeck"]["report"], here["load_friction"]["report"]
+    var = [r["variants"] for r in ffs["rounds"] if r.get("variants")][0]
+    assert var["chosen"] == "friction_family_stribeck" and ffs["effects"][0]["name"] == var["chosen"]
+    p, u = ffs["effects"][0]["parameters"], ffs["effects"][0]["uncertainty"]
+    assert (f"held out at {var['friction_family_stribeck']['heldout_gap_rad']:.2e} rad against "
+            f"`load_friction`'s {var['load_friction']['heldout_gap_rad']:.2e}, with rise "
+            f"{p['rise_nm']:.3g} ± {u['rise_nm']:.2g} N m, ωs {p['omega_s_rad_s']:.3g} ± "
+            f"{u['omega_s_rad_s']:.2g} rad/s and δ {p['delta']:.3g} ± {u['delta']:.2g}") in par
+    tie = [r["variants"] for r in lf["rounds"] if r.get("variants")][0]
+    assert tie["chosen"] == "load_friction" == lf["effects"][0]["name"]
+    assert (f"the two tie ({tie['load_friction']['heldout_gap_rad']:.2e} and "
+            f"{tie['friction_family_stribeck']['heldout_gap_rad']:.2e} rad)") in par
+    assert f"at {lf['timings']['physics_steps'] / 1e6:.1f} M physics steps" in par

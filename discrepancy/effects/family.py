@@ -1,6 +1,7 @@
 """Friction as ONE law with nested variants, and the drive's current limit that moves with the
 back-EMF: effects the engine applies (:data:`omni_sim.device.FRICTION_FAMILY`,
-:data:`omni_sim.device.CURRENT_LIMIT`): the family's variants staged for the search, the current
+:data:`omni_sim.device.CURRENT_LIMIT`): the family's Stribeck variant nested in ``load_friction``
+(the search confirms it with its parent, :data:`NESTED`), the current
 limit among its candidates (:data:`discrepancy.effects.LIBRARY`).
 
 The law
