@@ -388,3 +388,14 @@ def test_performance_page_servo_time_is_the_bench_record():
     assert (f"Its time, {srv['wall_s']:.0f} s where the record when the held-out folds landed held {landed_s:.0f} s "
             f"on an earlier machine (the estimator before them {before_s:.0f} s there)") in text
     assert f"At {cpu} % of 2 cores" in text
+    gate_s, gate_steps, gate_naming, gate_mb = map(float, re.search(
+        r"at 86e7a53 \(the confirmation gate, [^)]*\) ([\d.]+) s, ([\d.]+) M physics steps \(([\d.]+) M naming\), "
+        r"(\d+) MB peak", m).groups())
+    gate = hf["confirmation_gate"]
+    assert (gate["wall_s"], round(gate["physics_steps"] / 1e6, 2), round(gate["peak_rss_mb"]),
+            round(gate["physics_steps_per_stage"]["naming"] / 1e6, 2)) == (gate_s, gate_steps, gate_mb, gate_naming)
+    assert (f"without the Stribeck variant (the confirmation gate alone), {gate_steps:.1f} M steps "
+            f"({gate_naming:.1f} M naming), {gate_s:.0f} s and {gate_mb:.0f} MB peak") in text
+    variant = (srv["physics_steps_per_stage"]["naming"] - gate["physics_steps_per_stage"]["naming"]) / 1e6
+    assert f"kept out by the nesting rule: {variant:.1f} M of the naming" in text
+    assert f"{variant:.1f} M steps here where it cannot win" in text
