@@ -631,7 +631,7 @@ def test_bank(case_name):
 #: (servo_truth.assess_efficiency), else the measured figures of its failure (the docs test checks
 #: them against the record).
 GEAR_EFFICIENCY_FAILURE = (
-    "the workflow (commit 602d8f3) names none and flags the gap unexplained: the nominal's "
+    "the workflow (commit 8b5f165) names none and flags the gap unexplained: the nominal's "
     "corrections alone take the held-out gap 0.0194 -> 0.00996 rad (x1.95; damping 0.37 -> 0.4737, "
     "frictionloss 0.03 -> 0.05911 N*m), after which no candidate removes a share ((no new effect) 0 "
     "is the round's best; load_friction -0.41 at mu_drive 0.0994 < mu_back 0.193, the direction the "
