@@ -186,17 +186,20 @@ def fold_starts(problem: Problem, folds: list[Fold], known: tuple = (), new_at=N
     own = [{} for _ in folds] if ref is None else [
         {e.name: v for e, v in split_values(ref.effects, x)} for x in ref.fold_x]
     cols = np.cumsum([0] + [e.nparam for e in effects])
-    # each member's first parameter not started from a known set (its nparam: none)
-    first_new = [0 if e.name not in own[0] and parent[e.name] not in own[0] else
-                 e.nparam if e.name in own[0] else len(own[0][parent[e.name]]) for e in effects]
+
+    def known_values(e, f: int) -> np.ndarray:
+        """The values of ``e``'s first parameters the known set holds on fold ``f``: all of them,
+        its parent's (a nested variant's shared ones), or none."""
+        return own[f].get(e.name, own[f].get(parent[e.name], np.zeros(0)))
+
+    # each member's first parameter not started from the known set (its nparam: none)
+    first_new = [len(known_values(e, 0)) for e in effects]
     new = [i for i, e in enumerate(effects) if first_new[i] < e.nparam]
 
     def start(e, f: int) -> np.ndarray:
-        if e.name in own[f]:
-            return own[f][e.name]
         x = np.asarray(builder.nominal_values(e), float).copy()
-        if parent[e.name] in own[f]:
-            x[:len(own[f][parent[e.name]])] = own[f][parent[e.name]]
+        k = known_values(e, f)
+        x[:len(k)] = k
         return x
 
     base = []

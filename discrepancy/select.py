@@ -266,7 +266,8 @@ class Scorer:
             ``{name: values}``: one more starting point of a candidate's prescreen (its own
             parameters, e.g. its equation-error fit).
         """
-        names, jobs = [n for n in (candidates or self.builder.names) if n not in [e.name for e in accepted]], None
+        names = [n for n in (candidates or self.builder.names) if n not in [e.name for e in accepted]]
+        jobs = None
         if bases:
             jobs = [(list(b), bx, n) for b, bx in bases for n in (candidates or self.builder.names)
                     if n not in [e.name for e in b]]
@@ -285,16 +286,15 @@ class Scorer:
             if self.log:
                 self.log(f"  {NULL:18s} refit  held-out gap {null.heldout_gap:.3e} rad (as confirmed before)")
         nulls = [sc for sc in scored if sc.name == NULL]
-        if not nulls:
-            out = self.confirm_best(scored, gap_start, n_confirm)
-            return nested_variants(self, out, gap_start) if not bases else out
         # the set so far is always confirmed, and each share is against its held-out gap: a
         # candidate must beat the set re-fitted with the same effort, not the set as the last
         # round left it
-        if not given:
+        if nulls and not given:
             self._confirm(nulls[0], gap_start)
         out = self.confirm_best([sc for sc in scored if sc.name != NULL], gap_start, n_confirm)
-        out = nested_variants(self, out, gap_start) if not bases else out
+        out = out if bases else nested_variants(self, out, gap_start)  # single candidates: their variants
+        if not nulls:
+            return out
         for sc in out + nulls:
             sc.share = share_of(sc.heldout_gap, nulls[0].heldout_gap)
         return sorted(out + nulls, key=lambda sc: sc.heldout_gap)
@@ -492,11 +492,6 @@ class Scorer:
 
 
 # -- a nested family's variants ------------------------------------------------------------------
-def run_gaps(raw: list[np.ndarray]) -> list[float]:
-    """Each run's held-out gap [rad] (the rms of its held-out residual; inf when unstable)."""
-    return [float(np.sqrt(np.mean(r**2))) if np.all(np.isfinite(r)) else math.inf for r in raw]
-
-
 def nested_variants(scorer: Scorer, out: list[Scored], gap_start: float) -> list[Scored]:
     """Each confirmed candidate with nested variants (:data:`discrepancy.effects.family.NESTED`:
     ``load_friction`` and the friction family's Stribeck variant): the variants fitted from its
@@ -512,7 +507,8 @@ def nested_variants(scorer: Scorer, out: list[Scored], gap_start: float) -> list
         if not kids or s.name == NULL:
             continue
         tried = [s] + [_confirm_child(scorer, s, kid, gap_start) for kid in kids]
-        gaps = {t.effects[-1].name: run_gaps(t.heldout_raw) for t in tried}
+        # each run's held-out gap (the rule pairs them run by run)
+        gaps = {t.effects[-1].name: [gap([r]) for r in t.heldout_raw] for t in tried}
         pick = choose_variant(gaps, {t.effects[-1].name: t.effects[-1].nparam for t in tried})
         chosen = [t for t in tried if t.effects[-1].name == pick][0]
         chosen.variants = {t.effects[-1].name: {"heldout_gap_rad": t.heldout_gap, "screen_gap_rad": t.screen_gap}
@@ -527,24 +523,22 @@ def nested_variants(scorer: Scorer, out: list[Scored], gap_start: float) -> list
 
 def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float) -> Scored:
     """Nested variant ``kid`` of ``parent``'s candidate, fitted from ``parent``'s fit and
-    confirmed as ``parent`` was, each fold from ``parent``'s values on it (named as ``parent``'s
-    set with ``kid`` in its candidate's place)."""
+    confirmed as ``parent`` was, each fold from ``parent``'s values on it (a round of single
+    candidates names each by its candidate: ``kid``)."""
     t0 = time.perf_counter()
     effects = parent.effects[:-1] + [scorer.builder.effect(kid)]
-    parts = parent.fit.split()
-    base = np.concatenate([x for _, x in parts[:-1]]) if len(parts) > 1 else np.zeros(0)
+    *rest, (_, mine) = parent.fit.split()
+    base = np.concatenate([x for _, x in rest]) if rest else np.zeros(0)
     grid_runs = [r.first_seconds(PRESCREEN_S) for r in scorer.runs]
     short = scorer.problem(effects, grid_runs)
-    # the parent's values kept, the variant's own over its grid
-    own = np.asarray(effects[-1].grid(np.concatenate([parts[-1][1], np.zeros(effects[-1].nparam - len(parts[-1][1]))])))
-    n = len(parts[-1][1])
-    points = [np.clip(np.concatenate([base, effects[-1].clip(np.concatenate([parts[-1][1], k[n:]]))]),
-                      short.lower, short.upper) for k in own]
+    # the variant's grid about the parent's values, those values kept in every point
+    about = np.concatenate([mine, np.zeros(effects[-1].nparam - len(mine))])
+    points = [np.clip(np.concatenate([base, effects[-1].clip(np.concatenate([mine, g[len(mine):]]))]),
+                      short.lower, short.upper) for g in effects[-1].grid(about)]
     (_, x0), = grid_minima(scorer.rep, [short], [points], grid_runs)
     prob = scorer.problem(effects)
     fit = prob.fit(x0, None, max_nfev=4, chord=True)
-    name = kid if parent.name == parent.effects[-1].name else parent.name.replace(parent.effects[-1].name, kid)
-    child = scorer._screened(name, effects, prob, fit, gap_start, t0)
+    child = scorer._screened(kid, effects, prob, fit, gap_start, t0)
     child.unstable += short.unstable
     child.screen_gap = child.heldout_gap
     # each fold's refit starts from the parent's fold values (fold_starts: a nested variant of a

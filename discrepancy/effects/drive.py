@@ -46,8 +46,10 @@ from omni_sim.device import LOAD_FRICTION
 from .base import OMNI, Effect, Param, Target, actuator_of
 
 
-def _numeric(spec: mujoco.MjSpec, name: str):
-    return spec.numeric(name)
+def _numeric_values(spec: mujoco.MjSpec, name: str, n: int) -> np.ndarray:
+    """The first ``n`` values of the spec's numeric ``name`` (zeros when it has none)."""
+    num = spec.numeric(name)
+    return np.zeros(n) if num is None else np.array(list(num.data)[:n], float)
 
 
 def _set_numeric(spec: mujoco.MjSpec, name: str, values) -> None:
@@ -81,8 +83,7 @@ def _geared(spec, target: Target) -> bool:
 
 
 def _read_load(spec, target=OMNI):
-    n = _numeric(spec, LOAD_FRICTION)
-    return np.zeros(2) if n is None else np.array(list(n.data)[:2], float)
+    return _numeric_values(spec, LOAD_FRICTION, 2)
 
 
 def _write_load(spec, x, target=OMNI):

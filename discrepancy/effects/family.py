@@ -76,7 +76,7 @@ import numpy as np
 from omni_sim.device import CURRENT_LIMIT, FRICTION_FAMILY
 from .actuator import _read_limit
 from .base import OMNI, Effect, Param, actuator_of
-from .drive import LOAD_FRICTION_EFFECT, _ensure_torque_sensor, _geared, _set_numeric
+from .drive import LOAD_FRICTION_EFFECT, _ensure_torque_sensor, _geared, _numeric_values, _set_numeric
 
 #: The parameters of the law's numeric (``friction_family``), in its order; the load
 #: coefficients named as ``load_friction``'s (the engine's law calls them k_drive, k_back).
@@ -88,14 +88,8 @@ DELTA = Param("delta", "-", 0.5, 2.5, 0.1)
 LAW_PARAMS = (K_DRIVE, K_BACK, RISE, OMEGA_S, DELTA)
 
 
-def _read_law(spec: mujoco.MjSpec) -> np.ndarray:
-    """The law's 5 numeric values the spec holds (0 if it has none)."""
-    n = spec.numeric(FRICTION_FAMILY)
-    return np.zeros(5) if n is None else np.array(list(n.data)[:5], float)
-
-
 def _read_stribeck(spec, target=OMNI):
-    return _read_law(spec)
+    return _numeric_values(spec, FRICTION_FAMILY, 5)
 
 
 def _write_stribeck(spec, x, target=OMNI):
@@ -127,9 +121,10 @@ PARENT: dict[str, str | None] = {LOAD_FRICTION_EFFECT.name: None, STRIBECK.name:
 VARIANTS: tuple[Effect, ...] = (LOAD_FRICTION_EFFECT, STRIBECK)
 #: Each variant's number of free parameters (the complexity the selection rule penalises).
 COMPLEXITY: dict[str, int] = {v.name: v.nparam for v in VARIANTS}
-#: A library candidate -> its richer nested variants, which the search confirms with it and
-#: chooses among (:func:`discrepancy.nesting.choose_variant`).
-NESTED: dict[str, tuple[str, ...]] = {LOAD_FRICTION_EFFECT.name: (STRIBECK.name,)}
+#: A library candidate -> its richer nested variants (:data:`PARENT` read the other way), which the
+#: search confirms with it and chooses among (:func:`discrepancy.nesting.choose_variant`).
+NESTED: dict[str, tuple[str, ...]] = {p: tuple(c for c, q in PARENT.items() if q == p)
+                                      for p in PARENT if p in PARENT.values()}
 
 
 def _read_current(spec, target=OMNI):
