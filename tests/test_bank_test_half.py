@@ -390,3 +390,38 @@ def test_readme_one_run_is_its_record():
     flat = " ".join(text.split())
     assert (f"{min(wall):.1f} to {max(wall):.1f} min a case, peak memory {min(rss):.0f} to "
             f"{max(rss):.0f} MiB") in flat
+
+
+def test_readme_one_run_prose_is_its_record():
+    """The figures bank/README.md's prose quotes about the one run are the reports': the load law's
+    screen shares on the three load-dependent cases, the current limit case's gap, armature ratio
+    and screen share, the armature at its lower bound in the backlash case, the Stribeck case's
+    Coulomb correction and fitted kinetic level."""
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    record = root / "bank" / "test_half" / "record"
+    flat = " ".join((root / "bank" / "README.md").read_text().split())
+
+    def rep(case):
+        return json.loads((record / case / "report.json").read_text())
+
+    def share(case, name):
+        return next(c["share"] for c in rep(case)["candidates"][0] if c["name"] == name)
+
+    def minus(x, fmt):  # the page writes a minus sign
+        return format(x, fmt).replace("-", "−")
+
+    shares = [minus(share(c, "load_friction"), ".2f") for c in ("b_load_quadrant", "c_gear_efficiency", "i_users_pendulum")]
+    assert f"(shares {shares[0]}, {shares[1]} and {shares[2]} of it)" in flat
+    h = rep("h_current_limit")
+    armature = {c["effect"]: c for c in h["corrections"]}["armature"]["ratio_to_nominal"]
+    assert (f"gap at {h['gap_after']:.2e} rad with the armature correction at {armature:.1f} times the nominal's "
+            f"(the current limit screened at {minus(share('h_current_limit', 'current_limit'), '.2f')})"
+            ).replace("e-02", "e-2") in flat
+    assert {c["effect"]: c for c in rep("f_backlash")["corrections"]}["armature"]["at_bound"] == "lower"
+    a = rep("a_stribeck")
+    coulomb = {c["effect"]: c for c in a["corrections"]}["coulomb_friction"]["ratio_to_nominal"]
+    assert f"below the nominal's ({coulomb:.3f} of it)" in flat
+    assert f"its `fc_nm` {a['effects'][0]['parameters']['fc_nm']:.4f} N m" in flat
