@@ -1,0 +1,3 @@
+"""The bank's SECOND TEST HALF: ten more truths of the same geared servo pendulum, written from
+literature without reading the discrepancy library, in other forms than the first half's, to
+be run once after the method's rules freeze (bank/README.md, "The second test half")."""
