@@ -124,8 +124,9 @@ class LuGre(OwnLoop):
         F     = sigma0 z + sigma1 dz/dt + sigma2 w,
 
     the friction ``F`` opposing the joint (``J w' = ... - F``).  Steady sliding gives
-    ``F = g(w) sign(w) + sigma2 w`` (a Stribeck curve); at rest it is a spring of stiffness
-    sigma0 (presliding, up to Fs/sigma0 = 2 mrad, about one encoder count).  Integration: over a
+    ``F = g(w) sign(w) + sigma2 w`` (a Stribeck curve); near rest it is a spring of stiffness
+    sigma0 (presliding: z up to Fs/sigma0 = 2 mrad; under a steady torque tau < Fs the joint
+    creeps at least -(Fs/sigma0) ln(1 - tau/Fs), a few encoder counts, and stops).  Integration: over a
     sub-step the speed is advanced with F at the sub-step's start, then z exactly for the new
     (constant) speed, ``z <- z_ss + (z - z_ss) exp(-sigma0 |w| h / g)``, ``z_ss = g sign(w) /
     sigma0`` (the bristle equation is stiff at speed: its rate sigma0 |w| / g reaches 1e4/s).
