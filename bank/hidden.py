@@ -191,7 +191,7 @@ CASES: tuple[HiddenCase, ...] = (
                     "constant), e.g. the stylus cable pulled taut against the base",
                gap_lives="only the 0.2 rad square waves, while theta > 0.17 rad (a position band at "
                          "the positive end; the sines reach 0.15 rad and never touch it)"),
-    HiddenCase("load_friction", (("load_friction", (servo_truth.MU_DRIVE, servo_truth.MU_BACK)),),
+    HiddenCase("load_friction", (("load_friction", (servo_truth.MU_DRIVE, servo_truth.MU_BACK, servo_truth.B_EMF)),),
                expect=("load_friction",), truth="servo",
                note="a pendulum (0.82 kg, m*g*l 1.18 N*m) on a 12 V geared servo (models/servo_pendulum/servo_pendulum.xml: "
                     "0.30 N*m/V, back-EMF 0.36 N*m*s/rad, Fc 30 mN*m) whose gearbox friction grows with "
@@ -200,7 +200,8 @@ CASES: tuple[HiddenCase, ...] = (
                     "estimate: back-driving such servos loses markedly more, up to self-locking); 12 runs "
                     "of 5 s logged at ~200 Hz with jitter, 4096-count encoder (servo_truth.py)"),
     HiddenCase("friction_family_stribeck",
-               (("friction_family_stribeck", (servo_truth.MU_DRIVE, servo_truth.MU_BACK, servo_truth.STRIBECK_RISE_NM,
+               (("friction_family_stribeck", (servo_truth.MU_DRIVE, servo_truth.MU_BACK, servo_truth.B_EMF,
+                                              servo_truth.STRIBECK_RISE_NM,
                                               servo_truth.STRIBECK_SPEED_RAD_S, servo_truth.STRIBECK_SHAPE)),),
                expect=("friction_family_stribeck",), truth="servo",
                note="the load_friction case's geared servo and gearbox (mu_drive 0.15, mu_back 0.45) whose "
@@ -235,7 +236,7 @@ CASES: tuple[HiddenCase, ...] = (
 #: judges them with :func:`assess` like the others; ``omni bench --only discrepancy_servo``
 #: times the first.
 NOMINAL_OFF_CASES = (
-    HiddenCase("load_friction_nominal_off", (("load_friction", (servo_truth.MU_DRIVE, servo_truth.MU_BACK)),),
+    HiddenCase("load_friction_nominal_off", (("load_friction", (servo_truth.MU_DRIVE, servo_truth.MU_BACK, servo_truth.B_EMF)),),
                expect=("load_friction",), truth="servo", nominal_joint=SERVO_NOMINAL_OFF,
                note="the load_friction case's truth and runs, with a nominal that is off where a "
                     "user's is: its armature 5.6e-3 instead of 2.5e-3 kg*m^2 (the pendulum's whole "

@@ -80,6 +80,10 @@ JOINT, ACTUATOR = "pivot", "servo"
 #: the gear) reported for such servos, not a measured figure.
 MU_DRIVE = 0.15
 MU_BACK = 0.45
+#: The back-EMF damping [N*m*s/rad] the library's ``load_friction`` may take out of the
+#: transmitted torque (``b_emf_nms_per_rad``): this truth's law reads ``tau = gear * actuator_force``,
+#: the actuator's torque alone, i.e. 0.
+B_EMF = 0.0
 #: The hidden direction-dependent Coulomb part [N*m] of the bank's ``asymmetric_friction`` case
 #: (the nominal model has none): +7.5 mN*m, 25 % of the nominal Fc = 30 mN*m (friction 37.5
 #: mN*m moving positive, 22.5 mN*m moving negative).  An ESTIMATE, set before the case was

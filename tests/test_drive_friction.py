@@ -144,3 +144,17 @@ def test_a_law_a_user_writes(monkeypatch):
     assert _steady_velocity(base, 0.4) == pytest.approx((0.8 - FC) / B, rel=1e-6)
     with pytest.raises(UserError, match="speed_friction.*must hold one c >= 0"):
         Device(mujoco.MjModel.from_xml_string(xml.format(c=-1)), 0.001, TARGET)
+
+
+def test_load_friction_reads_the_motors_net_torque_with_a_back_emf():
+    """``load_friction``'s optional third entry b_emf takes the back-EMF out of the transmitted
+    torque: F = mu |tau - b_emf w| (the motor's net torque kt i = kt/R u - kt^2/R w of a
+    voltage-driven servo whose back-EMF the model writes as damping); two entries read b_emf 0."""
+    from omni_sim.device import DRIVE_LAWS, LOAD_FRICTION
+    law = DRIVE_LAWS[LOAD_FRICTION]
+    w, tau = np.array([2.0, -2.0, 3.0]), np.array([1.0, -1.0, 0.5])
+    v = np.array([[0.2, 0.2, 0.36]] * 3)  # equal coefficients: the blend plays no part
+    np.testing.assert_allclose(law.term(v, w, tau), 0.2 * np.abs(tau - 0.36 * w), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(law.term(v[:, :2], w, tau), 0.2 * np.abs(tau), rtol=0, atol=1e-15)
+    assert law.check(np.array([0.1, 0.2])) is None and law.check(np.array([0.1, 0.2, 0.3])) is None
+    assert law.check(np.array([0.1, 0.2, -0.3])) and law.check(np.array([0.1, 0.2, 0.3, 0.4]))

@@ -112,7 +112,7 @@ def test_the_variants_are_nested():
             mine, theirs = [p.name for p in by[name].params], [p.name for p in by[parent].params]
             assert mine[:len(theirs)] == theirs and len(mine) > len(theirs)
             assert family.COMPLEXITY[name] > family.COMPLEXITY[parent]
-    assert family.COMPLEXITY == {"load_friction": 2, "friction_family_stribeck": 5}
+    assert family.COMPLEXITY == {"load_friction": 3, "friction_family_stribeck": 6}
     assert family.NESTED == {"load_friction": ("friction_family_stribeck",)}
     assert by["load_friction"] is fx.get("load_friction") and "load_friction" in fx.NAMES
     assert all(fx.get(e.name) is e for e in fx.STAGED) and not set(fx.NAMES) & {e.name for e in fx.STAGED}
@@ -122,7 +122,7 @@ def test_a_parent_is_its_child_with_the_extra_parameters_at_zero():
     """load_friction (its own numeric) and the Stribeck variant with its rise at 0 (the family's
     numeric) are one law: the engine replays them bit for bit alike; with a rise they differ."""
     spec = mujoco.MjSpec.from_file(str(om.SERVO_PENDULUM))
-    mu = np.array([0.15, 0.45])
+    mu = np.array([0.15, 0.45, 0.3])  # with a back-EMF damping b_emf: the net torque's path too
     a = fx.apply(spec, [(family.LOAD_FRICTION_EFFECT, mu)], SERVO).compile()
     b = fx.apply(spec, [(family.STRIBECK, np.array([*mu, 0.0, 0.2, 1.5]))], SERVO).compile()
     c = fx.apply(spec, [(family.STRIBECK, np.array([*mu, 0.05, 0.2, 1.5]))], SERVO).compile()
@@ -160,7 +160,7 @@ def test_the_family_needs_the_runtime():
     from omni_sim import runtime
     spec = mujoco.MjSpec.from_file(str(om.SERVO_PENDULUM))
     assert not runtime.runtime_note(spec)[0]
-    needs, lines = runtime.runtime_note(fx.apply(spec, [(family.STRIBECK, np.array([0.2, 0.5, 0.0, 0.0, 0.0]))], SERVO))
+    needs, lines = runtime.runtime_note(fx.apply(spec, [(family.STRIBECK, np.array([0.2, 0.5, 0.0, 0.0, 0.0, 0.0]))], SERVO))
     assert needs and "friction_family (k_drive=0.2, k_back=0.5" in lines[0]
     needs, lines = runtime.runtime_note(fx.apply(spec, [(family.CURRENT_LIMIT_EFFECT, np.array([1.0, 0.3]))], SERVO))
     assert needs and "current_limit (torque_limit_nm=1, back_emf_nms_per_rad=0.3)" in lines[0]

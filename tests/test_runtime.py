@@ -161,7 +161,7 @@ def test_model_xml_reloaded_with_the_runtime_is_the_patched_model():
     assert np.max(np.abs(got - want)) < 1e-6
     m = mujoco.MjSpec.from_string(xml).compile()
     cb = runtime.drive_laws(m)
-    assert (cb.substeps, cb.laws) == (2, {"load_friction": (0.15, 0.9)})
+    assert (cb.substeps, cb.laws) == (2, {"load_friction": (0.15, 0.9, 0.0)})  # b_emf read as 0
     assert np.max(np.abs(_plain(xml, SERVO, runs, period, with_runtime=False) - want)) > 1e-3
     assert "needs the runtime `omni_sim.runtime:drive_laws` for load_friction" in rp._md_runtime(out)
 
@@ -270,7 +270,7 @@ def test_every_staged_effect_is_native_mjcf_or_a_runtime_law(name):
     current limit) at values where they act: written into the servo pendulum, read back from
     the MJCF text with the runtime's declarations, plain MuJoCo (with the runtime when the
     header says so) replays like the engine on the spec (1e-6 rad); both need the runtime."""
-    values = {"friction_family_stribeck": [0.2, 0.6, 0.03, 0.2, 1.5], "current_limit": [0.8, 0.36]}
+    values = {"friction_family_stribeck": [0.2, 0.6, 0.36, 0.03, 0.2, 1.5], "current_limit": [0.8, 0.36]}
     spec = _servo_spec()
     e = fx.for_model(fx.get(name), spec, SERVO)
     patched = fx.apply(spec, [(e, np.array(values[name]))], SERVO)

@@ -18,8 +18,9 @@ import numpy as np
 
 from identification.errors import UserError
 
-#: ``<custom><numeric name="load_friction" data="mu_drive mu_back"/>``: Coulomb friction that
-#: rises with the torque the gearbox transmits (:data:`DRIVE_LAWS`).
+#: ``<custom><numeric name="load_friction" data="mu_drive mu_back [b_emf]"/>``: Coulomb friction
+#: that rises with the torque the gearbox transmits (:data:`DRIVE_LAWS`), the actuator's torque
+#: less ``b_emf`` [N*m*s/rad] times the joint velocity (the motor's back-EMF; 0 when absent).
 LOAD_FRICTION = "load_friction"
 #: The speed [rad/s] over which :data:`LOAD_FRICTION`'s coefficient passes from ``mu_back``
 #: to ``mu_drive`` (a smooth sign, ``tanh(sign(tau) w / w_b)``): 0.05 rad/s.  An ESTIMATE, a
@@ -117,6 +118,10 @@ def _asymmetry_check(v: np.ndarray) -> str | None:
 
 
 def _load_term(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    # the torque the gearbox transmits is the motor's net torque: the actuator's minus the
+    # back-EMF's share of the joint damping, b_emf w (v[:, 2]; 0 for a two-entry numeric)
+    if v.shape[1] > 2:
+        tau = tau - v[:, 2] * w
     # mu_drive while the motor drives the load (sign(tau) w >> w_b), mu_back while the load
     # back-drives the motor (sign(tau) w << -w_b), their mean at rest, smoothly in between
     if LOAD_FRICTION_BLEND_RAD_S == 0:  # the switch on sign(tau w), mu_back at rest (valley_scan.py)
@@ -126,14 +131,15 @@ def _load_term(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 
 def _load_check(v: np.ndarray) -> str | None:
-    ok = len(v) == 2 and np.all(np.isfinite(v)) and not np.any(v < 0)
-    return None if ok else "must hold two coefficients >= 0 (mu_drive mu_back)"
+    ok = len(v) in (2, 3) and np.all(np.isfinite(v)) and not np.any(v < 0)
+    return None if ok else ("must hold two coefficients >= 0 (mu_drive mu_back) and optionally the "
+                            "back-EMF damping >= 0 [N*m*s/rad]")
 
 
 def _family_term(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> np.ndarray:
     # the load-dependent part is load_friction's law (the same blend), the Stribeck rise
     # rise * exp(-(|w| / omega_s)^delta) is 1 x rise at rest and vanishes for |w| >> omega_s
-    load = _load_term(v[:, :2], w, tau)
+    load = _load_term(v[:, [0, 1, 5]] if v.shape[1] > 5 else v[:, :2], w, tau)
     rise, ws, delta = v[:, 2], v[:, 3], v[:, 4]
     on = (rise > 0) & (ws > 0)
     x = np.abs(w) / np.where(on, ws, 1.0)
@@ -141,10 +147,10 @@ def _family_term(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 
 def _family_check(v: np.ndarray) -> str | None:
-    ok = (len(v) == 5 and np.all(np.isfinite(v)) and not np.any(v < 0)
+    ok = (len(v) in (5, 6) and np.all(np.isfinite(v)) and not np.any(v < 0)
           and (v[2] == 0 or (v[3] > 0 and v[4] > 0)))
-    return None if ok else ("must hold five values >= 0 (k_drive k_back rise_nm omega_s delta), "
-                            "omega_s and delta > 0 when rise_nm > 0")
+    return None if ok else ("must hold five values >= 0 (k_drive k_back rise_nm omega_s delta) and "
+                            "optionally the back-EMF damping b_emf, omega_s and delta > 0 when rise_nm > 0")
 
 
 def _limit_check(v: np.ndarray) -> str | None:
@@ -161,9 +167,9 @@ CURRENT_LIMIT_PARAMS = ("torque_limit_nm", "back_emf_nms_per_rad")
 #: :class:`DriveLaw` added here (:func:`register_drive_law`).
 DRIVE_LAWS: dict[str, DriveLaw] = {
     FRICTION_ASYMMETRY: DriveLaw(FRICTION_ASYMMETRY, ("a",), _asymmetry_term, _asymmetry_check),
-    LOAD_FRICTION: DriveLaw(LOAD_FRICTION, ("mu_drive", "mu_back"), _load_term, _load_check,
+    LOAD_FRICTION: DriveLaw(LOAD_FRICTION, ("mu_drive", "mu_back", "b_emf"), _load_term, _load_check,
                             needs_torque=True),
-    FRICTION_FAMILY: DriveLaw(FRICTION_FAMILY, ("k_drive", "k_back", "rise_nm", "omega_s", "delta"),
+    FRICTION_FAMILY: DriveLaw(FRICTION_FAMILY, ("k_drive", "k_back", "rise_nm", "omega_s", "delta", "b_emf"),
                               _family_term, _family_check, needs_torque=True),
 }
 
@@ -182,13 +188,16 @@ class DriveFriction:
     At the start of every control period the joint's Coulomb level (MuJoCo's
     ``dof_frictionloss``, a true stick) is set to
 
-        F = max(0, Fc + a sign(w) + mu |tau|),
+        F = max(0, Fc + a sign(w) + mu |tau|),   tau = gear * actuator_force - b_emf w,
         mu = mu_back + (mu_drive - mu_back) (1 + tanh(sign(tau) w / w_b)) / 2,
 
     for the two laws the library holds (in general ``Fc`` plus every declared law's term), with
     ``Fc`` the model's own ``frictionloss``, ``w`` the joint velocity, ``tau`` the torque the
     motor transmits (``gear * actuator_force`` of the last physics step, from an
-    ``actuatorfrc`` sensor on the actuator; 0 before the first step), ``a``
+    ``actuatorfrc`` sensor on the actuator; 0 before the first step) less the back-EMF's share
+    ``b_emf w`` (:data:`LOAD_FRICTION`'s optional third entry, 0 when absent: a voltage-driven
+    motor's gearbox transmits its net torque ``kt i = kt/R u - kt^2/R w``, whose second term the
+    model writes as joint damping), ``a``
     (:data:`FRICTION_ASYMMETRY`) the direction-dependent part and ``mu_drive``, ``mu_back``
     (:data:`LOAD_FRICTION`) the load-dependent coefficients: ``mu_drive`` while the motor drives
     the load (``tau w > 0``), ``mu_back`` while the load back-drives the motor, where a geared
@@ -237,7 +246,8 @@ class DriveFriction:
             why = law.check(v)
             if why:
                 raise UserError(f"{source}: custom numeric {name!r} {why}, got {v.tolist()}")
-            values[name] = tuple(float(x) for x in v)
+            # a law's optional trailing entries (load_friction's b_emf) read as 0
+            values[name] = tuple(float(x) for x in v) + (0.0,) * (len(law.params) - len(v))
         limit = _numeric(model, CURRENT_LIMIT)
         if limit is not None:
             why = _limit_check(limit)
