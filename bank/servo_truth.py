@@ -434,11 +434,11 @@ def _logged_run(e: Experiment, run, seed: int, exact: bool, law: str) -> Run:
 SIMULATED = ("load_friction", "asymmetric_friction", "current_limit", "friction_family_stribeck")
 
 
-def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK)),), seed: int = 1, exact: bool = False,
+def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK, B_EMF)),), seed: int = 1, exact: bool = False,
              experiments=EXPERIMENTS) -> list[Run]:
     """The "measured" runs of the truth with the hidden ``effects``: ``load_friction``
-    (mu_drive, mu_back), ``asymmetric_friction`` (a [N*m]), ``current_limit`` (kt i_max
-    [N*m], kt^2/R [N*m*s/rad]) and ``friction_family_stribeck`` (mu_drive, mu_back, rise [N*m],
+    (mu_drive, mu_back, b_emf = :data:`B_EMF`), ``asymmetric_friction`` (a [N*m]), ``current_limit`` (kt i_max
+    [N*m], kt^2/R [N*m*s/rad]) and ``friction_family_stribeck`` (mu_drive, mu_back, b_emf, rise [N*m],
     w_s [rad/s], delta: the load law with a Stribeck rise), any of them but the last two load
     laws together (none: the nominal model)."""
     effects = dict(effects)
@@ -447,10 +447,14 @@ def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK)),), seed: int = 1, e
         raise ValueError(f"the servo truth simulates only {', '.join(SIMULATED)}, not {sorted(unknown)}")
     if "load_friction" in effects and "friction_family_stribeck" in effects:
         raise ValueError("load_friction and friction_family_stribeck are one law: give one of them")
-    mu_drive, mu_back = effects.get("load_friction", (0.0, 0.0))
+    # the library's load_friction holds a back-EMF damping b_emf beside the coefficients: this
+    # truth's law reads the actuator's torque alone (B_EMF = 0), and simulates no other
+    mu_drive, mu_back, b_emf = effects.get("load_friction", (0.0, 0.0, B_EMF))
     stribeck = (0.0, 1.0, 1.0)
     if "friction_family_stribeck" in effects:
-        mu_drive, mu_back, *stribeck = effects["friction_family_stribeck"]
+        mu_drive, mu_back, b_emf, *stribeck = effects["friction_family_stribeck"]
+    if b_emf != B_EMF:
+        raise ValueError(f"the servo truth's load law reads gear * actuator_force (b_emf {B_EMF}), not b_emf {b_emf}")
     (asymmetry,) = effects.get("asymmetric_friction", (0.0,))
     limit = effects.get("current_limit")
     return [measure(e, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry, seed=seed,

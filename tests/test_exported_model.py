@@ -60,12 +60,12 @@ def test_exported_model_with_the_runtime_reproduces_its_gap(tmp_path):
     runtime.  Its plain replay with the header's runtime gives report.json's
     ``exported_model.gap_rad`` to 1e-6 rad (measured 3.6e-12); without the runtime it is the
     nominal (its gap_before, to 1e-6 rad; 0.039 rad against 0.001 with it)."""
-    rep, xml = _report(tmp_path, _runs("load_friction", (0.2, 1.2)), ("load_friction",))
+    rep, xml = _report(tmp_path, _runs("load_friction", (0.2, 1.2, 0.0)), ("load_friction",))
     assert [e["name"] for e in rep["effects"]] == ["load_friction"], rep["rounds"]
     ex = rep["exported_model"]
     assert ex["runtime"] == runtime.RUNTIME and ex["note"] == EXPORTED_NOTE
     assert runtime_of(xml) is runtime.drive_laws
-    runs = _runs("load_friction", (0.2, 1.2))
+    runs = _runs("load_friction", (0.2, 1.2, 0.0))
     with_rt = plain_gap(xml, runs, "pivot", "servo")
     assert abs(with_rt - ex["gap_rad"]) < 1e-6, (with_rt, ex["gap_rad"])
     bare = plain_gap(xml, runs, "pivot", "servo", use_runtime=False)

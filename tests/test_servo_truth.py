@@ -301,7 +301,7 @@ def test_only_its_own_laws_are_simulated():
     with pytest.raises(ValueError, match="only load_friction, asymmetric_friction, current_limit"):
         st.generate(effects=(("coulomb_friction", (0.01,)),))
     with pytest.raises(ValueError, match="one law"):
-        st.generate(effects=(("load_friction", (0.1, 0.2)), ("friction_family_stribeck", (0.1, 0.2, 0.03, 0.1, 1.0))))
+        st.generate(effects=(("load_friction", (0.1, 0.2, 0.0)), ("friction_family_stribeck", (0.1, 0.2, 0.0, 0.03, 0.1, 1.0))))
 
 
 def test_the_stribeck_rise_is_the_devices_family_law(nominal):
@@ -327,7 +327,7 @@ def test_the_bank_case():
     """The bank's geared-servo case: its truth is this module's, its nominal model and target
     the servo pendulum's, its runs what :func:`servo_truth.generate` makes."""
     c = hidden.case("load_friction")
-    assert c.truth == "servo" and c.effects == (("load_friction", (st.MU_DRIVE, st.MU_BACK)),)
+    assert c.truth == "servo" and c.effects == (("load_friction", (st.MU_DRIVE, st.MU_BACK, st.B_EMF)),)
     assert c.expect == ("load_friction",)
     path, target = hidden.nominal(c)
     assert path == st.model_path() and target == st.target()
