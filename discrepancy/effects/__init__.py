@@ -33,8 +33,8 @@ arm_mass           ``upper_arm``, ``forearm`` body masses       ``upper_arm_mass
                    (inertia scaled, CoM kept)                   ``forearm_mass_kg`` [kg]
 cogging            new passive ``dcmotor`` ``yaw_cogging``,     ``amplitude_nm`` [N*m],
                    torque a*sin(n*q_yaw + phase), n fixed       ``phase_rad`` [rad]
-load_friction      ``<custom>`` numeric ``load_friction`` (the  ``mu_drive``, ``mu_back`` [-]
-                   engine's law) + ``actuatorfrc`` sensor
+load_friction      ``<custom>`` numeric ``load_friction`` (the  ``mu_drive``, ``mu_back`` [-],
+                   engine's law) + ``actuatorfrc`` sensor       ``b_emf_nms_per_rad`` [N*m*s/rad]
 current_limit      ``<custom>`` numeric ``current_limit`` (the  ``torque_limit_nm`` [N*m],
                    engine moves ``forcerange`` with the         ``back_emf_nms_per_rad``
                    back-EMF), the bound at rest as              [N*m*s/rad]
