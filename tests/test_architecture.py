@@ -500,6 +500,8 @@ BANK_PARTS = {
     "studies": ({"identification", "omni_sim", "discrepancy", "omni_studies"}, {"truths", "studies"}),
     "writers": (set(PACKAGES), {"truths", "studies", "writers"}),
     "test_half": ({"identification"}, {"test_half"}),
+    # the second test half reuses the first's plant, loop, campaign and scoring, nothing else
+    "test_half_2": ({"identification"}, {"test_half", "test_half_2"}),
 }
 
 
@@ -509,7 +511,7 @@ def bank_part(module: str) -> str | None:
     parts = module.split(".")
     if parts[0] != BANK or len(parts) == 1:
         return None
-    return parts[1] if parts[1] in ("studies", "writers", "test_half") else "truths"
+    return parts[1] if parts[1] in ("studies", "writers", "test_half", "test_half_2") else "truths"
 
 
 def bank_imports(source: str) -> list[tuple[int, str, bool]]:

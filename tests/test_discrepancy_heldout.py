@@ -233,10 +233,10 @@ def test_a_nested_variant_starts_each_fold_at_its_parents_fold_values():
     damping, load, child = (builder.effect(n) for n in ("viscous_damping", "load_friction", "friction_family_stribeck"))
     runs = [_run(100), _run(100)]
     folds = sel.block_folds(runs, 2)
-    fold_x = [np.array([0.36, 0.10, 0.40]), np.array([0.38, 0.20, 0.60])]
+    fold_x = [np.array([0.36, 0.10, 0.40, 0.33]), np.array([0.38, 0.20, 0.60, 0.35])]  # damping; mu_drive, mu_back, b_emf
     known = SimpleNamespace(method="refit", folds=folds, effects=[damping, load], fold_x=fold_x)
     prob = Problem(builder, [], [damping, child], runs, None)
-    new = np.array([0.0, 0.0, 0.0, 0.02, 0.3, 1.5])
+    new = np.array([0.0, 0.0, 0.0, 0.0, 0.02, 0.3, 1.5])
     starts = fold_starts(prob, folds, known=(known,), new_at=new)
     for f in range(2):
         np.testing.assert_array_equal(starts[f], [*fold_x[f], 0.02, 0.3, 1.5])

@@ -172,7 +172,8 @@ def test_load_friction_bounds_admit_self_locking():
     efficiency of 0.1; mu_drive below 1 (a drive that passes some torque)."""
     lo, hi = fx.get("load_friction").bounds()
     assert hi[1] == pytest.approx(1 / 0.1 - 1) and hi[1] > 1
-    assert hi[0] == pytest.approx(1 - 0.1) and lo.tolist() == [0.0, 0.0]
+    assert hi[0] == pytest.approx(1 - 0.1) and lo.tolist() == [0.0, 0.0, 0.0]
+    assert hi[2] == 5.0  # b_emf: as current_limit's back-EMF damping
 
 
 def test_cli_refuses_an_unknown_correction_before_work(tmp_path, capsys):
@@ -188,8 +189,8 @@ def test_cli_refuses_an_unknown_correction_before_work(tmp_path, capsys):
 def _report(fitted: dict, half: float, named=("load_friction",)) -> dict:
     truth = dict(hidden.case("load_friction_nominal_off").effects)
     effects = [{"name": n, "confidence": "high",
-                "parameters": {"mu_drive": truth[n][0], "mu_back": truth[n][1]},
-                "uncertainty": {"mu_drive": 0.05, "mu_back": 0.05}} for n in named]
+                "parameters": {"mu_drive": truth[n][0], "mu_back": truth[n][1], "b_emf_nms_per_rad": truth[n][2]},
+                "uncertainty": {"mu_drive": 0.05, "mu_back": 0.05, "b_emf_nms_per_rad": 0.05}} for n in named]
     corrections = [{"effect": hidden.CORRECTED_BY[a][0], "parameter": hidden.CORRECTED_BY[a][1],
                     "fitted": v, "half_width_95": half} for a, v in fitted.items()]
     return {"effects": effects or [{"name": "none"}], "corrections": corrections, "shrink_factor": 10.0}
