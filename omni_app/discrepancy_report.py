@@ -260,6 +260,7 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
             L += [f"The verdict names **{name}**: its law explains {100 * fits[name]['explained']:.1f} % of "
                   f"the missing torque here ({_md_values(fits[name])}); it disagrees: "
                   f"{_md_disagrees(fits[name], 3, table=False)}.", ""]
+            L += _md_two_estimates(entry, fits[name])
         elif name in replay:
             L += [f"The verdict names **{name}**, which equation error cannot judge ({replay[name]}).", ""]
         else:
@@ -272,6 +273,32 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
               f"{EXPLAINED_ENOUGH:.0%} of the missing torque{best}; the maps above show how large it "
               "is and where (against velocity, drive torque, position, time).", ""]
     return L
+
+
+def _md_two_estimates(entry: dict, f: dict) -> list[str]:
+    """A named law's two estimates side by side: equation error's (the missing torque, the
+    corrected nominal held) and the closed loop's (the verdict's, fitted jointly with the
+    corrections, its 95 % half-width).  Where they differ by more than that half-width the law's
+    form and the data disagree somewhere (a law fitted in another form trades against the
+    corrections: the geared servo's gain and load coefficients move together wherever the
+    drive moves): the page says so, and which parameters, rather than pick one."""
+    fit, half = entry.get("parameters", {}), entry.get("uncertainty", {})
+    rows, apart = [], []
+    for p, v in f["parameters"].items():
+        if p not in fit:
+            continue
+        u = half.get(p)
+        rows.append(f"{p} {_fmt(v, 4)} by equation error, {_fmt(fit[p], 4)}"
+                    + (f" ± {_fmt(u, 2)}" if isinstance(u, (int, float)) else "") + " in closed loop")
+        if isinstance(u, (int, float)) and abs(fit[p] - v) > u:
+            apart.append(p)
+    if not rows:
+        return []
+    verdict = (f"they differ by more than the closed loop's interval in {', '.join(apart)}: the "
+               "law's form and the data disagree somewhere and its parameters trade against the "
+               "corrections (above: where it disagrees); neither estimate is the truth's for certain"
+               if apart else "they agree within the closed loop's interval")
+    return [f"Its two estimates: {'; '.join(rows)}; {verdict}.", ""]
 
 
 def _md_stand_in(entry: dict, fits: dict, replay: dict) -> list[str]:

@@ -182,3 +182,18 @@ def test_the_true_model_leaves_little_missing_torque_on_the_omni():
     for r in missing_torque(truth, rr, om.OMNI):
         rms = float(np.sqrt(np.mean(r.tau_miss[r.trusted] ** 2)))
         assert rms < 0.1 * level, (r.name, rms)
+
+
+def test_report_sets_the_two_estimates_side_by_side(ev):
+    """A named law's equation-error values beside its closed-loop fit: apart by more than the
+    closed loop's half-width, the page says they differ and names the parameter; within it, that
+    they agree (the figures of the user's pendulum, first test half: 0.2044 by equation error,
+    0.3264 +- 0.0065 in closed loop, truth 0.2)."""
+    fc = next(f for f in ev.to_json()["ranking"] if f["name"] == "coulomb_friction")
+    (p, v), = fc["parameters"].items()
+    for fitted, half, words in ((v + 0.01, 0.002, f"differ by more than the closed loop's interval in {p}"),
+                                (v + 0.001, 0.002, "they agree within the closed loop's interval")):
+        entry = {"name": "coulomb_friction", "parameters": {p: fitted}, "uncertainty": {p: half}}
+        line = "\n".join(rp._md_two_estimates(entry, fc))
+        assert words in line and f"{p} {rp._fmt(v, 4)} by equation error" in line, line
+    assert rp._md_two_estimates({"name": "coulomb_friction", "parameters": {}}, fc) == []
