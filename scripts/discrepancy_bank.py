@@ -45,6 +45,7 @@ from pathlib import Path
 
 from bank.writers import bank_report as report
 from bank.studies import discrepancy_bank as study
+from identification.errors import UserError
 
 DEFAULT_OUT = report.DEFAULT_OUT
 
@@ -89,9 +90,13 @@ def main(argv=None) -> int:
     if args.markdown:
         Path(args.out).write_text(report.bank_page(json.loads(Path(args.json).read_text()), Path(args.out)))
         return 0
+    try:
+        cases = study.select(args.cases)
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    cases = study.select(args.cases)
     meta = study.bank_meta(commit=args.commit or report.checkout_commit(),
                            command="python scripts/discrepancy_bank.py " + " ".join(sys.argv[1:] if argv is None else argv),
                            json_name=out.with_suffix(".json").name, jobs=args.jobs, note=args.note)

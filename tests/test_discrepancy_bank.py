@@ -915,3 +915,16 @@ def test_docs_friction_family_figures_are_the_record():
     assert (f"the two tie ({tie['load_friction']['heldout_gap_rad']:.2e} and "
             f"{tie['friction_family_stribeck']['heldout_gap_rad']:.2e} rad)") in par
     assert f"at {lf['timings']['physics_steps'] / 1e6:.1f} M physics steps" in par
+
+
+def test_the_bank_script_refuses_a_case_it_cannot_run(capsys, tmp_path):
+    """``--cases`` with a name outside the record's cases (here a nominal-off case, which runs as a
+    test only) stops with one error line, exit 2, before any work (it was silently dropped)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("bank_script", ROOT / "scripts" / "discrepancy_bank.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.main(["--cases", "load_friction", "load_friction_nominal_off", "--out", str(tmp_path / "no" / "x.md")]) == 2
+    assert not (tmp_path / "no").exists()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "load_friction_nominal_off" in err[0]

@@ -24,6 +24,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from discrepancy import experiment_set
+from identification.errors import UserError
 
 from bank import hidden, servo_truth
 
@@ -39,7 +40,13 @@ def now() -> str:
 
 
 def select(names: Iterable[str] | None) -> list[hidden.HiddenCase]:
-    """The bank's cases named in ``names`` (None: all), in the bank's order."""
+    """The bank's cases named in ``names`` (None: all), in the bank's order.  A name that is not
+    one of them (a nominal-off case runs as a test only, ``pytest -m bank``) is refused."""
+    known = {c.name for c in hidden.CASES}
+    unknown = sorted(set(names or ()) - known)
+    if unknown:
+        raise UserError(f"not a case of the bank's record: {', '.join(unknown)} (its cases: {', '.join(sorted(known))}; "
+                        "the nominal-off cases run as tests: pytest -m bank -k NAME)")
     return [c for c in hidden.CASES if names is None or c.name in names]
 
 
