@@ -631,11 +631,13 @@ def test_bank(case_name):
 #: (servo_truth.assess_efficiency), else the measured figures of its failure (the docs test checks
 #: them against the record).
 GEAR_EFFICIENCY_FAILURE = (
-    "the workflow (commit 8b5f165) names none and flags the gap unexplained: the nominal's "
-    "corrections alone take the held-out gap 0.0194 -> 0.00996 rad (x1.95; damping 0.37 -> 0.4737, "
-    "frictionloss 0.03 -> 0.05911 N*m), after which no candidate removes a share ((no new effect) 0 "
-    "is the round's best; load_friction -0.41 at mu_drive 0.0994 < mu_back 0.193, the direction the "
-    "case asks, but worse held out); noise floor 0.000597 rad (docs/studies/discrepancy/bank.md)")
+    "the workflow (commit ec6f64e, load_friction on the motor's net torque) names load_friction with "
+    "high confidence (round 1's best, load_friction 0.86 of the corrections' gap) and the held-out gap "
+    "0.0194 -> 0.00139 rad (x14), but the direction the case asks is reversed: mu_drive 0.352 > "
+    "mu_back 0.0979 for 0.15 < 0.45, with the torque gain corrected "
+    "0.3 -> 0.3907 (+30 %): where the drive moves, only gain*(1 - mu_drive) and gain*(1 + mu_back) "
+    "are told apart, and the fit slid along that ridge (damping 0.37 -> 0.4801, frictionloss "
+    "0.03 -> 0.03047 N*m); noise floor 0.000597 rad (docs/studies/discrepancy/bank.md)")
 
 
 @pytest.mark.slow
