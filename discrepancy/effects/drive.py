@@ -10,8 +10,9 @@ transmitted torque or the direction of motion, so the effects write the law's co
   gearbox carries ``kt i = kt/R u - kt^2/R w``; 0 on a current-driven motor; started at 0 and
   at the model's damping.  Added after the test half's one run, where three load laws written
   by others on the motor's net torque (b_load_quadrant, c_gear_efficiency, i_users_pendulum)
-  and the bank's gear_efficiency truth were not found with ``tau = gear u`` alone), ``mu = mu_drive`` while the motor drives the load, ``mu_back`` while the
-  load back-drives the motor (a self-locking gearbox when ``mu_back >= 1``).  Magnitudes: a spur
+  and the bank's gear_efficiency truth were not found with ``tau = gear u`` alone),
+  ``mu = mu_drive`` while the motor drives the load, ``mu_back`` while the load back-drives
+  the motor (a self-locking gearbox when ``mu_back >= 1``).  Magnitudes: a spur
   gear mesh loses 1-3 % of the power it transmits (efficiency 0.97-0.99 per stage, standard
   machine-design figures); a hobby or robot servo has 4-5 stages of small, lightly lubricated
   plastic or brass gears, for an overall forward efficiency of roughly 0.6-0.9, i.e.

@@ -76,30 +76,29 @@ import numpy as np
 from omni_sim.device import CURRENT_LIMIT, FRICTION_FAMILY
 from .actuator import _read_limit
 from .base import OMNI, Effect, Param, actuator_of
-from .drive import B_EMF, LOAD_FRICTION_EFFECT, _ensure_torque_sensor, _geared, _numeric_values, _read_load, _set_numeric
+from .drive import LOAD_FRICTION_EFFECT, _ensure_torque_sensor, _geared, _numeric_values, _read_load, _set_numeric
 
-#: The parameters of the law's numeric (``friction_family``), in its order; the load
-#: coefficients named as ``load_friction``'s (the engine's law calls them k_drive, k_back).
-K_DRIVE = Param("mu_drive", "-", 0.0, 0.9, 0.02)
-K_BACK = Param("mu_back", "-", 0.0, 9.0, 0.02)
 RISE = Param("rise_nm", "N*m", 0.0, 0.3, 0.003)
 OMEGA_S = Param("omega_s_rad_s", "rad/s", 0.01, 3.0, 0.05)
 DELTA = Param("delta", "-", 0.5, 2.5, 0.1)
-#: The variant's parameters: its parent's (``load_friction``'s, in its order: the search starts
-#: a variant from its parent's values) and the rise's.  The numeric holds them as
-#: ``k_drive k_back rise_nm omega_s delta b_emf`` (the engine's order, b_emf last and optional).
-LAW_PARAMS = (K_DRIVE, K_BACK, B_EMF, RISE, OMEGA_S, DELTA)
+#: The variant's parameters: its parent's, ``load_friction``'s own (the search starts a variant
+#: from its parent's values, so they come first and in its order), then the rise's.
+LAW_PARAMS = (*LOAD_FRICTION_EFFECT.params, RISE, OMEGA_S, DELTA)
+#: Where each of :data:`LAW_PARAMS` sits in the numeric ``friction_family``, whose order is the
+#: engine's, ``k_drive k_back rise_nm omega_s delta b_emf`` (b_emf last: optional).
+_IN_NUMERIC = np.array([0, 1, 5, 2, 3, 4])
 
 
 def _read_stribeck(spec, target=OMNI):
     if spec.numeric(FRICTION_FAMILY) is None:  # no law: the parent's nominal values, no rise
         return np.concatenate([_read_load(spec, target), np.zeros(3)])
-    v = _numeric_values(spec, FRICTION_FAMILY, 6)
-    return v[[0, 1, 5, 2, 3, 4]]
+    return _numeric_values(spec, FRICTION_FAMILY, 6)[_IN_NUMERIC]
 
 
 def _write_stribeck(spec, x, target=OMNI):
-    _set_numeric(spec, FRICTION_FAMILY, np.asarray(x, float)[[0, 1, 3, 4, 5, 2]])
+    data = np.empty(len(_IN_NUMERIC))
+    data[_IN_NUMERIC] = np.asarray(x, float)[:len(_IN_NUMERIC)]
+    _set_numeric(spec, FRICTION_FAMILY, data)
     _ensure_torque_sensor(spec, target)
 
 
