@@ -239,7 +239,6 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
         ``rise exp(-(|w| / w_s)^delta)`` (Armstrong-Helouvry, Dupont, Canudas de Wit 1994, the
         generalised exponential curve), added to the level at every period; rise 0: none.
     """
-    rise, w_s, delta = stribeck
     m = mujoco.MjModel.from_xml_path(str(path or model_path()))
     d = mujoco.MjData(m)
     jid, aid = m.joint(JOINT).id, m.actuator(ACTUATOR).id
@@ -264,24 +263,12 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
         y[k] = read_encoder(theta[k], noise[k], step_rad)
         u[k] = min(max(kp * (goal[k] - y[k]), -command_limit), command_limit) if on[k] else 0.0
         if friction_law:
-            w = d.qvel[dof]
-            if BLEND_SPEED_RAD_S == 0:  # a switch, mu_back at rest (scripts/valley_scan.py)
-                mu = mu_drive if tau * w > 0 else mu_back
-            else:
-                half_sum, half_diff = 0.5 * (mu_drive + mu_back), 0.5 * (mu_drive - mu_back)
-                mu = half_sum + half_diff * math.tanh((w if tau > 0 else -w) / BLEND_SPEED_RAD_S)
-            level = fc + asymmetry_nm * _sign(w) + mu * abs(tau)
-            if rise:
-                level += rise * math.exp(-(abs(w) / w_s) ** delta)
-            m.dof_frictionloss[dof] = max(0.0, level)
+            m.dof_frictionloss[dof] = _friction_level(tau, d.qvel[dof], fc, (mu_drive, mu_back),
+                                                      asymmetry_nm, stribeck)
         fl[k] = m.dof_frictionloss[dof]
         d.ctrl[aid] = u[k]
         if current_limit is not None and on[k]:
-            limit, b = current_limit
-            w = d.qvel[dof]
-            net = gear * u[k] - b * w  # kt i: the motor's torque after the gear
-            if abs(net) > limit:
-                d.ctrl[aid] = (math.copysign(limit, net) + b * w) / gear
+            d.ctrl[aid] = _current_limited(u[k], d.qvel[dof], gear, current_limit)
         mujoco.mj_step(m, d)
         tau = gear * float(d.actuator_force[aid])
         taus[k] = tau
@@ -289,6 +276,34 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
     if not np.all(np.isfinite(theta)):
         raise RuntimeError("servo truth diverged (non-finite angle)")
     return Trajectory(t, theta, omega, y, u, fl, taus)
+
+
+def _friction_level(tau: float, w: float, fc: float, mus: tuple, asymmetry_nm: float,
+                    stribeck: tuple) -> float:
+    """The dry friction level [N*m] of one period of :func:`simulate`: ``fc`` plus the
+    direction-dependent part, the load-dependent part ``mu |tau|`` (``mus`` = ``(mu_drive,
+    mu_back)``, blended over :data:`BLEND_SPEED_RAD_S`) and the Stribeck rise; never below 0."""
+    mu_drive, mu_back = mus
+    rise, w_s, delta = stribeck
+    if BLEND_SPEED_RAD_S == 0:  # a switch, mu_back at rest (scripts/valley_scan.py)
+        mu = mu_drive if tau * w > 0 else mu_back
+    else:
+        half_sum, half_diff = 0.5 * (mu_drive + mu_back), 0.5 * (mu_drive - mu_back)
+        mu = half_sum + half_diff * math.tanh((w if tau > 0 else -w) / BLEND_SPEED_RAD_S)
+    level = fc + asymmetry_nm * _sign(w) + mu * abs(tau)
+    if rise:
+        level += rise * math.exp(-(abs(w) / w_s) ** delta)
+    return max(0.0, level)
+
+
+def _current_limited(u: float, w: float, gear: float, current_limit: tuple) -> float:
+    """The voltage the firmware applies for the P law's ``u`` under its current limit
+    (``current_limit`` = ``(kt i_max, kt^2/R)``, see :func:`simulate`)."""
+    limit, b = current_limit
+    net = gear * u - b * w  # kt i: the motor's torque after the gear
+    if abs(net) > limit:
+        return (math.copysign(limit, net) + b * w) / gear
+    return u
 
 
 def at_log_times(traj: Trajectory, t_log) -> tuple[np.ndarray, np.ndarray]:
