@@ -502,6 +502,9 @@ BANK_PARTS = {
     "test_half": ({"identification"}, {"test_half"}),
     # the second test half reuses the first's plant, loop, campaign and scoring, nothing else
     "test_half_2": ({"identification"}, {"test_half", "test_half_2"}),
+    # the third test half reuses the first's plant, campaign and scoring and the second's loop
+    # and scoring, nothing else
+    "test_half_3": ({"identification"}, {"test_half", "test_half_2", "test_half_3"}),
 }
 
 
@@ -511,7 +514,7 @@ def bank_part(module: str) -> str | None:
     parts = module.split(".")
     if parts[0] != BANK or len(parts) == 1:
         return None
-    return parts[1] if parts[1] in ("studies", "writers", "test_half", "test_half_2") else "truths"
+    return parts[1] if parts[1] in ("studies", "writers", "test_half", "test_half_2", "test_half_3") else "truths"
 
 
 def bank_imports(source: str) -> list[tuple[int, str, bool]]:
