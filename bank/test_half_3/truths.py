@@ -290,9 +290,9 @@ class Palmgren(Truth):
         return s, s, f, f
 
     def expected(self):
-        return _expect("friction: nonlinear viscous",
-                       accept=["friction: nonlinear viscous", "friction: stribeck"],
-                       partial=["friction: viscous", "friction: coulomb"], unexplained_ok=True,
+        return _expect("friction: nonlinear viscous", accept=["friction: nonlinear viscous"],
+                       partial=["friction: viscous", "friction: coulomb", "friction: stribeck"],
+                       unexplained_ok=True,
                        signs={"speed_exponent_vs_1": "below"},
                        note="a drag in |w|^(2/3): steeper than linear at low speed, flatter at "
                             "high; a Coulomb + viscous pair fits it only in part")
