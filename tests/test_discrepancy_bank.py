@@ -930,3 +930,31 @@ def test_the_bank_script_refuses_a_case_it_cannot_run(capsys, tmp_path):
     assert not (tmp_path / "no").exists()
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and "load_friction_nominal_off" in err[0]
+
+
+def test_docs_smooth_sign_figures_are_the_record():
+    """The method page's paragraph on the two forms of the load law quotes the record
+    docs/studies/discrepancy/smooth_sign.json (scripts/smooth_sign.py), and the record's fits
+    are on the case and law it names."""
+    root = Path(__file__).resolve().parents[1]
+    rec = json.loads((root / "docs" / "studies" / "discrepancy" / "smooth_sign.json").read_text())
+    assert rec["case"] == "i_users_pendulum" and rec["truth"]["mu_drive"] == rec["truth"]["mu_back"] == 0.2
+    flat = " ".join((root / "docs" / "method" / "discrepancy.md").read_text().split())
+    stick, smooth = rec["forms"]["stick"], rec["forms"]["smooth"]
+
+    def e(x):  # the page writes 2.30e-3
+        return f"{x:.2e}".replace("e-0", "e-")
+
+    assert (f"At the truth's values the sticking form leaves {e(stick['rms_at_truth_rad'])} rad, "
+            f"the smooth one {e(smooth['rms_at_truth_rad'])}.") in flat
+    v = smooth["fit_from_truth"]["values"]
+    assert (f"smooth form stays there (gear {v['gear_nm_per_v']:.4f} for {rec['truth']['gear_nm_per_v']:.4f} "
+            f"N m/V, μ {v['mu_drive']:.4f} and {v['mu_back']:.4f}, ω_s {v['w_s_rad_s']:.4f} rad/s; "
+            f"{e(smooth['fit_from_truth']['rms_rad'])} rad)") in flat
+    s = stick["fit_from_truth"]
+    assert (f"the sticking form stops at {e(s['rms_rad'])} rad with the gear at "
+            f"{s['values']['gear_nm_per_v']:.4f}") in flat
+    far = (stick["fit_from_nominal"]["rms_rad"], smooth["fit_from_nominal"]["rms_rad"])
+    assert f"both stop far from the truth ({e(far[0])} and {e(far[1])} rad)" in flat
+    assert all(abs(x["fit_from_nominal"]["values"]["gear_nm_per_v"] - rec["truth"]["gear_nm_per_v"]) > 0.005
+               for x in (stick, smooth))
