@@ -1,8 +1,11 @@
 """The drive laws MuJoCo cannot express, for a user's own ``mujoco.mj_step`` loop.
 
 A model may declare drive friction laws (:data:`omni_sim.device.DRIVE_LAWS`: ``load_friction``,
-``friction_asymmetry``, ``friction_family``) and a current limit whose torque bound moves with the
-back-EMF (:data:`omni_sim.device.CURRENT_LIMIT`) as ``<custom><numeric>`` data.  MuJoCo ignores custom numerics: stepped
+``friction_asymmetry``, ``friction_family``), the smooth load law
+(:data:`omni_sim.device.LOAD_FRICTION_SMOOTH`: the callback also sets the joint's
+``model.dof_damping`` and ``data.qfrc_applied``, held for the period) and a current limit whose
+torque bound moves with the back-EMF (:data:`omni_sim.device.CURRENT_LIMIT`) as
+``<custom><numeric>`` data.  MuJoCo ignores custom numerics: stepped
 with ``mujoco.mj_step`` alone, such a model is the model WITHOUT the law (the joint keeps its
 own ``frictionloss``).  Our engine (:class:`omni_sim.device.Engine`) applies them; this module
 applies them in plain MuJoCo, with the same arithmetic (it calls the engine's law terms,
@@ -53,7 +56,8 @@ import mujoco
 import numpy as np
 
 from .device import (CURRENT_LIMIT, CURRENT_LIMIT_PARAMS, DRIVE_LAWS, FRICTION_ASYMMETRY, FRICTION_FAMILY,
-                     LOAD_FRICTION, DriveFriction, substeps_of)
+                     LOAD_FRICTION, LOAD_FRICTION_SMOOTH, LOAD_FRICTION_SMOOTH_PARAMS, DriveFriction,
+                     substeps_of)
 from .device.laws import _DriveLaws, _numeric
 
 #: ``MODULE:FUNCTION`` of the runtime, as the header of an exported model names it.
@@ -65,7 +69,7 @@ PERIOD_NUMERIC = "drive_laws_control_period_s"
 TARGET_TEXT = "drive_laws_target"
 #: The laws this package defines (a law a user registers with
 #: :func:`omni_sim.device.register_drive_law` exists only in the process that registers it).
-BUILTIN_LAWS = (FRICTION_ASYMMETRY, LOAD_FRICTION, FRICTION_FAMILY, CURRENT_LIMIT)
+BUILTIN_LAWS = (FRICTION_ASYMMETRY, LOAD_FRICTION, FRICTION_FAMILY, CURRENT_LIMIT, LOAD_FRICTION_SMOOTH)
 
 
 class DriveLawsCallback:
@@ -98,6 +102,8 @@ class DriveLawsCallback:
         adr = self._friction.sensor_adr
         force = 0.0 if k == 0 or adr < 0 else float(data.sensordata[adr])
         self._levels.write([model], np.array([data.qvel[self.dof]]), np.array([force]))
+        if self._friction.smooth is not None:  # the smooth law's force, held for the period
+            data.qfrc_applied[self.dof] = self._levels.applied[0]
 
 
 def _target(model: mujoco.MjModel) -> tuple[str, str] | None:
@@ -189,13 +195,16 @@ def needed_laws(model) -> dict:
     own ``frictionloss``.)"""
     if isinstance(model, mujoco.MjSpec):
         model = model.copy().compile()
-    return {name: v for name in (*DRIVE_LAWS, CURRENT_LIMIT)
-            if (v := _numeric(model, name)) is not None and np.any(v != 0)}
+    return {name: v for name in (*DRIVE_LAWS, CURRENT_LIMIT, LOAD_FRICTION_SMOOTH)
+            if (v := _numeric(model, name)) is not None
+            and np.any((v[:3] if name == LOAD_FRICTION_SMOOTH else v) != 0)}  # its w_s alone: no force
 
 
 def _params(name: str) -> tuple:
     """The parameter names of a law's numeric (a drive law's, or the current limit's)."""
-    return CURRENT_LIMIT_PARAMS if name == CURRENT_LIMIT else DRIVE_LAWS[name].params
+    if name in (CURRENT_LIMIT, LOAD_FRICTION_SMOOTH):
+        return CURRENT_LIMIT_PARAMS if name == CURRENT_LIMIT else LOAD_FRICTION_SMOOTH_PARAMS
+    return DRIVE_LAWS[name].params
 
 
 def runtime_note(model) -> tuple[bool, list[str]]:
@@ -228,7 +237,10 @@ def runtime_note(model) -> tuple[bool, list[str]]:
     lines = [f"NEEDS THE RUNTIME: drive law(s) {params}{where}, written as <custom><numeric> data "
              "that MuJoCo ignores.",
              "Stepped with mujoco.mj_step alone this file is NOT the named model: "
-             + " and ".join(([f"the joint keeps a constant friction{fc}"] if set(laws) - {CURRENT_LIMIT} else [])
+             + " and ".join(([f"the joint keeps a constant friction{fc}"]
+                             if set(laws) - {CURRENT_LIMIT, LOAD_FRICTION_SMOOTH} else [])
+                            + (["the joint lacks the smooth load friction's force"]
+                               if LOAD_FRICTION_SMOOTH in laws else [])
                             + (["the actuator keeps its force range at rest (the current limit's "
                                 "bound does not move with the back-EMF)"] if CURRENT_LIMIT in laws else []))
              + "."]

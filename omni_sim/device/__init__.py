@@ -50,11 +50,13 @@ from .encoder import ENCODER_STEP_RAD, Encoder, encoder_reader, read_encoder
 from .engine import (CONTROL_PERIOD_S, STATE_SPEC, THREADS_ENV, Engine, default_threads, p_law, run_p_loop,
                      substeps_of)
 from .laws import (CURRENT_LIMIT, CURRENT_LIMIT_PARAMS, DRIVE_LAWS, FRICTION_ASYMMETRY, FRICTION_FAMILY,
-                   LOAD_FRICTION, LOAD_FRICTION_BLEND_RAD_S, DriveFriction, DriveLaw, register_drive_law)
+                   LOAD_FRICTION, LOAD_FRICTION_BLEND_RAD_S, LOAD_FRICTION_SMOOTH, LOAD_FRICTION_SMOOTH_PARAMS,
+                   DriveFriction, DriveLaw, register_drive_law)
 from .laws import _DriveLaws, _numeric  # noqa: F401 (omni_sim.runtime's)
 
 __all__ = ["CONTROL_PERIOD_S", "CURRENT_LIMIT", "CURRENT_LIMIT_PARAMS", "DRIVE_LAWS", "ENCODER_STEP_RAD",
-           "FRICTION_ASYMMETRY", "FRICTION_FAMILY", "LOAD_FRICTION", "LOAD_FRICTION_BLEND_RAD_S", "STATE_SPEC",
+           "FRICTION_ASYMMETRY", "FRICTION_FAMILY", "LOAD_FRICTION", "LOAD_FRICTION_BLEND_RAD_S",
+           "LOAD_FRICTION_SMOOTH", "LOAD_FRICTION_SMOOTH_PARAMS", "STATE_SPEC",
            "THREADS_ENV", "Device", "DriveFriction", "DriveLaw", "Encoder", "Engine", "coupled_hinges",
            "default_threads", "encoder_reader",
            "p_law", "read_encoder", "register_drive_law", "run_p_loop", "substeps_of"]

@@ -80,12 +80,15 @@ def _instability_warnings(datas) -> int:
 
 
 def _warns(model: mujoco.MjModel, state: np.ndarray, ctrl: np.ndarray) -> bool:
-    """Whether one control period from ``state`` under ``ctrl`` (substeps x nu) makes MuJoCo
-    reset the data (a fresh ``MjData``; the same steps as the rollout's)."""
+    """Whether one control period from ``state`` under ``ctrl`` (substeps x nu, or substeps x
+    (nu + nv) with the joint forces after the controls) makes MuJoCo reset the data (a fresh
+    ``MjData``; the same steps as the rollout's)."""
     d = mujoco.MjData(model)
     mujoco.mj_setState(model, d, state, STATE_SPEC)
     for u in ctrl:
-        d.ctrl[:] = u
+        d.ctrl[:] = u[:model.nu]
+        if len(u) > model.nu:
+            d.qfrc_applied[:] = u[model.nu:]
         mujoco.mj_step(model, d)
     return _instability_warnings([d]) > 0
 
@@ -149,10 +152,17 @@ class Engine:
             self._law_models = [copy.deepcopy(d.model) for d in devices]
             self._law_fl = [m.dof_frictionloss for m in self._law_models]  # written every period
             self._fl_now = self._law_fl  # a batch's: those of the models its rows step now
+        # LOAD_FRICTION_SMOOTH: the rows' damping is written every period too, and the law's
+        # force is a joint force (the rollout's control then holds qfrc_applied after ctrl)
+        self._smooth = bool(self._laws is not None and self._laws.smoothed.any())
+        if self._smooth:
+            self._law_dm = [m.dof_damping for m in self._law_models]
+            self._dm_now = self._law_dm
         # torque-off periods (run_p_loop's ``enabled``) step each row's off model
         self._on_models = self._law_models if self._laws else [d.model for d in devices]
         self._off_models = None  # made at the first torque-off period
         self._off_fl = None  # their dof_frictionloss arrays (with drive laws; made with them)
+        self._off_dm = None  # their dof_damping arrays (with LOAD_FRICTION_SMOOTH)
         if self.B == 1:
             m1 = self._law_models[0] if self._laws else d0.model
             self._data = d0.start_data(float(theta0_rad[0]), _pose(gamma_set_deg[0]), data)
@@ -164,9 +174,14 @@ class Engine:
             return
         self._data = None
         self.x = np.empty((self.B, d0.nstate))
-        self._ctrl = np.empty((self.B, self.substeps, d0.model.nu))
+        self._nu = d0.model.nu
+        self._ctrl = np.zeros((self.B, self.substeps, self._nu + (d0.model.nv if self._smooth else 0)))
+        self._control_spec = mujoco.mjtState.mjSTATE_CTRL
+        if self._smooth:
+            self._control_spec |= mujoco.mjtState.mjSTATE_QFRC_APPLIED
+            self._qfrc_col = self._nu + self._laws.dof
         for b, (dev, th0, gs) in enumerate(zip(devices, theta0_rad, gamma_set_deg)):
-            self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
+            self.x[b], self._ctrl[b, :, :self._nu] = dev.start_state(float(th0), _pose(gs))
         self._models = list(self._on_models)
         self._models_on = np.ones(self.B, bool)  # which rows _models steps with the drive on
         nthread = max(1, nthread or default_threads())
@@ -249,7 +264,7 @@ class Engine:
             if self._data is not None:
                 dev.start_data(float(th0), _pose(gs), self._data)
             else:
-                self.x[b], self._ctrl[b, :] = dev.start_state(float(th0), _pose(gs))
+                self.x[b], self._ctrl[b, :, :self._nu] = dev.start_state(float(th0), _pose(gs))
 
     def _off(self) -> list:
         if self._off_models is None:
@@ -257,6 +272,8 @@ class Engine:
                                 for d in self.devices]
             if self._laws:
                 self._off_fl = [m.dof_frictionloss for m in self._off_models]
+            if self._smooth:
+                self._off_dm = [m.dof_damping for m in self._off_models]
         return self._off_models
 
     def apply(self, v, on=None) -> np.ndarray:
@@ -311,6 +328,8 @@ class Engine:
                 self._models_on = state.copy()
                 if self._laws:  # the friction level goes to the model each row steps
                     self._fl_now = [fl if state[b] else self._off_fl[b] for b, fl in enumerate(self._law_fl)]
+                if self._smooth:
+                    self._dm_now = [dm if state[b] else self._off_dm[b] for b, dm in enumerate(self._law_dm)]
         if self._laws:
             self._set_friction()
         x_before = self.x
@@ -322,8 +341,8 @@ class Engine:
             mujoco.set_mju_user_warning(lambda msg: (warnings.append(msg), prev and prev(msg)))
         try:
             self.pool.rollout(self._models, self._datas, self.x, self._ctrl, nstep=self.substeps,
-                              skip_checks=True, state=self._state, sensordata=self._sens,
-                              chunk_size=self._chunk)
+                              control_spec=self._control_spec, skip_checks=True, state=self._state,
+                              sensordata=self._sens, chunk_size=self._chunk)
         finally:
             if in_first:
                 mujoco.set_mju_user_warning(prev)
@@ -342,14 +361,22 @@ class Engine:
         """Every row's :class:`DriveFriction` level for the coming control period, written into
         the row's own model."""
         if self._data is None:  # a batch: each row's level into the model it steps this period
-            self._laws.write(self._law_models, self.x[:, self._vel], self._force, self._fl_now)
+            self._laws.write(self._law_models, self.x[:, self._vel], self._force, self._fl_now,
+                             self._dm_now if self._smooth else None)
+            if self._smooth:
+                self._ctrl[:, :, self._qfrc_col] = self._laws.applied[:, None]
             return
         # the one row's model is _law_models[0]
-        levels = self._laws.write(self._law_models, self.yaw_velocity(), self._force, self._law_fl)
+        levels = self._laws.write(self._law_models, self.yaw_velocity(), self._force, self._law_fl,
+                                  self._law_dm if self._smooth else None)
+        dof = self._laws.dof
         if self._off_models is not None:  # the drive off: no force, only the friction level
-            dof = self._laws.dof
             for fl, f in zip(self._off_fl, levels):
                 fl[dof] = f
+            if self._smooth:
+                self._off_dm[0][dof] = self._law_dm[0][dof]
+        if self._smooth:
+            self._data.qfrc_applied[dof] = self._laws.applied[0]
 
 
 def run_p_loop(engine: Engine, r: np.ndarray, kp, noise: np.ndarray | None = None,

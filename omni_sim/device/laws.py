@@ -49,6 +49,24 @@ FRICTION_ASYMMETRY = "friction_asymmetry"
 #: own ``damping`` (both native MJCF, integrated by MuJoCo); the numeric holds the rest.  The
 #: nested variants the discrepancy library fits are in :mod:`discrepancy.effects.family`.
 FRICTION_FAMILY = "friction_family"
+#: ``<custom><numeric name="load_friction_smooth" data="mu_drive mu_back b_emf w_s"/>``:
+#: :data:`LOAD_FRICTION`'s load-dependent friction behind a smooth sign instead of a stick, the
+#: regularised Coulomb law of Makkar, Dixon, Sawyer and Hu (2005, "A new continuously
+#: differentiable friction model for control systems design", IEEE/ASME AIM) with a level that
+#: grows with the transmitted torque: the joint force ``-L tanh(w / w_s)``, ``L = mu |tau|``,
+#: ``tau = gear * actuator_force - b_emf w``, ``mu = mu_drive`` while ``tau w > 0`` (the motor
+#: drives) else ``mu_back`` (continuous: ``L tanh`` vanishes where either side switches).  It
+#: holds nothing at rest: a load on a held joint creeps until its speed engages the level.  MuJoCo
+#: has no such element; the engine applies it linearly implicitly at every control period: the
+#: slope ``s = L (1 - tanh^2) / w_s`` is added to the joint's ``damping`` (which MuJoCo's
+#: implicit integrators treat implicitly) and ``-L tanh(w / w_s) + s w`` goes to
+#: ``qfrc_applied``, so a period sees ``-L tanh(w0 / w_s) - s (w - w0)``, stable for any
+#: ``w_s`` (``bank/servo_truth.py``'s efficiency truth applies its loss so).  Why: a load law
+#: that sticks cannot follow a gear whose loss vanishes at rest (docs/method/discrepancy.md,
+#: "A load law that sticks, beside one behind a smooth sign").
+LOAD_FRICTION_SMOOTH = "load_friction_smooth"
+#: The parameters of :data:`LOAD_FRICTION_SMOOTH`'s numeric, in order.
+LOAD_FRICTION_SMOOTH_PARAMS = ("mu_drive", "mu_back", "b_emf", "w_s")
 #: ``<custom><numeric name="current_limit" data="torque_limit_nm back_emf_nms_per_rad"/>``: a
 #: servo firmware's current limit ``|i| <= i_max`` on a motor driven by its voltage, whose
 #: back-EMF the model writes as joint damping.  With ``tau_i = kt i_max`` and ``b = kt ke / R``
@@ -158,6 +176,22 @@ def _limit_check(v: np.ndarray) -> str | None:
     return None if ok else "must hold a torque limit > 0 [N*m] and a back-EMF damping >= 0 [N*m*s/rad]"
 
 
+def _smooth_check(v: np.ndarray) -> str | None:
+    ok = len(v) == 4 and np.all(np.isfinite(v)) and not np.any(v < 0) and v[3] > 0
+    return None if ok else ("must hold mu_drive mu_back b_emf >= 0 and a sign speed w_s > 0 [rad/s]")
+
+
+def smooth_load_force(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:data:`LOAD_FRICTION_SMOOTH`'s joint force ``-L tanh(w / w_s)`` [N*m] of B rows and its
+    slope ``-dF/dw = L (1 - tanh^2) / w_s`` [N*m*s/rad], with ``v`` (B, 4) the rows' values
+    (``w_s`` > 0), ``w`` their joint velocities and ``tau`` their actuators' torques
+    (``gear * actuator_force``)."""
+    tau = tau - v[:, 2] * w
+    level = np.where(tau * w > 0, v[:, 0], v[:, 1]) * np.abs(tau)
+    th = np.tanh(w / v[:, 3])
+    return -level * th, level * (1.0 - th * th) / v[:, 3]
+
+
 #: The parameters of :data:`CURRENT_LIMIT`'s numeric, in order.
 CURRENT_LIMIT_PARAMS = ("torque_limit_nm", "back_emf_nms_per_rad")
 
@@ -226,6 +260,13 @@ class DriveFriction:
         period (:meth:`_DriveLaws.force_ranges`).
     act : int
         The actuator (-1 for a row without laws).
+    smooth : tuple of float or None
+        :data:`LOAD_FRICTION_SMOOTH`'s ``(mu_drive, mu_back, b_emf, w_s)`` when the model
+        declares it: the engine then also writes the joint's ``damping`` (``damping`` plus the
+        law's slope) and applies the law's force at every control period
+        (:meth:`_DriveLaws.write`, :attr:`_DriveLaws.applied`).
+    damping : float
+        The model's own ``damping`` of the joint (read with :data:`LOAD_FRICTION_SMOOTH` only).
     """
 
     dof: int
@@ -235,6 +276,8 @@ class DriveFriction:
     gear: float
     limit: tuple | None = None
     act: int = -1
+    smooth: tuple | None = None
+    damping: float = 0.0
 
     @classmethod
     def of(cls, model: mujoco.MjModel, act: int, dof: int, source: str) -> "DriveFriction | None":
@@ -254,10 +297,16 @@ class DriveFriction:
             if why:
                 raise UserError(f"{source}: custom numeric {CURRENT_LIMIT!r} {why}, got {limit.tolist()}")
             limit = tuple(float(x) for x in limit)
-        if not values and limit is None:
+        smooth = _numeric(model, LOAD_FRICTION_SMOOTH)
+        if smooth is not None:
+            why = _smooth_check(smooth)
+            if why:
+                raise UserError(f"{source}: custom numeric {LOAD_FRICTION_SMOOTH!r} {why}, got {smooth.tolist()}")
+            smooth = tuple(float(x) for x in smooth)
+        if not values and limit is None and smooth is None:
             return None
         adr = -1
-        if any(DRIVE_LAWS[n].needs_torque for n in values):
+        if smooth is not None or any(DRIVE_LAWS[n].needs_torque for n in values):
             for i in range(model.nsensor):
                 if (model.sensor_type[i] == mujoco.mjtSensor.mjSENS_ACTUATORFRC
                         and model.sensor_objid[i] == act):
@@ -265,11 +314,12 @@ class DriveFriction:
                     break
             else:
                 name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, act)
-                needs = ", ".join(repr(n) for n in values if DRIVE_LAWS[n].needs_torque)
+                needs = ", ".join([repr(n) for n in values if DRIVE_LAWS[n].needs_torque]
+                                  + ([repr(LOAD_FRICTION_SMOOTH)] if smooth is not None else []))
                 raise UserError(f"{source}: {needs} needs the transmitted torque: add "
                                 f'<sensor><actuatorfrc actuator="{name}"/></sensor>')
         return cls(dof, float(model.dof_frictionloss[dof]), values, adr, float(model.actuator_gear[act, 0]),
-                   limit, act)
+                   limit, act, smooth, float(model.dof_damping[dof]))
 
     def force_range(self, w: float) -> tuple[float, float]:
         """The actuator force range :data:`CURRENT_LIMIT` allows at joint velocity ``w``
@@ -298,6 +348,12 @@ class _DriveLaws:
         self.limited = np.array([f.limit is not None for f in laws])
         self.limit = np.array([f.limit if f.limit is not None else (0.0, 0.0) for f in laws], float)
         self.act = max(f.act for f in laws)
+        #: rows with LOAD_FRICTION_SMOOTH, their values (w_s 1 elsewhere: a zero force) and own
+        #: damping; ``applied``: each row's force of the period (0 without the law), set by write
+        self.smoothed = np.array([f.smooth is not None for f in laws])
+        self.smooth = np.array([f.smooth if f.smooth is not None else (0.0, 0.0, 0.0, 1.0) for f in laws], float)
+        self.damping = np.array([f.damping for f in laws])
+        self.applied = np.zeros(len(laws))
 
     def levels(self, w: np.ndarray, force: np.ndarray) -> np.ndarray:
         """The Coulomb levels [N*m] of the rows: velocities ``w`` and actuator forces ``force``."""
@@ -314,13 +370,24 @@ class _DriveLaws:
         :attr:`limited` rows only)."""
         return current_limit_range(self.limit[:, 0], self.limit[:, 1], self.gear, w)
 
-    def write(self, models, w: np.ndarray, force: np.ndarray, frictionloss: list | None = None) -> np.ndarray:
+    def write(self, models, w: np.ndarray, force: np.ndarray, frictionloss: list | None = None,
+              damping: list | None = None) -> np.ndarray:
         """Write the rows' Coulomb levels (joint ``frictionloss``) and, for the rows with a
         current limit, their actuator ``forcerange`` (forcelimited on) into ``models`` (one per
         row): what the engine and the runtime (:mod:`omni_sim.runtime`) do at every control
         period.  ``frictionloss``: the models' ``dof_frictionloss`` arrays, taken once by a
-        caller that writes every period (each attribute read makes a new array).  Returns the
-        levels."""
+        caller that writes every period (each attribute read makes a new array); ``damping``
+        the same of ``dof_damping``.  For the rows with :data:`LOAD_FRICTION_SMOOTH` it writes
+        the joint's damping plus the law's slope and leaves the force to apply in
+        :attr:`applied` (the caller's ``qfrc_applied`` of the joint for the period).  Returns
+        the levels."""
+        if self.smoothed.any():
+            f, slope = smooth_load_force(self.smooth, w, force * self.gear)
+            self.applied = np.where(self.smoothed, f + slope * w, 0.0)
+            for dm, on, b in zip(damping if damping is not None else [m.dof_damping for m in models],
+                                 self.smoothed, (self.damping + slope).tolist()):
+                if on:
+                    dm[self.dof] = b
         levels = self.levels(w, force)
         for fl, f in zip(frictionloss if frictionloss is not None else [m.dof_frictionloss for m in models],
                          levels.tolist()):  # Python floats: the same doubles, written faster
