@@ -396,3 +396,49 @@ def test_score_families_and_new_claims():
     report["effects"] = [{"name": "load_friction", "parameters": {"mu_drive": 0.1, "mu_back": 0.3}, "reason": ""}]
     assert score.score_case(_case("c_worm_mesh"), report)["points"]["direction"] is True
     assert score.score_case(_case("d_load_atan"), report)["points"]["direction"] is False
+
+
+# --- the one run's record (bank/README.md, "The second half's one run") -------------------------
+RECORD = tr.ROOT / "bank" / "test_half_2" / "record"
+
+
+def _record_table(record) -> str:
+    """The README's table of the one run, made from its record (score.json and the reports)."""
+    sc = json.loads((record / "score.json").read_text())
+    mark = {True: "yes", False: "**no**", None: "unchecked"}
+    rows = ["| case | expected | named (confidence) | held-out gap [rad] | family | no spurious | direction | unexplained |",
+            "|---|---|---|---|---|---|---|---|"]
+    for c in sc["cases"]:
+        rep = json.loads((record / c["case"] / "report.json").read_text())
+        named = ", ".join(f"`{e['name']}` ({e.get('confidence')})" for e in rep["effects"] if e["name"] != "none")
+        named = (named or "none") + ("; flagged unexplained" if c["unexplained_flag"] else "")
+        p = c["points"]
+        rows.append(f"| `{c['case']}` | {c['expected_family']} | {named} | {rep['gap_before']:.2e} → "
+                    f"{rep['gap_after']:.2e} | {mark[p['family']]} | {mark[p['no_spurious']]} | "
+                    f"{mark[p['direction']]} | {mark[p['unexplained']]} |")
+    t = sc["totals"]
+    rows += ["", f"Totals ({sc['n_cases']} cases): family {t['family']}, no spurious second effect "
+                 f"{t['no_spurious']}, direction {t['direction']} (the others unchecked or wrong), "
+                 f"unexplained {t['unexplained']}."]
+    return "\n".join(rows) + "\n"
+
+
+def test_readme_second_half_run_is_its_record():
+    """bank/README.md's table of the second half's one run is made from test_half_2/record (the
+    score as run and each case's report), the commit it names is the score's and the reports',
+    the record's scores are what score.py says of its reports, and the wall times it quotes
+    are the reports' own."""
+    text = (tr.ROOT / "bank" / "README.md").read_text()
+    a = text.index("<!-- second test half table:")
+    table = text[text.index("\n", a) + 1:text.index("<!-- end of second test half table -->")]
+    assert table == _record_table(RECORD)
+    sc = json.loads((RECORD / "score.json").read_text())
+    assert f"at commit {sc['commit'][:7]}" in text and f"score.py --commit {sc['commit'][:7]}" in text
+    cases = json.loads((RECORD / "cases.json").read_text())["cases"]
+    walls = []
+    for case, row in zip(cases, sc["cases"], strict=True):
+        rep = json.loads((RECORD / case["name"] / "report.json").read_text())
+        assert score.score_case(case, rep)["points"] == row["points"], case["name"]
+        walls.append(rep["timings"]["total_s"] / 60)
+    flat = " ".join(text.split())
+    assert f"{min(walls):.1f} to {max(walls):.1f} min a case" in flat
