@@ -338,29 +338,6 @@ def test_score_directions_of_a_load_friction():
 
 
 # --- the one run's record (bank/README.md, "The one run") -------------------------------------
-def _record_table(record) -> str:
-    """The README's table of the one run, made from its record (score.json and the reports)."""
-    import json
-
-    sc = json.loads((record / "score.json").read_text())
-    mark = {True: "yes", False: "**no**", None: "unchecked"}
-    rows = ["| case | expected | named (confidence) | held-out gap [rad] | family | no spurious | direction | unexplained |",
-            "|---|---|---|---|---|---|---|---|"]
-    for c in sc["cases"]:
-        rep = json.loads((record / c["case"] / "report.json").read_text())
-        named = ", ".join(f"`{e['name']}` ({e.get('confidence')})" for e in rep["effects"] if e["name"] != "none")
-        named = (named or "none") + ("; flagged unexplained" if c["unexplained_flag"] else "")
-        p = c["points"]
-        rows.append(f"| `{c['case']}` | {c['expected_family']} | {named} | {rep['gap_before']:.2e} → "
-                    f"{rep['gap_after']:.2e} | {mark[p['family']]} | {mark[p['no_spurious']]} | "
-                    f"{mark[p['direction']]} | {mark[p['unexplained']]} |")
-    t = sc["totals"]
-    rows += ["", f"Totals ({sc['n_cases']} cases): family {t['family']}, no spurious second effect "
-                 f"{t['no_spurious']}, direction {t['direction']} (the others unchecked or wrong), "
-                 f"unexplained {t['unexplained']}."]
-    return "\n".join(rows) + "\n"
-
-
 def test_readme_one_run_is_its_record():
     """bank/README.md's table of the one run is made from test_half/record (the score as frozen
     and each case's report), the commit it names is the score's, the record's scores are what
@@ -374,7 +351,7 @@ def test_readme_one_run_is_its_record():
     text = (root / "bank" / "README.md").read_text()
     a = text.index("<!-- test half table:")
     table = text[text.index("\n", a) + 1:text.index("<!-- end of test half table -->")]
-    assert table == _record_table(record)
+    assert table == score.record_table(record)
     sc = json.loads((record / "score.json").read_text())
     assert f"after the rules froze at commit {sc['commit']}" in text and f"score.py --commit {sc['commit']}" in text
     cases = json.loads((record / "cases.json").read_text())["cases"]

@@ -146,9 +146,37 @@ def score_case(case: dict, report: dict, extra: dict | None = None) -> dict:
             "partial_family": partial, "signs": signs}
 
 
+def record_table(record: Path) -> str:
+    """The table of a test half's one run (bank/README.md) made from its record folder: its
+    ``score.json`` and each case's ``report.json``, a row a case and the totals."""
+    sc = json.loads((record / "score.json").read_text())
+    mark = {True: "yes", False: "**no**", None: "unchecked"}
+    rows = ["| case | expected | named (confidence) | held-out gap [rad] | family | no spurious | direction | unexplained |",
+            "|---|---|---|---|---|---|---|---|"]
+    for c in sc["cases"]:
+        rep = json.loads((record / c["case"] / "report.json").read_text())
+        named = ", ".join(f"`{e['name']}` ({e.get('confidence')})" for e in rep["effects"] if e["name"] != "none")
+        named = (named or "none") + ("; flagged unexplained" if c["unexplained_flag"] else "")
+        p = c["points"]
+        rows.append(f"| `{c['case']}` | {c['expected_family']} | {named} | {rep['gap_before']:.2e} → "
+                    f"{rep['gap_after']:.2e} | {mark[p['family']]} | {mark[p['no_spurious']]} | "
+                    f"{mark[p['direction']]} | {mark[p['unexplained']]} |")
+    t = sc["totals"]
+    rows += ["", (f"Totals ({sc['n_cases']} cases): family {t['family']}, no spurious second effect "
+                  f"{t['no_spurious']}, direction {t['direction']} (the others unchecked or wrong), "
+                  f"unexplained {t['unexplained']}.")]
+    return "\n".join(rows) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("cases", help="cases.json written by bank.test_half.make")
+    return cli(argv, score_case, "bank.test_half.make", __doc__.split("\n\n")[0])
+
+
+def cli(argv: list[str] | None, scorer, maker: str, description: str) -> int:
+    """The command line of a test half's ``score`` (:func:`main`'s): ``scorer(case, report,
+    extra)`` scores one case, ``maker`` names the module that wrote the cases."""
+    p = argparse.ArgumentParser(description=description)
+    p.add_argument("cases", help=f"cases.json written by {maker}")
     p.add_argument("reports", help="folder with one sub-folder per case holding report.json")
     p.add_argument("--commit", required=True, help="the commit the reports were made at")
     p.add_argument("--families", help="JSON object: library effect name -> physics family")
@@ -166,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {args.reports}/{missing[0]}/report.json missing; run omni discrepancy on "
               f"every case first ({len(missing)} missing)", file=sys.stderr)
         return 2
-    rows = [score_case(c, json.loads((Path(args.reports) / c["name"] / "report.json").read_text()), extra)
+    rows = [scorer(c, json.loads((Path(args.reports) / c["name"] / "report.json").read_text()), extra)
             for c in cases]
     totals = {k: sum(1 for r in rows if r["points"][k] is True) for k in rows[0]["points"]}
     doc = {"commit": args.commit, "cases": rows, "totals": totals, "n_cases": len(rows)}

@@ -20,7 +20,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
@@ -34,13 +36,31 @@ DEFAULT_SEED = 43
 JITTER_SALT = 2
 
 
+@dataclass(frozen=True)
+class Half:
+    """What tells one test half's datasets apart: its truths module (``CASES`` and a
+    ``simulate`` with the first half's signature), its default seed, its log jitter's salt and
+    the ``what`` line of its ``cases.json``."""
+
+    truths: ModuleType
+    seed: int
+    salt: int
+    what: str
+
+
 def run_case(index: int, name: str, seed: int, quick: bool = False) -> tuple[tr.Truth, list[Run], dict]:
     """Simulate one case's campaign (the first half's ``run_case`` with this half's truths).
     ``quick``: the first and last runs only, 1.5 s each (tests)."""
+    return run_half_case(HALF, index, name, seed, quick)
+
+
+def run_half_case(half: Half, index: int, name: str, seed: int,
+                  quick: bool = False) -> tuple[tr.Truth, list[Run], dict]:
+    """:func:`run_case` of the test half ``half`` (the second half's and the later ones')."""
     plant, factors = tr.perturbed(tr.nominal_plant(), seed * 100 + index)
-    truth = dict(tr2.CASES)[name](plant)
+    truth = dict(half.truths.CASES)[name](plant)
     state = truth.initial_state()
-    rng = np.random.default_rng([seed, index, JITTER_SALT])
+    rng = np.random.default_rng([seed, index, half.salt])
     duration = 1.5 if quick else make1.RUN_S
     plan = make1.campaign(duration)
     if quick:
@@ -54,8 +74,8 @@ def run_case(index: int, name: str, seed: int, quick: bool = False) -> tuple[tr.
         en = np.ones(len(t)) if e["off_s"] is None else (t < e["off_s"]).astype(float)
         # the servo holds the last goal it received: period k starts at tick 10 k
         held = np.searchsorted(ticks, np.arange(n) * tr.SUBSTEPS, side="right") - 1
-        theta, u = tr2.simulate(truth, r[held], en[held], make1.KP, make1.COMMAND_LIMIT,
-                                float(r[0]), state)
+        theta, u = half.truths.simulate(truth, r[held], en[held], make1.KP, make1.COMMAND_LIMIT,
+                                        float(r[0]), state)
         truth.rest(make1.REST_S, state)
         y = np.round(theta[ticks] / tr.ENCODER_STEP_RAD) * tr.ENCODER_STEP_RAD
         v = u[np.minimum(ticks // tr.SUBSTEPS, n - 1)]
@@ -72,15 +92,24 @@ def run_case(index: int, name: str, seed: int, quick: bool = False) -> tuple[tr.
     return truth, runs, record
 
 
+#: This half.
+HALF = Half(tr2, DEFAULT_SEED, JITTER_SALT, "the bank's second test half (bank/README.md)")
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    return half_main(HALF, argv, __doc__.split("\n\n")[0])
+
+
+def half_main(half: Half, argv: list[str] | None, description: str) -> int:
+    """The command line of a test half's ``make`` (:func:`main`'s, for ``half``)."""
+    p = argparse.ArgumentParser(description=description)
     p.add_argument("--out", required=True, help="output folder (one sub-folder per case)")
-    p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"seed (default {DEFAULT_SEED})")
+    p.add_argument("--seed", type=int, default=half.seed, help=f"seed (default {half.seed})")
     p.add_argument("--only", help="comma-separated case names (default: all)")
     p.add_argument("--quick", action="store_true", help="two 1.5 s runs per case (tests)")
     p.add_argument("--force", action="store_true", help="replace a non-empty output folder")
     args = p.parse_args(argv)
-    names = [n for n, _ in tr2.CASES]
+    names = [n for n, _ in half.truths.CASES]
     chosen = names if not args.only else args.only.split(",")
     unknown = [n for n in chosen if n not in names]
     if unknown:
@@ -95,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     with atomic_output_dir(Path(args.out), force=args.force) as tmp:
         for name in chosen:
             index = names.index(name)
-            _, runs, record = run_case(index, name, args.seed, quick=args.quick)
+            _, runs, record = run_half_case(half, index, name, args.seed, quick=args.quick)
             (tmp / name).mkdir()
             for run in runs:
                 write_run(tmp / name, run)
@@ -103,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
                            "actuator": tr.ACTUATOR, "runs": len(runs), "quick": args.quick})
             cases.append(record)
             print(f"{name}: {len(runs)} runs", flush=True)
-        doc = {"what": "the bank's second test half (bank/README.md)", "seed": args.seed,
+        doc = {"what": half.what, "seed": args.seed,
                "command": ("omni discrepancy --measured OUT/<case> --model <model> "
                            "--joint pivot --actuator servo --out REPORTS/<case>"),
                "cases": cases}

@@ -24,11 +24,6 @@ half's ``score_case`` as its ``extra`` map, so the earlier halves' rules decide 
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
-from pathlib import Path
-
 from bank.test_half import score as base
 from bank.test_half_2 import score as score2
 
@@ -126,35 +121,7 @@ def score_case(case: dict, report: dict, extra: dict | None = None) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("cases", help="cases.json written by bank.test_half_3.make")
-    p.add_argument("reports", help="folder with one sub-folder per case holding report.json")
-    p.add_argument("--commit", required=True, help="the commit the reports were made at")
-    p.add_argument("--families", help="JSON object: library effect name -> physics family")
-    p.add_argument("--out", help="write the scores here (default: stdout)")
-    args = p.parse_args(argv)
-    try:
-        cases = json.loads(Path(args.cases).read_text())["cases"]
-        extra = json.loads(Path(args.families).read_text()) if args.families else None
-    except (OSError, ValueError, KeyError) as exc:
-        print(f"error: {args.cases}: cannot read the cases ({exc}); give the cases.json make.py wrote",
-              file=sys.stderr)
-        return 2
-    missing = [c["name"] for c in cases if not (Path(args.reports) / c["name"] / "report.json").is_file()]
-    if missing:
-        print(f"error: {args.reports}/{missing[0]}/report.json missing; run omni discrepancy on "
-              f"every case first ({len(missing)} missing)", file=sys.stderr)
-        return 2
-    rows = [score_case(c, json.loads((Path(args.reports) / c["name"] / "report.json").read_text()), extra)
-            for c in cases]
-    totals = {k: sum(1 for r in rows if r["points"][k] is True) for k in rows[0]["points"]}
-    doc = {"commit": args.commit, "cases": rows, "totals": totals, "n_cases": len(rows)}
-    text = json.dumps(doc, indent=2, sort_keys=True) + "\n"
-    if args.out:
-        Path(args.out).write_text(text)
-    else:
-        sys.stdout.write(text)
-    return 0
+    return base.cli(argv, score_case, "bank.test_half_3.make", __doc__.split("\n\n")[0])
 
 
 if __name__ == "__main__":
