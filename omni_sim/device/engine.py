@@ -137,27 +137,7 @@ class Engine:
         self._q = ((d0.ix.yaw_qpos, d0.ix.shoulder_qpos, d0.ix.elbow_qpos) if self.has_arm
                    else (d0.ix.yaw_qpos,))
         self._qadr = 1 + np.array(self._q)  # FULLPHYSICS state = [time, qpos, qvel, act, ...]
-        # the drive's friction laws (DriveFriction): each row steps its own copy of its model,
-        # whose frictionloss the engine sets at every control period
-        laws = [d.drive_friction for d in devices]
-        self._laws = None
-        if any(f is not None for f in laws):
-            # a row without laws (a candidate model without them, batched with ones that have
-            # them) keeps its own frictionloss: the null law
-            self._laws = _DriveLaws([f if f is not None else
-                                     DriveFriction.none(d.ix.yaw_dof, d.model.dof_frictionloss[d.ix.yaw_dof],
-                                                        d.ix.yaw_act)
-                                     for f, d in zip(laws, devices)])
-            self._force = np.zeros(self.B)  # each row's actuator force of its last step
-            self._law_models = [copy.deepcopy(d.model) for d in devices]
-            self._law_fl = [m.dof_frictionloss for m in self._law_models]  # written every period
-            self._fl_now = self._law_fl  # a batch's: those of the models its rows step now
-        # LOAD_FRICTION_SMOOTH: the rows' damping is written every period too, and the law's
-        # force is a joint force (the rollout's control then holds qfrc_applied after ctrl)
-        self._smooth = bool(self._laws is not None and self._laws.smoothed.any())
-        if self._smooth:
-            self._law_dm = [m.dof_damping for m in self._law_models]
-            self._dm_now = self._law_dm
+        self._init_laws(devices)
         # torque-off periods (run_p_loop's ``enabled``) step each row's off model
         self._on_models = self._law_models if self._laws else [d.model for d in devices]
         self._off_models = None  # made at the first torque-off period
@@ -205,6 +185,29 @@ class Engine:
         self._state = np.empty((self.B, self.substeps, d0.nstate))
         self._sens = np.empty((self.B, self.substeps, d0.model.nsensordata))
         self._chunk = max(1, -(-self.B // len(self._datas)))  # one task per thread
+
+    def _init_laws(self, devices: list) -> None:
+        """The rows' drive laws (:class:`DriveFriction`): each row steps its own copy of its
+        model, whose frictionloss the engine sets at every control period."""
+        laws = [d.drive_friction for d in devices]
+        self._laws = None
+        if any(f is not None for f in laws):
+            # a row without laws (a candidate model without them, batched with ones that have
+            # them) keeps its own frictionloss: the null law
+            self._laws = _DriveLaws([f if f is not None else
+                                     DriveFriction.none(d.ix.yaw_dof, d.model.dof_frictionloss[d.ix.yaw_dof],
+                                                        d.ix.yaw_act)
+                                     for f, d in zip(laws, devices)])
+            self._force = np.zeros(self.B)  # each row's actuator force of its last step
+            self._law_models = [copy.deepcopy(d.model) for d in devices]
+            self._law_fl = [m.dof_frictionloss for m in self._law_models]  # written every period
+            self._fl_now = self._law_fl  # a batch's: those of the models its rows step now
+        # LOAD_FRICTION_SMOOTH: the rows' damping is written every period too, and the law's
+        # force is a joint force (the rollout's control then holds qfrc_applied after ctrl)
+        self._smooth = bool(self._laws is not None and self._laws.smoothed.any())
+        if self._smooth:
+            self._law_dm = [m.dof_damping for m in self._law_models]
+            self._dm_now = self._law_dm
 
     def close(self) -> None:
         """Stop the engine's own thread pool (if it made one)."""
