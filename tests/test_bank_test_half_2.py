@@ -18,6 +18,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
+from bank.test_half import score as base_score
 from bank.test_half import truths as tr
 from bank.test_half_2 import make, score
 from bank.test_half_2 import truths as tr2
@@ -402,27 +403,6 @@ def test_score_families_and_new_claims():
 RECORD = tr.ROOT / "bank" / "test_half_2" / "record"
 
 
-def _record_table(record) -> str:
-    """The README's table of the one run, made from its record (score.json and the reports)."""
-    sc = json.loads((record / "score.json").read_text())
-    mark = {True: "yes", False: "**no**", None: "unchecked"}
-    rows = ["| case | expected | named (confidence) | held-out gap [rad] | family | no spurious | direction | unexplained |",
-            "|---|---|---|---|---|---|---|---|"]
-    for c in sc["cases"]:
-        rep = json.loads((record / c["case"] / "report.json").read_text())
-        named = ", ".join(f"`{e['name']}` ({e.get('confidence')})" for e in rep["effects"] if e["name"] != "none")
-        named = (named or "none") + ("; flagged unexplained" if c["unexplained_flag"] else "")
-        p = c["points"]
-        rows.append(f"| `{c['case']}` | {c['expected_family']} | {named} | {rep['gap_before']:.2e} → "
-                    f"{rep['gap_after']:.2e} | {mark[p['family']]} | {mark[p['no_spurious']]} | "
-                    f"{mark[p['direction']]} | {mark[p['unexplained']]} |")
-    t = sc["totals"]
-    rows += ["", f"Totals ({sc['n_cases']} cases): family {t['family']}, no spurious second effect "
-                 f"{t['no_spurious']}, direction {t['direction']} (the others unchecked or wrong), "
-                 f"unexplained {t['unexplained']}."]
-    return "\n".join(rows) + "\n"
-
-
 def test_readme_second_half_run_is_its_record():
     """bank/README.md's table of the second half's one run is made from test_half_2/record (the
     score as run and each case's report), the commit it names is the score's and the reports',
@@ -431,7 +411,7 @@ def test_readme_second_half_run_is_its_record():
     text = (tr.ROOT / "bank" / "README.md").read_text()
     a = text.index("<!-- second test half table:")
     table = text[text.index("\n", a) + 1:text.index("<!-- end of second test half table -->")]
-    assert table == _record_table(RECORD)
+    assert table == base_score.record_table(RECORD)
     sc = json.loads((RECORD / "score.json").read_text())
     assert f"at commit {sc['commit'][:7]}" in text and f"score.py --commit {sc['commit'][:7]}" in text
     cases = json.loads((RECORD / "cases.json").read_text())["cases"]
