@@ -49,11 +49,9 @@ def test_truths_are_the_models():
     a = m.actuator(servo_truth.ACTUATOR).id
     want = [m.dof_armature[dof], m.dof_damping[dof], m.dof_frictionloss[dof], m.actuator_gear[a, 0]]
     assert [p["truth"] for p in CASES["servo_off"]["parameters"]] == pytest.approx(want, rel=1e-12)
-    assert [p["truth"] for p in CASES["servo_load"]["parameters"]] == [servo_truth.MU_DRIVE, servo_truth.MU_BACK,
-                                                                        servo_truth.B_EMF]
+    assert [p["truth"] for p in CASES["servo_load"]["parameters"]] == [servo_truth.MU_DRIVE, servo_truth.MU_BACK]
     assert [p["name"] for p in CASES["servo_load"]["parameters"]] == ["load_friction.mu_drive",
-                                                                       "load_friction.mu_back",
-                                                                       "load_friction.b_emf_nms_per_rad"]
+                                                                       "load_friction.mu_back"]
     for cid in ("servo_load_mjcf", "feetech"):
         assert all(p["truth"] is None for p in CASES[cid]["parameters"])
         assert [p["name"].split(".")[0] for p in CASES[cid]["parameters"]] == list(sc.MJCF_SET)

@@ -12,7 +12,7 @@ Cases (each a set of parameters fitted by every method that can hold them):
   (``hidden.case("nominal_off")``): the four MJCF constants armature, damping, frictionloss,
   gear, truth = ``models/servo_pendulum/servo_pendulum.xml``'s values;
 * ``servo_load``: the bank's ``load_friction`` case: the named model's ``mu_drive``,
-  ``mu_back``, ``b_emf_nms_per_rad`` (truth ``servo_truth.MU_DRIVE``, ``MU_BACK``, ``B_EMF``), the MJCF constants at the truth;
+  ``mu_back`` (truth ``servo_truth.MU_DRIVE``, ``MU_BACK``), the MJCF constants at the truth;
   ``servo_load_mjcf``: the same data, the four MJCF constants alone (what a plain rollout can
   hold of that model);
 * ``feetech``: ``examples/real_servo`` (four logs of a real STS3250): its nominal's four
@@ -164,7 +164,7 @@ def make_case(cid: str, feetech_data: Path | None) -> Case:
         if cid == "servo_load":
             return Case(cid, "geared servo, load-dependent friction hidden (bank case load_friction): "
                         "the named model's coefficients", runs, path, target, ("load_friction",),
-                        [servo_truth.MU_DRIVE, servo_truth.MU_BACK, servo_truth.B_EMF],
+                        [servo_truth.MU_DRIVE, servo_truth.MU_BACK],
                         "the nominal holds the truth's MJCF constants; the law Fc + mu |tau| is the device "
                         "engine's, applied every control period (omni_sim/device.py DriveFriction)")
         return Case(cid, "geared servo, load-dependent friction hidden: the MJCF constants alone",
