@@ -70,6 +70,9 @@ TARGET_TEXT = "drive_laws_target"
 #: The laws this package defines (a law a user registers with
 #: :func:`omni_sim.device.register_drive_law` exists only in the process that registers it).
 BUILTIN_LAWS = (FRICTION_ASYMMETRY, LOAD_FRICTION, FRICTION_FAMILY, CURRENT_LIMIT, LOAD_FRICTION_SMOOTH)
+#: The laws the engine applies outside :data:`~omni_sim.device.DRIVE_LAWS` (which holds the
+#: Coulomb level's terms), with their numerics' parameters.
+OTHER_LAWS = {CURRENT_LIMIT: CURRENT_LIMIT_PARAMS, LOAD_FRICTION_SMOOTH: LOAD_FRICTION_SMOOTH_PARAMS}
 
 
 class DriveLawsCallback:
@@ -195,16 +198,14 @@ def needed_laws(model) -> dict:
     own ``frictionloss``.)"""
     if isinstance(model, mujoco.MjSpec):
         model = model.copy().compile()
-    return {name: v for name in (*DRIVE_LAWS, CURRENT_LIMIT, LOAD_FRICTION_SMOOTH)
+    return {name: v for name in (*DRIVE_LAWS, *OTHER_LAWS)
             if (v := _numeric(model, name)) is not None
             and np.any((v[:3] if name == LOAD_FRICTION_SMOOTH else v) != 0)}  # its w_s alone: no force
 
 
 def _params(name: str) -> tuple:
-    """The parameter names of a law's numeric (a drive law's, or the current limit's)."""
-    if name in (CURRENT_LIMIT, LOAD_FRICTION_SMOOTH):
-        return CURRENT_LIMIT_PARAMS if name == CURRENT_LIMIT else LOAD_FRICTION_SMOOTH_PARAMS
-    return DRIVE_LAWS[name].params
+    """The parameter names of a law's numeric (a drive law's, or one of :data:`OTHER_LAWS`)."""
+    return OTHER_LAWS[name] if name in OTHER_LAWS else DRIVE_LAWS[name].params
 
 
 def runtime_note(model) -> tuple[bool, list[str]]:

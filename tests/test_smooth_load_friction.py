@@ -11,6 +11,7 @@ applied linearly implicitly (the slope ``L (1 - tanh^2) / w_s`` added to the joi
 
 from __future__ import annotations
 
+import copy
 import math
 
 import mujoco
@@ -49,7 +50,6 @@ def _runs(n: int) -> list[tuple[float, np.ndarray, float]]:
 def _reference(model: mujoco.MjModel, law, theta0: float, r: np.ndarray, kp: float) -> np.ndarray:
     """The P loop with the law, in plain MuJoCo and plain Python floats (one physics step per
     1 ms period: the servo pendulum's timestep)."""
-    import copy
     m = copy.deepcopy(model)
     d = mujoco.MjData(m)
     j, a = m.joint("pivot"), m.actuator("servo").id
@@ -150,7 +150,6 @@ def test_the_runtime_replays_like_the_engine(law):
     runs = _runs(1000)
     plain = []
     for th0, r, kp in runs:
-        import copy
         m = copy.deepcopy(model)
         cb = runtime.drive_laws(m, control_period_s=1e-3, joint="pivot", actuator="servo")
         d = mujoco.MjData(m)

@@ -1,13 +1,11 @@
-"""Why a load law fitted in closed loop can slide along a ridge: the user's pendulum (the first
-test half's ``i_users_pendulum``, spent, so development data) fitted with ``load_friction``'s
-form (a Coulomb level ``Fc + mu |tau_m|`` that sticks) and with the same law behind a smooth
-sign (``mu |tau_m| tanh(w / w_s)``, no stick, as the truth's own law).
-
-In motion both forms are a torque scale (driving: ``gear (1 - mu_drive)``; back-driven:
-``gear (1 + mu_back)``), so only those two products are told apart there; the third number (the
-gear, or the level itself) is told only where the forms differ: near rest and at reversals,
-where the stick holds up to ``mu |tau_m|`` and the smooth sign holds nothing.  A form that
-sticks where the truth creeps must pay for it somewhere, and the ridge gives it the room.
+"""Where a load law's closed-loop optimum lies on the user's pendulum (the first test half's
+``i_users_pendulum``, spent, so development data), fitted with ``load_friction``'s form (a
+Coulomb level ``Fc + mu |tau_m|`` that sticks) and with the same law behind a smooth sign
+(``mu |tau_m| tanh(w / w_s)``, no stick, as the truth's own law).  The question came from the
+library's fits of this case, whose gear came out above the truth with the coefficients apart;
+the record answers it near the truth only (docs/method/discrepancy.md, "A load law that sticks,
+beside one behind a smooth sign"): it does not show why the sticking form's fit goes where it
+goes.
 
 :func:`record` replays every run of the case in one plain per-step loop (the model file's
 constants as the parameters say, MuJoCo's ``mj_step`` at the 1 ms control period, the P law

@@ -204,7 +204,7 @@ class Engine:
             self._fl_now = self._law_fl  # a batch's: those of the models its rows step now
         # LOAD_FRICTION_SMOOTH: the rows' damping is written every period too, and the law's
         # force is a joint force (the rollout's control then holds qfrc_applied after ctrl)
-        self._smooth = bool(self._laws is not None and self._laws.smoothed.any())
+        self._smooth = self._laws is not None and self._laws.any_smooth
         if self._smooth:
             self._law_dm = [m.dof_damping for m in self._law_models]
             self._dm_now = self._law_dm

@@ -178,7 +178,7 @@ def _limit_check(v: np.ndarray) -> str | None:
 
 def _smooth_check(v: np.ndarray) -> str | None:
     ok = len(v) == 4 and np.all(np.isfinite(v)) and not np.any(v < 0) and v[3] > 0
-    return None if ok else ("must hold mu_drive mu_back b_emf >= 0 and a sign speed w_s > 0 [rad/s]")
+    return None if ok else "must hold mu_drive mu_back b_emf >= 0 and a sign speed w_s > 0 [rad/s]"
 
 
 def smooth_load_force(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -266,7 +266,7 @@ class DriveFriction:
         law's slope) and applies the law's force at every control period
         (:meth:`_DriveLaws.write`, :attr:`_DriveLaws.applied`).
     damping : float
-        The model's own ``damping`` of the joint (read with :data:`LOAD_FRICTION_SMOOTH` only).
+        The model's own ``damping`` of the joint (used by :data:`LOAD_FRICTION_SMOOTH` only).
     """
 
     dof: int
@@ -351,6 +351,7 @@ class _DriveLaws:
         #: rows with LOAD_FRICTION_SMOOTH, their values (w_s 1 elsewhere: a zero force) and own
         #: damping; ``applied``: each row's force of the period (0 without the law), set by write
         self.smoothed = np.array([f.smooth is not None for f in laws])
+        self.any_smooth = bool(self.smoothed.any())
         self.smooth = np.array([f.smooth if f.smooth is not None else (0.0, 0.0, 0.0, 1.0) for f in laws], float)
         self.damping = np.array([f.damping for f in laws])
         self.applied = np.zeros(len(laws))
@@ -381,7 +382,7 @@ class _DriveLaws:
         the joint's damping plus the law's slope and leaves the force to apply in
         :attr:`applied` (the caller's ``qfrc_applied`` of the joint for the period).  Returns
         the levels."""
-        if self.smoothed.any():
+        if self.any_smooth:
             f, slope = smooth_load_force(self.smooth, w, force * self.gear)
             self.applied = np.where(self.smoothed, f + slope * w, 0.0)
             for dm, on, b in zip(damping if damping is not None else [m.dof_damping for m in models],
