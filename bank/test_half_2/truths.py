@@ -39,12 +39,14 @@ from bank.test_half.truths import H, SUBSTEPS, Plant, Truth, nominal_plant, pert
 FAMILIES = tr.FAMILIES + ("cogging", "gravity offset", "position offset", "dead zone")
 
 
-def _expect(family, accept=None, partial=(), unexplained_ok=False, signs=None, note=""):
+def _expect(family, accept=None, partial=(), unexplained_ok=False, signs=None, note="",
+            families=FAMILIES):
     """The first half's expectation record (``family``, ``accept``, ``partial``,
-    ``unexplained_ok``, ``signs``, ``note``) over this half's :data:`FAMILIES`."""
+    ``unexplained_ok``, ``signs``, ``note``) over ``families`` (this half's :data:`FAMILIES`;
+    a later half passes its own)."""
     accept = list(accept or [family])
     for f in (family, *accept, *partial):
-        assert f in FAMILIES, f
+        assert f in families, f
     return {"family": family, "accept": accept, "partial": list(partial),
             "unexplained_ok": unexplained_ok, "signs": signs or {}, "note": note}
 

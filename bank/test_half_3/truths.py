@@ -45,17 +45,12 @@ GRAVITY = 9.81
 
 
 def _expect(family, accept=None, partial=(), unexplained_ok=False, signs=None, note=""):
-    """The first half's expectation record (``family``, ``accept``, ``partial``,
-    ``unexplained_ok``, ``signs``, ``note``) over this half's :data:`FAMILIES`."""
-    accept = list(accept or [family])
-    for f in (family, *accept, *partial):
-        assert f in FAMILIES, f
-    return {"family": family, "accept": accept, "partial": list(partial),
-            "unexplained_ok": unexplained_ok, "signs": signs or {}, "note": note}
+    """The second half's expectation record (:func:`bank.test_half_2.truths._expect`) over this
+    half's :data:`FAMILIES`."""
+    return tr2._expect(family, accept, partial, unexplained_ok, signs, note, families=FAMILIES)
 
 
-def _sign(x: float) -> float:
-    return 1.0 if x > 0 else (-1.0 if x < 0 else 0.0)
+_sign = tr2._sign
 
 
 def _volts(p: Plant, tau_m: float, w: float) -> float:
