@@ -39,12 +39,14 @@ FAMILY_KEYWORDS = (
 )
 
 
-def family_of(name: str, extra: dict | None = None) -> str:
-    """The physics family of a library effect name (``"other"`` when no keyword matches)."""
+def family_of(name: str, extra: dict | None = None, keywords: tuple = FAMILY_KEYWORDS) -> str:
+    """The physics family of a library effect name (``"other"`` when no keyword matches):
+    ``extra``'s, else the first of ``keywords`` (pairs ``(keyword, family)``, this half's table
+    by default; a later half passes its own) found in the name."""
     if extra and name in extra:
         return extra[name]
     low = name.lower()
-    for key, fam in FAMILY_KEYWORDS:
+    for key, fam in keywords:
         if key in low:
             return fam
     return "other"

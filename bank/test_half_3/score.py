@@ -50,14 +50,9 @@ NEW_CLAIMS = ("coulomb_level_nm", "speed_exponent_vs_1", "load_exponent_vs_1", "
 
 
 def family_of(name: str, extra: dict | None = None) -> str:
-    """The physics family of a library effect name (``"other"`` when no keyword matches)."""
-    if extra and name in extra:
-        return extra[name]
-    low = name.lower()
-    for key, fam in FAMILY_KEYWORDS:
-        if key in low:
-            return fam
-    return "other"
+    """The physics family of a library effect name by this half's :data:`FAMILY_KEYWORDS`
+    (:func:`bank.test_half.score.family_of`)."""
+    return base.family_of(name, extra, FAMILY_KEYWORDS)
 
 
 def _gain_ratio(corrections: list) -> float | None:
