@@ -415,10 +415,16 @@ def test_readme_second_half_run_is_its_record():
     sc = json.loads((RECORD / "score.json").read_text())
     assert f"at commit {sc['commit'][:7]}" in text and f"score.py --commit {sc['commit'][:7]}" in text
     cases = json.loads((RECORD / "cases.json").read_text())["cases"]
-    walls = []
+    walls, steps = [], []
     for case, row in zip(cases, sc["cases"], strict=True):
         rep = json.loads((RECORD / case["name"] / "report.json").read_text())
         assert score.score_case(case, rep)["points"] == row["points"], case["name"]
         walls.append(rep["timings"]["total_s"] / 60)
+        steps.append(rep["timings"]["physics_steps"] / 1e6)
     flat = " ".join(text.split())
     assert f"{min(walls):.1f} to {max(walls):.1f} min a case" in flat
+    assert (f"{min(steps):.1f} to {max(steps):.1f} M physics steps a case ({sum(steps):.0f} M for the "
+            "ten") in flat
+    lat = json.loads((RECORD / "h_latency" / "report.json").read_text())["effects"]
+    assert [e["name"] for e in lat] == ["presliding_friction", "time_delay"]
+    assert f"(`time_delay` {1e3 * lat[1]['parameters']['delay_s']:.2f} ms, {lat[1]['confidence']} confidence)" in flat
