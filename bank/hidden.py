@@ -228,6 +228,14 @@ CASES: tuple[HiddenCase, ...] = (
                     "moves with the back-EMF 0.36 N*m*s/rad; it binds on the square waves and the "
                     "lifts; no gearbox friction law (servo_truth.py, written from the motor's "
                     "equations, not from the engine's law)"),
+    HiddenCase("users_pendulum", (("load_friction_smooth", servo_truth.USERS_PENDULUM),),
+               expect=("load_friction_smooth",), truth="servo", nominal_joint=SERVO_NOMINAL_OFF,
+               note="the user's pendulum of the first test half (i_users_pendulum, spent there: a "
+                    "development case here), rebuilt on this servo: a gear friction 0.2 |tau_m| "
+                    "tanh(w / 0.02) the same both ways, tau_m the motor's net torque (its back-EMF "
+                    "0.36 N*m*s/rad), the user's own law (Makkar et al. 2005's smooth sign), and the "
+                    "load_friction_nominal_off case's wrong nominal (armature +15 % of the inertia, "
+                    "Coulomb level 40 % low); the load_friction case's 12 runs and log"),
 )
 
 #: The geared-servo cases whose nominal is off (:attr:`HiddenCase.nominal_joint`): the workflow

@@ -204,7 +204,7 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
              asymmetry_nm: float = 0.0, kp: float = KP, command_limit: float = COMMAND_LIMIT, noise=None,
              step_rad: float = ENCODER_STEP_RAD, theta0: float = 0.0, path=None,
              friction_law: bool = True, current_limit: tuple | None = None,
-             stribeck: tuple = (0.0, 1.0, 1.0)) -> Trajectory:
+             stribeck: tuple = (0.0, 1.0, 1.0), smooth_load: tuple | None = None) -> Trajectory:
     """Run the truth's servo loop from rest at ``theta0`` until the last log time.
 
     Parameters
@@ -238,6 +238,13 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
         ``(rise, w_s, delta)`` [N*m, rad/s, -]: a Stribeck rise of the Coulomb level,
         ``rise exp(-(|w| / w_s)^delta)`` (Armstrong-Helouvry, Dupont, Canudas de Wit 1994, the
         generalised exponential curve), added to the level at every period; rise 0: none.
+    smooth_load : (float, float, float, float), optional
+        ``(mu_drive, mu_back, b_emf, w_s)``: a load-dependent friction behind a smooth sign
+        instead of ``mu_drive, mu_back``'s sticking level, the user's pendulum of the first test
+        half (``-mu |tau_m| tanh(w / w_s)``, Makkar, Dixon, Sawyer and Hu 2005's regularised
+        Coulomb law with a level proportional to the motor's net torque ``tau_m = tau - b_emf
+        w``, ``mu = mu_drive`` while ``tau_m w > 0`` else ``mu_back``), applied linearly
+        implicitly as :func:`gear_loss` (its slope in the joint's damping); None: none.
     """
     m = mujoco.MjModel.from_xml_path(str(path or model_path()))
     d = mujoco.MjData(m)
@@ -259,9 +266,12 @@ def simulate(t_log, r_log, enabled_log, *, mu_drive: float = MU_DRIVE, mu_back: 
     mujoco.mj_forward(m, d)
     theta[0], omega[0] = d.qpos[qadr], d.qvel[dof]
     tau = 0.0
+    base_damping = float(m.dof_damping[dof])
     for k in range(n):
         y[k] = read_encoder(theta[k], noise[k], step_rad)
         u[k] = min(max(kp * (goal[k] - y[k]), -command_limit), command_limit) if on[k] else 0.0
+        if smooth_load is not None:
+            _smooth_load(m, d, dof, tau, base_damping, smooth_load)
         if friction_law:
             m.dof_frictionloss[dof] = _friction_level(tau, d.qvel[dof], fc, (mu_drive, mu_back),
                                                       asymmetry_nm, stribeck)
@@ -294,6 +304,16 @@ def _friction_level(tau: float, w: float, fc: float, mus: tuple, asymmetry_nm: f
     if rise:
         level += rise * math.exp(-(abs(w) / w_s) ** delta)
     return max(0.0, level)
+
+
+def _smooth_load(m, d, dof: int, tau: float, base_damping: float, law: tuple) -> None:
+    """Write the smooth load law's force of one period of :func:`simulate` (``law`` its
+    ``smooth_load``): its slope into the joint's damping, the rest into ``qfrc_applied``."""
+    mu_drive, mu_back, b_emf, w_s = law
+    w = float(d.qvel[dof])
+    loss, slope = gear_loss(tau - b_emf * w, w, 1.0 - mu_drive, 1.0 / (1.0 + mu_back), w_s)
+    m.dof_damping[dof] = base_damping + slope
+    d.qfrc_applied[dof] = -loss + slope * w
 
 
 def _current_limited(u: float, w: float, gear: float, current_limit: tuple) -> float:
@@ -408,13 +428,14 @@ EXPERIMENTS: tuple[Experiment, ...] = (
 
 def measure(e: Experiment, *, mu_drive: float = MU_DRIVE, mu_back: float = MU_BACK,
             asymmetry_nm: float = 0.0, seed: int = 1, exact: bool = False, path=None,
-            current_limit: tuple | None = None, stribeck: tuple = (0.0, 1.0, 1.0)) -> Run:
+            current_limit: tuple | None = None, stribeck: tuple = (0.0, 1.0, 1.0),
+            smooth_load: tuple | None = None) -> Run:
     """One run of the truth, logged as the host logs it (irregular times, goal held, encoder
     counts and noise; ``exact``: neither noise nor rounding, on the loop or in the log)."""
     def run(t_log, r, en, noise, step):
         return simulate(t_log, r, en, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry_nm,
                         noise=noise, step_rad=step, path=path, current_limit=current_limit,
-                        stribeck=stribeck)
+                        stribeck=stribeck, smooth_load=smooth_load)
     law = ("a firmware current limit" if current_limit is not None else
            "load-dependent or direction-dependent gearbox friction")
     return _logged_run(e, run, seed, exact, f"models/servo_pendulum/servo_pendulum.xml + {law}")
@@ -445,8 +466,15 @@ def _logged_run(e: Experiment, run, seed: int, exact: bool, law: str) -> Run:
     return Run(e.name, t_log, r, theta, v, meta, {"enabled": en})
 
 
+#: The user's pendulum (the first test half's ``i_users_pendulum``, its law as the user wrote it:
+#: 0.2 |tau_m| tanh(w / 0.02), the same both ways) on this servo: ``load_friction_smooth``'s
+#: ``(mu_drive, mu_back, b_emf, w_s)``, ``tau_m`` the motor's net torque (b_emf = the back-EMF
+#: kt^2/R = :data:`BACK_EMF_NMS_PER_RAD`, as the first half's truth takes it).
+USERS_PENDULUM = (0.2, 0.2, BACK_EMF_NMS_PER_RAD, 0.02)
+
 #: The effects this truth simulates (library names) and their parameters' order.
-SIMULATED = ("load_friction", "asymmetric_friction", "current_limit", "friction_family_stribeck")
+SIMULATED = ("load_friction", "asymmetric_friction", "current_limit", "friction_family_stribeck",
+             "load_friction_smooth")
 
 
 def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK, B_EMF)),), seed: int = 1, exact: bool = False,
@@ -454,14 +482,16 @@ def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK, B_EMF)),), seed: int
     """The "measured" runs of the truth with the hidden ``effects``: ``load_friction``
     (mu_drive, mu_back, b_emf = :data:`B_EMF`), ``asymmetric_friction`` (a [N*m]), ``current_limit`` (kt i_max
     [N*m], kt^2/R [N*m*s/rad]) and ``friction_family_stribeck`` (mu_drive, mu_back, b_emf, rise [N*m],
-    w_s [rad/s], delta: the load law with a Stribeck rise), any of them but the last two load
-    laws together (none: the nominal model)."""
+    w_s [rad/s], delta: the load law with a Stribeck rise) and ``load_friction_smooth`` (mu_drive,
+    mu_back, b_emf [N*m*s/rad], w_s [rad/s]: the load law behind a smooth sign, :func:`simulate`'s
+    ``smooth_load``), any of them but two load laws together (none: the nominal model)."""
     effects = dict(effects)
     unknown = set(effects) - set(SIMULATED)
     if unknown:
         raise ValueError(f"the servo truth simulates only {', '.join(SIMULATED)}, not {sorted(unknown)}")
-    if "load_friction" in effects and "friction_family_stribeck" in effects:
-        raise ValueError("load_friction and friction_family_stribeck are one law: give one of them")
+    loads = [n for n in ("load_friction", "friction_family_stribeck", "load_friction_smooth") if n in effects]
+    if len(loads) > 1:
+        raise ValueError(f"{' and '.join(loads)} are one law: give one of them")
     # the library's load_friction holds a back-EMF damping b_emf beside the coefficients: this
     # truth's law reads the actuator's torque alone (B_EMF = 0), and simulates no other
     mu_drive, mu_back, b_emf = effects.get("load_friction", (0.0, 0.0, B_EMF))
@@ -474,7 +504,7 @@ def generate(effects=(("load_friction", (MU_DRIVE, MU_BACK, B_EMF)),), seed: int
     limit = effects.get("current_limit")
     return [measure(e, mu_drive=mu_drive, mu_back=mu_back, asymmetry_nm=asymmetry, seed=seed,
                     exact=exact, current_limit=None if limit is None else tuple(limit),
-                    stribeck=tuple(stribeck)) for e in experiments]
+                    stribeck=tuple(stribeck), smooth_load=effects.get("load_friction_smooth")) for e in experiments]
 
 
 # -- a truth of another form: the gear's efficiency law with a smooth sign -----------------------

@@ -337,7 +337,10 @@ def of_outcome(builder: fx.ModelBuilder, corrections, runs: list[ReplayRun], nam
         free = tuple(eff.name for eff, _ in changes)
         model = spec.copy().compile()
         reference = replayed_runs(model, runs, rep) if rep is not None else None
-        ev = missing_torque_evidence(spec, model, runs, builder.target, tuple(names), free=free,
+        # the candidates' nested variants too (fitted, ranked and shown; their fits start the
+        # variants' confirmation, select.nested_variants)
+        names = tuple(names) + tuple(k for n in names for k in builder.nested(n) if k not in names)
+        ev = missing_torque_evidence(spec, model, runs, builder.target, names, free=free,
                                      reference=reference)
     except Exception as exc:  # noqa: BLE001 -- the evidence must never stop the workflow
         ev = Evidence(False, f"the missing-torque evidence failed ({type(exc).__name__}: {exc}); "

@@ -188,7 +188,9 @@ class Search:
             shortlist, left_out, starts = names, [], None
             if rnd == 0 and evidence is not None and evidence.explained_enough:
                 shortlist, left_out = shape_shortlist(evidence, names, sel.N_SCREEN)
-                starts = {f.name: f.x for f in evidence.fits if f.name in shortlist and f.x is not None}
+                # the candidates' equation-error fits, and their nested variants' (select.nested_variants)
+                starts = {f.name: f.x for f in evidence.fits if f.x is not None
+                          and (f.name in shortlist or self.builder.parent(f.name) in shortlist)}
                 self.log(f"round 1: equation error leaves out {', '.join(left_out) or 'none'}; "
                          f"prescreening {', '.join(shortlist)}")
             # every fold refit of the round starts from the fold values of the largest set it

@@ -292,7 +292,8 @@ class Scorer:
         if nulls and not given:
             self._confirm(nulls[0], gap_start)
         out = self.confirm_best([sc for sc in scored if sc.name != NULL], gap_start, n_confirm)
-        out = out if bases else nested_variants(self, out, gap_start)  # single candidates: their variants
+        if not bases:  # single candidates: their variants
+            out = nested_variants(self, out, gap_start, starts=starts, accepted_x=accepted_x)
         if not nulls:
             return out
         for sc in out + nulls:
@@ -492,10 +493,13 @@ class Scorer:
 
 
 # -- a nested family's variants ------------------------------------------------------------------
-def nested_variants(scorer: Scorer, out: list[Scored], gap_start: float) -> list[Scored]:
+def nested_variants(scorer: Scorer, out: list[Scored], gap_start: float, *, starts: dict | None = None,
+                    accepted_x=None) -> list[Scored]:
     """Each confirmed candidate with nested variants (:data:`discrepancy.effects.family.NESTED`:
-    ``load_friction`` and the friction family's Stribeck variant): the variants fitted from its
-    fit (their own parameters over their grid's best point on the prescreen's short records),
+    ``load_friction`` and the friction family's Stribeck and smooth-sign variants): the variants
+    fitted from its fit (their own parameters over their grid's best point on the prescreen's
+    short records; with ``starts`` holding a variant's equation-error fit, that fit beside the
+    round's accepted values ``accepted_x`` is one more point, as a candidate's is in the prescreen),
     screened and confirmed as it was, and the one :func:`~discrepancy.nesting.choose_variant`
     picks on the per-run held-out gaps put in its place, the variants' held-out gaps recorded in
     its :attr:`Scored.variants` (the one not kept is not listed: a richer variant the rule judged
@@ -506,7 +510,8 @@ def nested_variants(scorer: Scorer, out: list[Scored], gap_start: float) -> list
         kids = scorer.builder.nested(s.effects[-1].name) if s.method == "refit" and s.effects else ()
         if not kids or s.name == NULL:
             continue
-        tried = [s] + [_confirm_child(scorer, s, kid, gap_start) for kid in kids]
+        tried = [s] + [_confirm_child(scorer, s, kid, gap_start, _shape_starts(scorer, s, kid, starts), accepted_x)
+                       for kid in kids]
         # each run's held-out gap (the rule pairs them run by run)
         gaps = {t.effects[-1].name: [gap([r]) for r in t.heldout_raw] for t in tried}
         pick = choose_variant(gaps, {t.effects[-1].name: t.effects[-1].nparam for t in tried})
@@ -521,10 +526,30 @@ def nested_variants(scorer: Scorer, out: list[Scored], gap_start: float) -> list
     return refit + [t for t in res if t.method != "refit"]
 
 
-def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float) -> Scored:
+def _shape_starts(scorer: Scorer, parent: Scored, kid: str, starts: dict | None) -> list:
+    """``kid``'s own values from the equation-error fits in ``starts``: its own fit, and its
+    parent's fit with the kid's further parameters over the kid's grid (equation error need not
+    pin every parameter of the richer law: the smooth load law's back-driven coefficient, on
+    tests/test_torque.py's runs)."""
+    starts = starts or {}
+    out = [np.asarray(starts[kid], float)] if starts.get(kid) is not None else []
+    mine = starts.get(parent.effects[-1].name)
+    if mine is not None:
+        eff = scorer.builder.effect(kid)
+        about = np.concatenate([mine, np.zeros(eff.nparam - len(mine))])
+        out += [np.concatenate([mine, g[len(mine):]]) for g in eff.grid(about)]
+    return out
+
+
+def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float, shapes=(),
+                   accepted_x=None) -> Scored:
     """Nested variant ``kid`` of ``parent``'s candidate, fitted from ``parent``'s fit and
     confirmed as ``parent`` was, each fold from ``parent``'s values on it (a round of single
-    candidates names each by its candidate: ``kid``)."""
+    candidates names each by its candidate: ``kid``).  ``shapes``: ``kid``'s values from the
+    equation-error fits (:func:`_shape_starts`), each tried beside ``accepted_x`` (the round's
+    start values of the other members) too: a parent whose fit slid along a ridge (the sticking
+    load law on a smooth one, gear +18 %) would otherwise hand its slide to the variant's every
+    start."""
     t0 = time.perf_counter()
     effects = parent.effects[:-1] + [scorer.builder.effect(kid)]
     *rest, (_, mine) = parent.fit.split()
@@ -535,6 +560,11 @@ def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float) -
     about = np.concatenate([mine, np.zeros(effects[-1].nparam - len(mine))])
     points = [np.clip(np.concatenate([base, effects[-1].clip(np.concatenate([mine, g[len(mine):]]))]),
                       short.lower, short.upper) for g in effects[-1].grid(about)]
+    if accepted_x is not None and len(accepted_x) == len(base):
+        points += [np.clip(np.concatenate([accepted_x, effects[-1].clip(x)]), short.lower, short.upper)
+                   for x in shapes]
+    seen = set()  # a grid about given values repeats points: each is replayed once, in order
+    points = [p for p in points if not (p.tobytes() in seen or seen.add(p.tobytes()))]
     (_, x0), = grid_minima(scorer.rep, [short], [points], grid_runs)
     prob = scorer.problem(effects)
     fit = prob.fit(x0, None, max_nfev=4, chord=True)

@@ -27,6 +27,9 @@ direction and sticking share on the fine grid, through the window::
 (``qd``, ``qdd`` here from the angle smoothed by a window :data:`~.smoothing.STICK_SHARE` as
 wide: the smoothing's own window would leak a motion's onset back by its half-width and count
 the rest before a step as sliding)
+A smooth load law (:data:`omni_sim.device.LOAD_FRICTION_SMOOTH`) is single-valued: its force
+``-mu |tau| tanh(qd / w_s)`` is the model's own torque too, its level at ``qd_start`` and the
+transmitted torque, its sign on the fine grid through the window (:meth:`InverseModel.smooth_force`).
 
 (MuJoCo's ``frictionloss`` row is a bounded servo of the velocity towards 0 with reference
 acceleration ``-B qd``, :func:`friction_rate`: it opposes ``qdd + B qd``, not ``qd`` alone, so
@@ -256,7 +259,23 @@ class InverseModel:
         s_f, w_f = self.direction(sm)
         moving = -F * s_f
         f = moving + np.clip(req - moving, -F * w_f, F * w_f)
+        law = self.device.drive_friction
+        if law is not None and law.smooth is not None:
+            f = f + self.smooth_force(sm, motor, law.smooth)
         return req - f, motor, (np.abs(s_f) > 0.99) & (w_f < 0.01)
+
+    @staticmethod
+    def smooth_force(sm: Smoothed, motor: np.ndarray, values) -> np.ndarray:
+        """A smooth load law's force [N*m] (:data:`omni_sim.device.LOAD_FRICTION_SMOOTH`,
+        ``values`` its ``mu_drive mu_back b_emf w_s``) at the output times: its level at
+        ``qd_start`` and the drive's torque, its sign ``tanh(qd / w_s)`` on the fine grid through
+        the window, as the Coulomb friction's direction (a sign speed of 0.02 rad/s switches
+        within the window: taken at the smoothed speed it would switch late and whole)."""
+        mu_d, mu_b, b_emf, w_s = (float(v) for v in values)
+        tau = motor - b_emf * sm.qd_start
+        level = np.where(tau * sm.qd_start > 0, mu_d, mu_b) * np.abs(tau)
+        G0, vel = sm.fine[0], sm.fine[1]
+        return -level * (G0 @ np.tanh(vel / w_s))
 
     def band(self, sm: Smoothed) -> np.ndarray:
         """The noise band [N*m] (module docstring): 3 sigma of ``tau_req`` from the logged

@@ -395,7 +395,8 @@ def test_bank_covers_the_library():
     assert not missing, f"no single-effect bank case for: {', '.join(missing)}"
     written = set(fx.NAMES) - SIMULATED  # the rest have a truth simulation of their own
     assert written <= set(omni_truths.TRUTH) and written <= set(ranges.RANGES)
-    assert SIMULATED == {"load_friction", "asymmetric_friction", "current_limit", "friction_family_stribeck"}
+    assert SIMULATED == {"load_friction", "asymmetric_friction", "current_limit", "friction_family_stribeck",
+                         "load_friction_smooth"}
     assert not SIMULATED & set(omni_truths.TRUTH)
     assert {c.name for c in hidden.CASES if c.expect == ("none",)} >= {"none", "none_exact"}
     assert hidden.case("none_exact").exact and not hidden.case("none").exact

@@ -302,6 +302,8 @@ def test_only_its_own_laws_are_simulated():
         st.generate(effects=(("coulomb_friction", (0.01,)),))
     with pytest.raises(ValueError, match="one law"):
         st.generate(effects=(("load_friction", (0.1, 0.2, 0.0)), ("friction_family_stribeck", (0.1, 0.2, 0.0, 0.03, 0.1, 1.0))))
+    with pytest.raises(ValueError, match="one law"):
+        st.generate(effects=(("load_friction", (0.1, 0.2, 0.0)), ("load_friction_smooth", st.USERS_PENDULUM)))
 
 
 def test_the_stribeck_rise_is_the_devices_family_law(nominal):
@@ -321,6 +323,28 @@ def test_the_stribeck_rise_is_the_devices_family_law(nominal):
         out = run_p_loop(engine, r[None, :], st.KP, command_limit=st.COMMAND_LIMIT)
     np.testing.assert_allclose(out["theta"][0], tr.theta[: len(t)], rtol=0, atol=1e-9)
     assert np.max(np.abs(tr.theta - no_rise.theta)) > 1e-4
+
+
+def test_the_smooth_load_law_is_the_devices():
+    """The truth's smooth load law (the user's pendulum: 0.2 |tau_m| tanh(w / 0.02), tau_m net of
+    the back-EMF) agrees with the device's engine on the nominal model declaring
+    ``load_friction_smooth`` (written apart, one law) on regular times with an exact encoder, and
+    differs from the nominal by far more."""
+    law = st.USERS_PENDULUM
+    spec = mujoco.MjSpec.from_file(str(st.model_path()))
+    spec.add_numeric(name="load_friction_smooth", data=list(law))
+    spec.add_sensor(name="transmitted", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                    objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=st.ACTUATOR)
+    m = spec.compile()
+    t = np.arange(2001) * DT
+    r = 0.4 * np.sin(2 * np.pi * 1.5 * t) + 0.3
+    tr = st.simulate(t, r, np.ones_like(t), mu_drive=0.0, mu_back=0.0, smooth_load=law, step_rad=0.0)
+    plain = st.simulate(t, r, np.ones_like(t), mu_drive=0.0, mu_back=0.0, step_rad=0.0)
+    dev = Device(m, DT, target=st.target())
+    with dev.engine([0.0], [None], nthread=1) as engine:
+        out = run_p_loop(engine, r[None, :], st.KP, command_limit=st.COMMAND_LIMIT)
+    np.testing.assert_allclose(out["theta"][0], tr.theta[: len(t)], rtol=0, atol=1e-9)
+    assert np.max(np.abs(tr.theta - plain.theta)) > 1e-3
 
 
 def test_the_bank_case():

@@ -33,12 +33,12 @@ GOALS = (goal_mixed,
          lambda t: 0.8 * np.sin(2 * np.pi * 0.3 * t))
 
 
-def closed_loop(model, goal, duration, extra=None, log_period=1e-3, jitter=0.0, off=None, seed=0):
+def closed_loop(model, goal, duration, extra=None, log_period=1e-3, jitter=0.0, off=None, seed=0, data=None):
     """The P loop ``u = clip(40 (r - y), +-12)`` on the rounded angle, stepped with mj_step;
     ``extra(q, w)`` [N*m] applied through ``qfrc_applied`` at every step; torque off (0 V: the
     motor actuator exerts nothing) over ``off = (t0, t1)``.  Returns the logged run and the
-    applied extra torque on the 1 ms grid."""
-    d = mujoco.MjData(model)
+    applied extra torque on the 1 ms grid (``data``: the MjData to step, default a fresh one)."""
+    d = mujoco.MjData(model) if data is None else data
     dt = model.opt.timestep
     n = int(round(duration / dt))
     th, u, ex = np.empty(n + 1), np.empty(n), np.zeros(n)
@@ -286,3 +286,46 @@ def test_inverse_bounds_the_drive_by_the_current_limit():
     np.testing.assert_allclose(motor, traj.tau, rtol=0, atol=1e-9)
     _, unbounded = tq.InverseModel(nominal(), TARGET).required(*args)
     assert np.max(np.abs(unbounded - traj.tau)) > 0.5
+
+
+def _smooth_load_loss(model, mu=0.2, w_s=0.02):
+    """The user's pendulum's law written here from its equation: ``-mu |tau_m| tanh(w / w_s)``,
+    ``tau_m`` the servo's torque on the joint (gear times the actuator's force of the step
+    before), applied explicitly each step (1 ms)."""
+    gear = float(model.actuator_gear[0, 0])
+    state = {"d": None}
+
+    def extra(q, w):
+        d = state["d"]
+        tau = gear * float(d.actuator_force[0]) if d is not None else 0.0
+        return -mu * abs(tau) * math.tanh(w / w_s)
+    return extra, state
+
+
+def test_shape_fits_the_smooth_load_law_by_its_form():
+    """A load law behind a smooth sign (0.2 |tau_m| tanh(w / 0.02), the first test half's
+    user's pendulum, written here from its equation) on two runs: the smooth form, its sign seen
+    through the window (InverseModel.smooth_force), explains the missing torque at the truth
+    (measured 99.4 %), its fit as much (99.5 %) with mu_drive within 5 % (0.2017); the sticking
+    load_friction explains as much (99.6 %) with both coefficients within 5 % (0.201, 0.2065).
+    The smooth form's back-driven coefficient is not pinned by equation error on these runs (a
+    tenth of the samples back-driven, fitted 0.061 with w_s 0.013): why the search starts the
+    variant from its parent's coefficients too (select.nested_variants)."""
+    model = nominal()
+    runs = []
+    for i, g in enumerate(GOALS[:2]):
+        d = mujoco.MjData(model)
+        extra, state = _smooth_load_loss(model)
+        state["d"] = d
+        runs.append(closed_loop(model, g, 5.0, extra, log_period=5e-3, seed=i, data=d)[0])
+    prepared = prepare_runs(runs, Device(model, target=TARGET))
+    states = shape.prepare(model, prepared, TARGET)
+    builder = shape.ModelBuilder(mujoco.MjSpec.from_file(PATH), TARGET)
+    at_truth = shape._Candidate(builder, "load_friction_smooth", states).residual(np.array([0.2, 0.2, 0.0, 0.02]))
+    base = np.sum(states.weighted(states.tau_nominal) ** 2)
+    assert 1 - np.sum(at_truth ** 2) / base > 0.99
+    fits = {f.name: f for f in shape.ranked(builder, states, model, ("load_friction", "load_friction_smooth"))}
+    smooth, stick = fits["load_friction_smooth"], fits["load_friction"]
+    assert smooth.explained > 0.99 and stick.explained > 0.99
+    assert smooth.x[0] == pytest.approx(0.2, rel=0.05)
+    assert stick.x[:2] == pytest.approx([0.2, 0.2], rel=0.05)
