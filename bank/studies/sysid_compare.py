@@ -164,7 +164,7 @@ def make_case(cid: str, feetech_data: Path | None) -> Case:
         if cid == "servo_load":
             return Case(cid, "geared servo, load-dependent friction hidden (bank case load_friction): "
                         "the named model's coefficients", runs, path, target, ("load_friction",),
-                        [servo_truth.MU_DRIVE, servo_truth.MU_BACK],
+                        [servo_truth.MU_DRIVE, servo_truth.MU_BACK, servo_truth.B_EMF],
                         "the nominal holds the truth's MJCF constants; the law Fc + mu |tau| is the device "
                         "engine's, applied every control period (omni_sim/device.py DriveFriction)")
         return Case(cid, "geared servo, load-dependent friction hidden: the MJCF constants alone",
