@@ -545,33 +545,49 @@ def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float, s
                    accepted_x=None) -> Scored:
     """Nested variant ``kid`` of ``parent``'s candidate, fitted from ``parent``'s fit and
     confirmed as ``parent`` was, each fold from ``parent``'s values on it (a round of single
-    candidates names each by its candidate: ``kid``).  ``shapes``: ``kid``'s values from the
-    equation-error fits (:func:`_shape_starts`), each tried beside ``accepted_x`` (the round's
-    start values of the other members) too: a parent whose fit slid along a ridge (the sticking
-    load law on a smooth one, gear +18 %) would otherwise hand its slide to the variant's every
-    start."""
+    candidates names each by its candidate: ``kid``).
+
+    ``shapes``: ``kid``'s values from the equation-error fits (:func:`_shape_starts`), each beside
+    ``accepted_x`` (the round's start values of the other members): a second start, fitted on all
+    runs as the first; the fit with the lower training gap is kept (a multi-start of a local
+    fit: no held-out sample chooses).  Why: a parent whose fit slid along a ridge (the sticking
+    load law on a smooth one, gear +18 %) hands its slide to every start about its values, and
+    the variant's fit stays in that basin.  When the second start's fit is kept, each fold's
+    refit starts as a new candidate's does (the known set's fold values, the variant's own
+    parameters searched on the fold's training windows), not from the parent's fold values."""
     t0 = time.perf_counter()
     effects = parent.effects[:-1] + [scorer.builder.effect(kid)]
     *rest, (_, mine) = parent.fit.split()
     base = np.concatenate([x for _, x in rest]) if rest else np.zeros(0)
     grid_runs = [r.first_seconds(PRESCREEN_S) for r in scorer.runs]
     short = scorer.problem(effects, grid_runs)
+
+    def distinct(points):  # a grid about given values repeats points: each is replayed once, in order
+        seen = set()
+        return [p for p in points if not (p.tobytes() in seen or seen.add(p.tobytes()))]
     # the variant's grid about the parent's values, those values kept in every point
     about = np.concatenate([mine, np.zeros(effects[-1].nparam - len(mine))])
-    points = [np.clip(np.concatenate([base, effects[-1].clip(np.concatenate([mine, g[len(mine):]]))]),
-                      short.lower, short.upper) for g in effects[-1].grid(about)]
-    if accepted_x is not None and len(accepted_x) == len(base):
-        points += [np.clip(np.concatenate([accepted_x, effects[-1].clip(x)]), short.lower, short.upper)
-                   for x in shapes]
-    seen = set()  # a grid about given values repeats points: each is replayed once, in order
-    points = [p for p in points if not (p.tobytes() in seen or seen.add(p.tobytes()))]
-    (_, x0), = grid_minima(scorer.rep, [short], [points], grid_runs)
-    prob = scorer.problem(effects)
-    fit = prob.fit(x0, None, max_nfev=4, chord=True)
+    grids = [distinct([np.clip(np.concatenate([base, effects[-1].clip(np.concatenate([mine, g[len(mine):]]))]),
+                               short.lower, short.upper) for g in effects[-1].grid(about)])]
+    if shapes and accepted_x is not None and len(accepted_x) == len(base):
+        grids.append(distinct([np.clip(np.concatenate([accepted_x, effects[-1].clip(x)]), short.lower, short.upper)
+                               for x in shapes]))
+    starts = [x for _, x in grid_minima(scorer.rep, [short] * len(grids), grids, grid_runs)]
+    fits = []
+    for x0 in starts:
+        prob = scorer.problem(effects)
+        fits.append((prob, prob.fit(x0, None, max_nfev=4, chord=True)))
+    pick = min(range(len(fits)), key=lambda k: (fits[k][1].gap_train, k))
+    prob, fit = fits[pick]
     child = scorer._screened(kid, effects, prob, fit, gap_start, t0)
-    child.unstable += short.unstable
+    child.unstable += short.unstable + sum(p.unstable for k, (p, _) in enumerate(fits) if k != pick)
     child.screen_gap = child.heldout_gap
+    if scorer.log and len(fits) > 1:
+        scorer.log(f"  {kid}: all-runs fits from the parent's values {fits[0][1].gap_train:.3e}, from equation "
+                   f"error {fits[1][1].gap_train:.3e} rad; kept the {('parent', 'equation-error')[pick]} start's")
     # each fold's refit starts from the parent's fold values (fold_starts: a nested variant of a
-    # known set's member), its own parameters searched on the fold's training windows
-    scorer.on(scorer.folds, known=tuple(scorer.known) + (parent,))._confirm(child, gap_start)
+    # known set's member), its own parameters searched on the fold's training windows; from the
+    # equation-error start, as a new candidate (the parent's fold values hold its slide)
+    known = tuple(scorer.known) + ((parent,) if pick == 0 else ())
+    scorer.on(scorer.folds, known=known)._confirm(child, gap_start)
     return child

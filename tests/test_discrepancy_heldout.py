@@ -198,22 +198,28 @@ def test_the_friction_familys_variant_is_confirmed_with_load_friction_and_chosen
         effect = SimpleNamespace(name=name, nparam=fx.get(name).nparam)
         return sel.Scored(name, [effect], None, sel.gap(raw), 0.0, method, raw)
 
-    def with_child(factor):
+    def with_child(factors):
         monkeypatch.setattr(sel, "_confirm_child",
-                            lambda scorer, s, kid, g0: scored(kid, factor))
+                            lambda scorer, s, kid, g0, *rest: scored(kid, factors[kid]))
         return SimpleNamespace(log=None, builder=fx.ModelBuilder(None))
 
     other = scored("coulomb_friction", 1.3)
     screened = scored("armature", 0.5, method="one-step")
-    out = sel.nested_variants(with_child(0.7), [scored("load_friction", 1.0), other, screened], 1.0)
+    out = sel.nested_variants(with_child({"friction_family_stribeck": 0.7, "load_friction_smooth": 1.2}),
+                              [scored("load_friction", 1.0), other, screened], 1.0)
     assert [s.name for s in out] == ["friction_family_stribeck", "coulomb_friction", "armature"]
     parent_gap = sel.gap([np.full(10, 1e-3 * g) for g in runs])
     gaps = {k: v["heldout_gap_rad"] for k, v in out[0].variants.items()}
-    assert gaps == pytest.approx({"load_friction": parent_gap, "friction_family_stribeck": 0.7 * parent_gap})
-    out = sel.nested_variants(with_child(0.95), [scored("load_friction", 1.0), other], 1.0)
-    assert [s.name for s in out] == ["load_friction", "coulomb_friction"]  # 5 % better: a tie, the simpler
-    gaps = {k: v["heldout_gap_rad"] for k, v in out[0].variants.items()}
-    assert gaps == pytest.approx({"load_friction": parent_gap, "friction_family_stribeck": 0.95 * parent_gap})
+    assert gaps == pytest.approx({"load_friction": parent_gap, "friction_family_stribeck": 0.7 * parent_gap,
+                                  "load_friction_smooth": 1.2 * parent_gap})
+    # 5 and 3 % better: ties, the simpler kept
+    out = sel.nested_variants(with_child({"friction_family_stribeck": 0.95, "load_friction_smooth": 0.97}),
+                              [scored("load_friction", 1.0), other], 1.0)
+    assert [s.name for s in out] == ["load_friction", "coulomb_friction"]
+    # both richer variants better by more than the tie: the one with fewer parameters among them
+    out = sel.nested_variants(with_child({"friction_family_stribeck": 0.7, "load_friction_smooth": 0.72}),
+                              [scored("load_friction", 1.0), other], 1.0)
+    assert out[0].name == "load_friction_smooth"
     asked = []
     monkeypatch.setattr(sel, "_confirm_child", lambda *a: asked.append(a))
     same = [other, scored("load_friction", 1.0, method="one-step")]  # as confirm_best orders them
