@@ -48,7 +48,7 @@ from .folds import (CONFIRM_NFEV, FOLD_SCHEMES, Fold, block_folds,  # noqa: F401
                     fold_starts, heldout, heldout_replays, make_folds, onestep_folds, polish_folds, refit_folds,
                     run_folds)
 from .prescreen import (N_SCREEN, NULL, PAIR_FITS, PAIR_GRID_POINTS, PAIR_GRID_S, PRESCREEN_ITERATIONS,  # noqa: F401
-                        PRESCREEN_S, Prescreened, grid_minima, prescreen, thin_grid)
+                        PRESCREEN_S, Prescreened, grid_minima, lockstep_gauss_newton, prescreen, thin_grid)
 from .runs import ReplayRun
 
 #: Least share of the round's starting held-out gap the best candidate must remove.
@@ -548,8 +548,9 @@ def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float, s
     candidates names each by its candidate: ``kid``).
 
     ``shapes``: ``kid``'s values from the equation-error fits (:func:`_shape_starts`), each beside
-    ``accepted_x`` (the round's start values of the other members): a second start, fitted on all
-    runs as the first; the fit with the lower training gap is kept (a multi-start of a local
+    ``accepted_x`` (the round's start values of the other members): a second start (the best on
+    the short records, then the prescreen's Gauss-Newton steps there, as a candidate's), fitted
+    on all runs as the first; the fit with the lower training gap is kept (a multi-start of a local
     fit: no held-out sample chooses).  Why: a parent whose fit slid along a ridge (the sticking
     load law on a smooth one, gear +18 %) hands its slide to every start about its values, and
     the variant's fit stays in that basin.  When the second start's fit is kept, each fold's
@@ -572,7 +573,10 @@ def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float, s
     if shapes and accepted_x is not None and len(accepted_x) == len(base):
         grids.append(distinct([np.clip(np.concatenate([accepted_x, effects[-1].clip(x)]), short.lower, short.upper)
                                for x in shapes]))
-    starts = [x for _, x in grid_minima(scorer.rep, [short] * len(grids), grids, grid_runs)]
+    gaps, starts = (list(v) for v in zip(*grid_minima(scorer.rep, [short] * len(grids), grids, grid_runs)))
+    if len(starts) > 1:  # the second start is far from any fit: a prescreen's steps on the short records
+        (starts[1],), _ = lockstep_gauss_newton(scorer.rep, [short], starts[1:], gaps[1:], grid_runs,
+                                                PRESCREEN_ITERATIONS)
     fits = []
     for x0 in starts:
         prob = scorer.problem(effects)
