@@ -292,8 +292,7 @@ class Scorer:
         if nulls and not given:
             self._confirm(nulls[0], gap_start)
         out = self.confirm_best([sc for sc in scored if sc.name != NULL], gap_start, n_confirm)
-        if not bases:  # single candidates: their variants
-            out = nested_variants(self, out, gap_start, starts=starts, accepted_x=accepted_x)
+        out = out if bases else nested_variants(self, out, gap_start, starts=starts, accepted_x=accepted_x)
         if not nulls:
             return out
         for sc in out + nulls:

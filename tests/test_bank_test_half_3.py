@@ -479,3 +479,32 @@ def test_score_new_claims():
     assert dahl["points"]["family"] is True and dahl["points"]["direction"] is True
     kar = score.score_case(_case("b_karnopp"), _named(report, "stribeck_friction", {"fs": 0.11, "fc": 0.05}))
     assert kar["points"]["family"] is True and kar["points"]["direction"] is True
+
+
+# --- the one run's record (bank/README.md, "The third half's one run") -------------------------
+RECORD = tr.ROOT / "bank" / "test_half_3" / "record"
+
+
+def test_readme_third_half_run_is_its_record():
+    """bank/README.md's table of the third half's one run is made from test_half_3/record (the
+    score as run and each case's report), the commit it names is the score's, the record's
+    scores are what score.py says of its reports, and the wall times and physics steps it
+    quotes are the reports' own."""
+    from bank.test_half import score as base_score
+    text = (tr.ROOT / "bank" / "README.md").read_text()
+    a = text.index("<!-- third test half table:")
+    table = text[text.index("\n", a) + 1:text.index("<!-- end of third test half table -->")]
+    assert table == base_score.record_table(RECORD)
+    sc = json.loads((RECORD / "score.json").read_text())
+    assert f"at commit {sc['commit'][:7]}" in text and f"score.py --commit {sc['commit'][:7]}" in text
+    cases = json.loads((RECORD / "cases.json").read_text())["cases"]
+    walls, steps = [], []
+    for case, row in zip(cases, sc["cases"], strict=True):
+        rep = json.loads((RECORD / case["name"] / "report.json").read_text())
+        assert score.score_case(case, rep)["points"] == row["points"], case["name"]
+        walls.append(rep["timings"]["total_s"] / 60)
+        steps.append(rep["timings"]["physics_steps"] / 1e6)
+    flat = " ".join(text.split())
+    assert f"{min(walls):.1f} to {max(walls):.1f} min a case" in flat
+    assert (f"{min(steps):.1f} to {max(steps):.1f} M physics steps a case ({sum(steps):.0f} M for the "
+            "ten") in flat
