@@ -230,7 +230,7 @@ def test_every_library_effect_is_native_mjcf_or_a_runtime_law():
         out = _outcome(patched, [{"name": eff.name, "parameters": {}}], 1e-3)
         xml = rp.model_xml(out)
         numerics = {n.name for n in mujoco.MjSpec.from_string(xml).numerics}
-        assert numerics <= set(DRIVE_LAWS) | {runtime.PERIOD_NUMERIC, "current_limit"}, eff.name
+        assert numerics <= set(DRIVE_LAWS) | {runtime.PERIOD_NUMERIC, "current_limit", "load_friction_smooth"}, eff.name
         needs = "runtime:" in xml.split("<mujoco")[0]
         assert needs == (eff.name in ("load_friction", "current_limit")), eff.name
         got = _plain(xml, SERVO, runs, 1e-3, with_runtime=needs)
@@ -270,7 +270,8 @@ def test_every_staged_effect_is_native_mjcf_or_a_runtime_law(name):
     current limit) at values where they act: written into the servo pendulum, read back from
     the MJCF text with the runtime's declarations, plain MuJoCo (with the runtime when the
     header says so) replays like the engine on the spec (1e-6 rad); both need the runtime."""
-    values = {"friction_family_stribeck": [0.2, 0.6, 0.36, 0.03, 0.2, 1.5], "current_limit": [0.8, 0.36]}
+    values = {"friction_family_stribeck": [0.2, 0.6, 0.36, 0.03, 0.2, 1.5], "current_limit": [0.8, 0.36],
+              "load_friction_smooth": [0.2, 0.2, 0.36, 0.02]}
     spec = _servo_spec()
     e = fx.for_model(fx.get(name), spec, SERVO)
     patched = fx.apply(spec, [(e, np.array(values[name]))], SERVO)
@@ -278,7 +279,7 @@ def test_every_staged_effect_is_native_mjcf_or_a_runtime_law(name):
     assert needs
     xml = runtime.declare(patched, SERVO.joint, SERVO.actuator, 1e-3).to_xml()
     numerics = {n.name for n in mujoco.MjSpec.from_string(xml).numerics}
-    assert numerics <= set(DRIVE_LAWS) | {runtime.PERIOD_NUMERIC, "current_limit"}
+    assert numerics <= set(DRIVE_LAWS) | {runtime.PERIOD_NUMERIC, "current_limit", "load_friction_smooth"}
     t = np.arange(600) * 1e-3
     runs = [(0.0, np.where(t % 0.3 < 0.15, 0.3, -0.1), 40.0)]
     want = _engine(patched.compile(), SERVO, runs, 1e-3, batch=False)
