@@ -497,9 +497,9 @@ def nested_variants(scorer: Scorer, out: list[Scored], gap_start: float, *, star
     """Each confirmed candidate with nested variants (:data:`discrepancy.effects.family.NESTED`:
     ``load_friction`` and the friction family's Stribeck and smooth-sign variants): the variants
     fitted from its fit (their own parameters over their grid's best point on the prescreen's
-    short records; with ``starts`` holding a variant's equation-error fit, that fit beside the
-    round's accepted values ``accepted_x`` is one more point, as a candidate's is in the prescreen),
-    screened and confirmed as it was, and the one :func:`~discrepancy.nesting.choose_variant`
+    short records) and, when ``starts`` holds equation-error fits of the variant or its parent,
+    from those beside the round's accepted values ``accepted_x`` too (:func:`_confirm_child`:
+    two starts, the lower training gap kept), screened and confirmed as it was, and the one :func:`~discrepancy.nesting.choose_variant`
     picks on the per-run held-out gaps put in its place, the variants' held-out gaps recorded in
     its :attr:`Scored.variants` (the one not kept is not listed: a richer variant the rule judged
     a tie must not outrank the one it kept).  Returns ``out`` so changed, as
@@ -534,10 +534,15 @@ def _shape_starts(scorer: Scorer, parent: Scored, kid: str, starts: dict | None)
     out = [np.asarray(starts[kid], float)] if starts.get(kid) is not None else []
     mine = starts.get(parent.effects[-1].name)
     if mine is not None:
-        eff = scorer.builder.effect(kid)
-        about = np.concatenate([mine, np.zeros(eff.nparam - len(mine))])
-        out += [np.concatenate([mine, g[len(mine):]]) for g in eff.grid(about)]
+        out += _grid_about(scorer.builder.effect(kid), mine)
     return out
+
+
+def _grid_about(kid, mine: np.ndarray) -> list[np.ndarray]:
+    """Nested variant ``kid``'s grid about its parent's values ``mine``: those values kept in
+    every point, the kid's further parameters over its grid."""
+    about = np.concatenate([mine, np.zeros(kid.nparam - len(mine))])
+    return [np.concatenate([mine, g[len(mine):]]) for g in kid.grid(about)]
 
 
 def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float, shapes=(),
@@ -565,10 +570,9 @@ def _confirm_child(scorer: Scorer, parent: Scored, kid: str, gap_start: float, s
     def distinct(points):  # a grid about given values repeats points: each is replayed once, in order
         seen = set()
         return [p for p in points if not (p.tobytes() in seen or seen.add(p.tobytes()))]
-    # the variant's grid about the parent's values, those values kept in every point
-    about = np.concatenate([mine, np.zeros(effects[-1].nparam - len(mine))])
-    grids = [distinct([np.clip(np.concatenate([base, effects[-1].clip(np.concatenate([mine, g[len(mine):]]))]),
-                               short.lower, short.upper) for g in effects[-1].grid(about)])]
+    # the variant's grid about the parent's values
+    grids = [distinct([np.clip(np.concatenate([base, effects[-1].clip(x)]), short.lower, short.upper)
+                       for x in _grid_about(effects[-1], mine)])]
     if shapes and accepted_x is not None and len(accepted_x) == len(base):
         grids.append(distinct([np.clip(np.concatenate([accepted_x, effects[-1].clip(x)]), short.lower, short.upper)
                                for x in shapes]))

@@ -82,7 +82,7 @@ from scipy import sparse
 from identification.errors import UserError
 
 from omni_sim import model as om
-from omni_sim.device import DRIVE_LAWS, Device
+from omni_sim.device import DRIVE_LAWS, Device, smooth_load_level
 from . import bristles
 from .runs import ReplayRun
 from .smoothing import BAND_SIGMAS, HANN_CUTOFF, Estimator, Smoothed, hann_taps, row_norms, smooth
@@ -267,15 +267,15 @@ class InverseModel:
     @staticmethod
     def smooth_force(sm: Smoothed, motor: np.ndarray, values) -> np.ndarray:
         """A smooth load law's force [N*m] (:data:`omni_sim.device.LOAD_FRICTION_SMOOTH`,
-        ``values`` its ``mu_drive mu_back b_emf w_s``) at the output times: its level at
-        ``qd_start`` and the drive's torque, its sign ``tanh(qd / w_s)`` on the fine grid through
-        the window, as the Coulomb friction's direction (a sign speed of 0.02 rad/s switches
-        within the window: taken at the smoothed speed it would switch late and whole)."""
-        mu_d, mu_b, b_emf, w_s = (float(v) for v in values)
-        tau = motor - b_emf * sm.qd_start
-        level = np.where(tau * sm.qd_start > 0, mu_d, mu_b) * np.abs(tau)
+        ``values`` its ``mu_drive mu_back b_emf w_s``) at the output times: its level
+        (:func:`omni_sim.device.smooth_load_level`) at ``qd_start`` and the drive's torque, its
+        sign ``tanh(qd / w_s)`` on the fine grid through the window, as the Coulomb friction's
+        direction (a sign speed of 0.02 rad/s switches within the window: taken at the smoothed
+        speed it would switch late and whole)."""
+        v = np.asarray(values, float)[None, :]
+        level = smooth_load_level(v, sm.qd_start, motor)
         G0, vel = sm.fine[0], sm.fine[1]
-        return -level * (G0 @ np.tanh(vel / w_s))
+        return -level * (G0 @ np.tanh(vel / v[0, 3]))
 
     def band(self, sm: Smoothed) -> np.ndarray:
         """The noise band [N*m] (module docstring): 3 sigma of ``tau_req`` from the logged

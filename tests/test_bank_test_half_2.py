@@ -18,10 +18,10 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from bank.test_half import score as base_score
 from bank.test_half import truths as tr
 from bank.test_half_2 import make, score
 from bank.test_half_2 import truths as tr2
+from tests.half_record import check_readme_run
 
 PLANT = tr.nominal_plant()
 FLAT = replace(PLANT, mgl=0.0)
@@ -408,23 +408,7 @@ def test_readme_second_half_run_is_its_record():
     score as run and each case's report), the commit it names is the score's and the reports',
     the record's scores are what score.py says of its reports, and the wall times it quotes
     are the reports' own."""
-    text = (tr.ROOT / "bank" / "README.md").read_text()
-    a = text.index("<!-- second test half table:")
-    table = text[text.index("\n", a) + 1:text.index("<!-- end of second test half table -->")]
-    assert table == base_score.record_table(RECORD)
-    sc = json.loads((RECORD / "score.json").read_text())
-    assert f"at commit {sc['commit'][:7]}" in text and f"score.py --commit {sc['commit'][:7]}" in text
-    cases = json.loads((RECORD / "cases.json").read_text())["cases"]
-    walls, steps = [], []
-    for case, row in zip(cases, sc["cases"], strict=True):
-        rep = json.loads((RECORD / case["name"] / "report.json").read_text())
-        assert score.score_case(case, rep)["points"] == row["points"], case["name"]
-        walls.append(rep["timings"]["total_s"] / 60)
-        steps.append(rep["timings"]["physics_steps"] / 1e6)
-    flat = " ".join(text.split())
-    assert f"{min(walls):.1f} to {max(walls):.1f} min a case" in flat
-    assert (f"{min(steps):.1f} to {max(steps):.1f} M physics steps a case ({sum(steps):.0f} M for the "
-            "ten") in flat
+    flat = check_readme_run(RECORD, "second test half", score.score_case)
     lat = json.loads((RECORD / "h_latency" / "report.json").read_text())["effects"]
     assert [e["name"] for e in lat] == ["presliding_friction", "time_delay"]
     assert f"(`time_delay` {1e3 * lat[1]['parameters']['delay_s']:.2f} ms, {lat[1]['confidence']} confidence)" in flat

@@ -51,7 +51,7 @@ from .engine import (CONTROL_PERIOD_S, STATE_SPEC, THREADS_ENV, Engine, default_
                      substeps_of)
 from .laws import (CURRENT_LIMIT, CURRENT_LIMIT_PARAMS, DRIVE_LAWS, FRICTION_ASYMMETRY, FRICTION_FAMILY,
                    LOAD_FRICTION, LOAD_FRICTION_BLEND_RAD_S, LOAD_FRICTION_SMOOTH, LOAD_FRICTION_SMOOTH_PARAMS,
-                   DriveFriction, DriveLaw, register_drive_law)
+                   DriveFriction, DriveLaw, register_drive_law, smooth_load_level)
 from .laws import _DriveLaws, _numeric  # noqa: F401 (omni_sim.runtime's)
 
 __all__ = ["CONTROL_PERIOD_S", "CURRENT_LIMIT", "CURRENT_LIMIT_PARAMS", "DRIVE_LAWS", "ENCODER_STEP_RAD",
@@ -59,4 +59,4 @@ __all__ = ["CONTROL_PERIOD_S", "CURRENT_LIMIT", "CURRENT_LIMIT_PARAMS", "DRIVE_L
            "LOAD_FRICTION_SMOOTH", "LOAD_FRICTION_SMOOTH_PARAMS", "STATE_SPEC",
            "THREADS_ENV", "Device", "DriveFriction", "DriveLaw", "Encoder", "Engine", "coupled_hinges",
            "default_threads", "encoder_reader",
-           "p_law", "read_encoder", "register_drive_law", "run_p_loop", "substeps_of"]
+           "p_law", "read_encoder", "register_drive_law", "run_p_loop", "smooth_load_level", "substeps_of"]

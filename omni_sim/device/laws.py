@@ -181,13 +181,21 @@ def _smooth_check(v: np.ndarray) -> str | None:
     return None if ok else "must hold mu_drive mu_back b_emf >= 0 and a sign speed w_s > 0 [rad/s]"
 
 
+def smooth_load_level(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """:data:`LOAD_FRICTION_SMOOTH`'s level ``L = mu |tau - b_emf w|`` [N*m], ``mu = mu_drive``
+    where the motor drives (``(tau - b_emf w) w > 0``) else ``mu_back``; ``v`` (B, 4) the rows'
+    values, ``w`` their joint velocities, ``tau`` their actuators' torques (``gear *
+    actuator_force``)."""
+    tau = tau - v[:, 2] * w
+    return np.where(tau * w > 0, v[:, 0], v[:, 1]) * np.abs(tau)
+
+
 def smooth_load_force(v: np.ndarray, w: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:data:`LOAD_FRICTION_SMOOTH`'s joint force ``-L tanh(w / w_s)`` [N*m] of B rows and its
     slope ``-dF/dw = L (1 - tanh^2) / w_s`` [N*m*s/rad], with ``v`` (B, 4) the rows' values
     (``w_s`` > 0), ``w`` their joint velocities and ``tau`` their actuators' torques
-    (``gear * actuator_force``)."""
-    tau = tau - v[:, 2] * w
-    level = np.where(tau * w > 0, v[:, 0], v[:, 1]) * np.abs(tau)
+    (``gear * actuator_force``); ``L`` :func:`smooth_load_level`."""
+    level = smooth_load_level(v, w, tau)
     th = np.tanh(w / v[:, 3])
     return -level * th, level * (1.0 - th * th) / v[:, 3]
 
