@@ -491,4 +491,11 @@ def test_readme_third_half_run_is_its_record():
     score as run and each case's report), the commit it names is the score's, the record's
     scores are what score.py says of its reports, and the wall times and physics steps it
     quotes are the reports' own."""
-    check_readme_run(RECORD, "third test half", score.score_case)
+    flat = check_readme_run(RECORD, "third test half", score.score_case)
+    hertz = json.loads((RECORD / "d_hertz_load" / "report.json").read_text())
+    v = next(r["variants"] for r in hertz["rounds"] if "variants" in r)
+    assert v["chosen"] == "load_friction"
+    assert (f"(`d_hertz_load`: {v['load_friction']['heldout_gap_rad']:.2e} rad held out against the smooth "
+            f"variant's {v['load_friction_smooth']['heldout_gap_rad']:.2e})").replace("e-03", "e-3") in flat
+    spring = json.loads((RECORD / "i_torsion_spring" / "report.json").read_text())
+    assert f"the spring's gap stays at {spring['gap_after']:.2e} rad" in flat

@@ -959,3 +959,30 @@ def test_docs_smooth_sign_figures_are_the_record():
     assert f"both stop far from the truth ({e(far[0])} and {e(far[1])} rad)" in flat
     assert all(abs(x["fit_from_nominal"]["values"]["gear_nm_per_v"] - rec["truth"]["gear_nm_per_v"]) > 0.005
                for x in (stick, smooth))
+
+
+def test_docs_users_pendulum_is_the_record():
+    """The method page's users_pendulum paragraph quotes the bank record's run of the case
+    (docs/studies/discrepancy/bank.json): its commit, the variants' held-out gaps, the named
+    law's values and half-widths, the shrink, the torque gain's correction and the ridge's two
+    products of the gain and the coefficients."""
+    case = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "bank.json").read_text())["cases"]["users_pendulum"]
+    rep = case["report"]
+    text = _flat(PAGE.read_text())
+    par = text[text.index("**`users_pendulum`**"):text.index("**`asymmetric_friction` fails**")]
+    assert f"Run at commit {case['commit']}" in par
+    v = rep["rounds"][0]["variants"]
+    assert (f"held out {v['load_friction_smooth']['heldout_gap_rad']:.2e} rad against `load_friction`'s "
+            f"{v['load_friction']['heldout_gap_rad']:.2e} and the Stribeck variant's "
+            f"{v['friction_family_stribeck']['heldout_gap_rad']:.2e}").replace("e-04", "e-4") in par
+    (e,) = rep["effects"]
+    p, u = e["parameters"], e["uncertainty"]
+    assert e["name"] == "load_friction_smooth"
+    for name, word in (("mu_drive", "mu_drive"), ("mu_back", "mu_back"), ("b_emf_nms_per_rad", "b_emf"),
+                       ("w_s_rad_s", "w_s")):
+        assert f"{word} {p[name]:.2g} ± {u[name]:.2g}" in par or f"{word} {p[name]:.3f} ± {u[name]:.2g}" in par, name
+    assert f"gap ×{rep['shrink_factor']:.1f}" in par
+    (gain,) = [c for c in rep["corrections"] if c["parameter"] == "gear_nm_per_v"]
+    assert f"torque gain came back at {gain['fitted']:.3f} ± {gain['half_width_95']:.2g}" in par
+    assert f"gear·(1 − μ_drive) = {gain['fitted'] * (1 - p['mu_drive']):.3f}" in par
+    assert f"gear·(1 + μ_back) = {gain['fitted'] * (1 + p['mu_back']):.3f}" in par
