@@ -115,8 +115,8 @@ CASES: tuple[HiddenCase, ...] = (
     _single("viscous_damping", (0.012,),
             "1.2e-2 N*m*s/rad instead of the calibrated 6.9e-3 (models/omni/scene_lugre.xml): a "
             "+70 % change, e.g. cold grease or a lower-impedance amplifier (more back-EMF damping)"),
-    _single("joint_stiffness", (0.06,),
-            "cable spring 0.06 N*m/rad: the stylus cable pulls ~6 mN*m at 0.1 rad (estimate, a "
+    _single("joint_stiffness", (0.06, 0.0),
+            "cable spring 0.06 N*m/rad at rest 0: the stylus cable pulls ~6 mN*m at 0.1 rad (estimate, a "
             "third of the dry friction)"),
     _single("gravity_tilt", (0.035, -0.02),
             "base tilted 2.0 deg about one axis, 1.1 deg about the other: a desk or cart off "

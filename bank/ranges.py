@@ -26,7 +26,7 @@ RANGES = {
     # 0.6x..2x the calibrated 6.9e-3 N*m*s/rad (grease temperature, amplifier impedance)
     "viscous_damping": ((0.004, 0.014, False),),
     # cable springs: 1..10 mN*m at 0.1 rad
-    "joint_stiffness": ((0.01, 0.10, False),),
+    "joint_stiffness": ((0.01, 0.10, False), (0.0, 0.0, False)),
     # a desk or cart off level by 0.9..2.3 deg about each axis, either way
     "gravity_tilt": ((0.015, 0.04, True), (0.015, 0.04, True)),
     # total reflected rotor inertia: 1.5x..4x the nominal 1e-4 (estimate 5e-5..2e-4 + capstan)

@@ -105,10 +105,10 @@ _SHARED = [
      "servo loop 1 kHz nominal, 700-900 Hz on some USB units); library grid value"),
     ("time_delay", "5ms", [0.005],
      "pure loop delay 5 ms: the upper end of 'a few ms' (effects/actuator.py); library grid value"),
-    ("joint_stiffness", "0.03", [0.03],
+    ("joint_stiffness", "0.03", [0.03, 0.0],
      "torsional spring 0.03 N*m/rad at the yaw, rest at 0 (cables, wiring through the turret): "
      "library grid value (effects/joint.py; scale 0.02)"),
-    ("joint_stiffness", "0.1", [0.1],
+    ("joint_stiffness", "0.1", [0.1, 0.0],
      "torsional spring 0.1 N*m/rad (a tenth of the P loop's kp * gear = 1 N*m/rad): library grid value"),
 ]
 

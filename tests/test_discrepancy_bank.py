@@ -269,8 +269,7 @@ def compiled_values(name: str, m: mujoco.MjModel, nominal: mujoco.MjModel) -> li
     if name == "viscous_damping":
         return [m.dof_damping[dof]]
     if name == "joint_stiffness":
-        assert m.qpos_spring[m.jnt_qposadr[j]] == 0.0
-        return [m.jnt_stiffness[j]]
+        return [m.jnt_stiffness[j], m.qpos_spring[m.jnt_qposadr[j]]]
     if name == "gravity_tilt":
         d = mujoco.MjData(m)
         mujoco.mj_kinematics(m, d)

@@ -10,7 +10,8 @@ name               MJCF change                                 parameters [unit]
 =================  ==========================================  ===================================
 coulomb_friction   ``yaw`` joint ``frictionloss``               ``frictionloss_nm`` [N*m]
 viscous_damping    ``yaw`` joint ``damping``                    ``damping_nms_per_rad`` [N*m*s/rad]
-joint_stiffness    ``yaw`` joint ``stiffness`` (springref 0)    ``stiffness_nm_per_rad`` [N*m/rad]
+joint_stiffness    ``yaw`` joint ``stiffness``, ``springref``   ``stiffness_nm_per_rad`` [N*m/rad],
+                                                                ``rest_rad`` [rad]
 gravity_tilt       ``option/gravity`` tilted (the base tilted)  ``tilt_x_rad``, ``tilt_y_rad`` [rad]
 armature           ``yaw`` joint ``armature``                   ``armature_kgm2`` [kg*m^2]
 actuator_lag       ``yaw_motor`` dyntype filterexact, dynprm[0] ``time_constant_s`` [s]
