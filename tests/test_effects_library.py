@@ -333,6 +333,28 @@ def test_cogging_torque_formula(scene, target):
         assert tau == pytest.approx(a * math.sin(fx.COGGING_PERIODS * q + ph), abs=1e-12), q
 
 
+@pytest.mark.parametrize("scene,target", [("scene.xml", om.OMNI), ("pendulum", PENDULUM_TARGET)])
+def test_joint_stiffness_is_a_preloaded_spring(scene, target):
+    """joint_stiffness's torque on the joint is Hooke's law about its rest angle, -k (q - rest),
+    at any angle, and reads back what it wrote (rest 0: the plain spring)."""
+    spec = _pendulum() if scene == "pendulum" else _omni(scene)
+    for k, rest in ((0.6, 0.25), (0.06, 0.0), (0.2, -0.4)):
+        m = fx.compile_with(spec, [(fx.get("joint_stiffness"), [k, rest])], target)
+        m0 = spec.compile()
+        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, target.joint)
+        d, d0 = mujoco.MjData(m), mujoco.MjData(m0)
+        for q in np.linspace(-0.9, 0.9, 7):
+            d.qpos[m.jnt_qposadr[j]] = d0.qpos[m0.jnt_qposadr[j]] = q
+            mujoco.mj_forward(m, d)
+            mujoco.mj_forward(m0, d0)
+            dof = m.jnt_dofadr[j]
+            tau = d.qfrc_spring[dof] - d0.qfrc_spring[dof]
+            assert tau == pytest.approx(-k * (q - rest), abs=1e-12), (k, rest, q)
+        s2 = spec.copy()
+        fx.get("joint_stiffness").write(s2, [k, rest], target)
+        assert list(fx.get("joint_stiffness").read(s2, target)) == [k, rest]
+
+
 def test_separating_experiments_name_library_effects():
     for pair, text in fx.SEPARATING_EXPERIMENTS.items():
         assert len(pair) == 2 and set(pair) <= set(fx.NAMES) and len(text) > 40
