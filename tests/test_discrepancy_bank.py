@@ -631,13 +631,13 @@ def test_bank(case_name):
 #: (servo_truth.assess_efficiency), else the measured figures of its failure (the docs test checks
 #: them against the record).
 GEAR_EFFICIENCY_FAILURE = (
-    "the workflow (commit ec6f64e, load_friction on the motor's net torque) names load_friction with "
-    "high confidence (round 1's best, load_friction 0.86 of the corrections' gap) and the held-out gap "
-    "0.0194 -> 0.00139 rad (x14), but the direction the case asks is reversed: mu_drive 0.352 > "
-    "mu_back 0.0979 for 0.15 < 0.45, with the torque gain corrected "
-    "0.3 -> 0.3907 (+30 %): where the drive moves, only gain*(1 - mu_drive) and gain*(1 + mu_back) "
-    "are told apart, and the fit slid along that ridge (damping 0.37 -> 0.4801, frictionloss "
-    "0.03 -> 0.03047 N*m); noise floor 0.000597 rad (docs/studies/discrepancy/bank.md)")
+    "the workflow (commit 8f96418, the smooth load variant and its two starts in) names "
+    "load_friction_smooth with high confidence (round 1's best, load_friction_smooth 0.89 of the "
+    "corrections' gap) and the held-out gap 0.0194 -> 0.00109 rad (x17.8), with mu_drive 0.155 < "
+    "mu_back 0.441 for 0.15 < 0.45 (both intervals hold them), but the case asks for load_friction "
+    "itself (its expectation was set before the family's variants existed and is kept as written: "
+    "the named law is the variant nested in it); damping 0.37 -> 0.3657, frictionloss "
+    "0.03 -> 0.03185 N*m; noise floor 0.000597 rad (docs/studies/discrepancy/bank.md)")
 
 
 @pytest.mark.slow
@@ -681,9 +681,11 @@ def test_docs_gear_efficiency_section_is_the_record():
             if c["parameter"] in ("damping_nms_per_rad", "frictionloss_nm"):
                 assert f"{c['nominal']:.4g} -> {c['fitted']:.4g}" in GEAR_EFFICIENCY_FAILURE, c["parameter"]
         shares = {c["name"]: c for c in rep["candidates"][0]}
-        for name in (rep["rounds"][0]["best"], "load_friction"):  # the round's best, the law's form
+        # the law's form: load_friction, or the family's variant that stands in its place
+        law = "load_friction" if "load_friction" in shares else rep["rounds"][0]["variants"]["chosen"]
+        for name in (rep["rounds"][0]["best"], law):  # the round's best, the law's form
             assert f"{name} {shares[name]['share']:.2g}" in GEAR_EFFICIENCY_FAILURE, name
-        p = shares["load_friction"]["parameters"]
+        p = shares[law]["parameters"]
         sign = ">" if p["mu_drive"] > p["mu_back"] else "<"
         assert f"mu_drive {p['mu_drive']:.3g} {sign} mu_back {p['mu_back']:.3g}" in GEAR_EFFICIENCY_FAILURE
 

@@ -215,8 +215,15 @@ def _efficiency_rounds(rep: dict) -> list[str]:
                     key=lambda c: c["prescreen_gap_rad"])
     shares = ("- round 1's held-out shares (of the round's gap): "
               + ", ".join(f"`{c['name']}` {c['share']:.3f}" for c in scored))
+    variants = rep["rounds"][0].get("variants") or {}
+    if variants:  # the friction family's variants, each confirmed; the chosen one stands in the candidates
+        lines.append("- round 1's friction family (held-out gaps): "
+                     + ", ".join(f"`{n}` {v['heldout_gap_rad']:.3g} rad" for n, v in variants.items() if n != "chosen")
+                     + f"; kept `{variants['chosen']}` (`discrepancy.nesting.choose_variant`), which stands in "
+                     "the family's place among the candidates")
     if not any(c["name"] == "load_friction" for c in screen):
-        lines.append(shares + "; `load_friction` was not among the best by equation error, so it was not replayed")
+        lines.append(shares + ("" if "load_friction" in variants else
+                               "; `load_friction` was not among the best by equation error, so it was not replayed"))
         return lines
     rank = next(i for i, c in enumerate(screen) if c["name"] == "load_friction") + 1
     lf = screen[rank - 1]
@@ -257,6 +264,23 @@ def _efficiency_restricted(rec: dict) -> list[str]:
             f"{rep['gap_after']:.3g} rad (×{rep['shrink_factor']:.3g})"
             + ("; gap flagged unexplained" if rep.get("unexplained") else "")
             + (f"; the nominal's corrections: {_fmt_corrections(rep)}" if _fmt_corrections(rep) else "") + "."]
+
+
+def _efficiency_variant_reading(rep: dict, eq: dict) -> list[str]:
+    """When the first named law is a variant nested in ``load_friction`` (the case's expectation,
+    set before the variants existed, asks for ``load_friction`` itself and is kept as written):
+    whether each of its load coefficients' intervals holds the truth's equivalent."""
+    from discrepancy.effects.family import PARENT
+    first = rep["effects"][0]
+    if PARENT.get(first["name"]) != "load_friction":
+        return []
+    held = [f"{k} {first['parameters'][k]:.3g} ± {first['uncertainty'][k]:.2g} "
+            + ("holds" if abs(first["parameters"][k] - eq[k]) <= first["uncertainty"][k] else "misses")
+            + f" {eq[k]:g}" for k in ("mu_drive", "mu_back")]
+    return [f"The first named law, `{first['name']}`, is a variant nested in `load_friction` "
+            "(`discrepancy/effects/family.py`); the expectation above names `load_friction` itself and "
+            "is kept as written, so the verdict is a fail by its letter. Its load coefficients against "
+            "the truth's equivalents: " + "; ".join(held) + ".", ""]
 
 
 def efficiency_section(rec: dict) -> str:
@@ -308,6 +332,7 @@ def efficiency_section(rec: dict) -> str:
         f"{'PASS' if rec['pass'] else 'FAIL'} ({rec['why']}) | {meta['seconds']:.0f} s |", "",
         *([f"The nominal's corrections (refitted with the named effects, reported apart): "
            f"{_fmt_corrections(rep)}.", ""] if _fmt_corrections(rep) else []),
+        *_efficiency_variant_reading(rep, eq),
         "The search, round by round (from the report):", "", *_efficiency_rounds(rep),
         *_efficiency_restricted(rec), "",
         *([] if rec["pass"] else ["`tests/test_discrepancy_bank.py` runs the case as a strict expected "
