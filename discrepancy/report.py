@@ -203,23 +203,49 @@ def _bound_flags(eff, x) -> dict:
 CONFOUNDED_CORRELATION = 0.9
 
 
+def multiple_correlation(corr: np.ndarray, i: int, others: list[int]) -> float:
+    """The multiple correlation R of parameter ``i``'s estimate with the estimates ``others``
+    together, from their correlation matrix: ``R^2 = r_iS R_SS^-1 r_Si`` (the share of its
+    variance a linear combination of the others takes; 1 / (1 - R^2) is its variance inflation
+    factor against them).  NaN where a correlation is undefined."""
+    r = corr[i, others]
+    sub = corr[np.ix_(others, others)]
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(sub))):
+        return math.nan
+    r2 = float(r @ np.linalg.pinv(sub) @ r)
+    return math.sqrt(min(max(r2, 0.0), 1.0))
+
+
 def confounded(best: Scored, corr: np.ndarray, fixed: tuple[str, ...]) -> dict:
     """``{(correction, parameter): [(effect, parameter, correlation), ...]}``: each refitted
     constant of the nominal whose correlation with a named effect's parameter reaches
     :data:`CONFOUNDED_CORRELATION` in magnitude (parameters on a bound left out: their
-    correlation is not defined)."""
-    corrections, named = [], []
+    correlation is not defined), or, when no single parameter of that effect does, whose
+    multiple correlation with the effect's parameters together does (a ridge the effect's
+    parameters span jointly, e.g. a torque gain traded against a load law's two coefficients
+    at once; :func:`multiple_correlation`, the same threshold: the same variance inflation
+    factor 5.3).  A joint entry's parameter is the effect's parameters joined by ``+``, its
+    correlation the (positive) multiple correlation."""
+    corrections, named = [], {}
     for eff, x, part in _parts(best):
         on_bound = _bound_flags(eff, x)
         for k, p in enumerate(eff.params):
             if p.name not in on_bound:
-                (corrections if eff.name in fixed else named).append((eff.name, p.name, part.start + k))
+                if eff.name in fixed:
+                    corrections.append((eff.name, p.name, part.start + k))
+                else:
+                    named.setdefault(eff.name, []).append((p.name, part.start + k))
     out: dict = {}
     for e1, p1, i in corrections:
-        for e2, p2, j in named:
-            r = float(corr[i, j])
-            if math.isfinite(r) and abs(r) >= CONFOUNDED_CORRELATION:
-                out.setdefault((e1, p1), []).append((e2, p2, r))
+        for e2, params in named.items():
+            hits = [(e2, p2, float(corr[i, j])) for p2, j in params
+                    if math.isfinite(corr[i, j]) and abs(corr[i, j]) >= CONFOUNDED_CORRELATION]
+            if not hits and len(params) > 1:
+                r = multiple_correlation(corr, i, [j for _, j in params])
+                if math.isfinite(r) and r >= CONFOUNDED_CORRELATION:
+                    hits = [(e2, "+".join(p2 for p2, _ in params), r)]
+            if hits:
+                out.setdefault((e1, p1), []).extend(hits)
     return out
 
 

@@ -433,7 +433,8 @@ def _md_corrections(rep: dict) -> list[str]:
     mixed = [(c, m) for c in rows for m in c.get("confounded_with", [])]
     if mixed:
         pairs = "; ".join(f"{c['effect']}: {c['parameter']} with {m['effect']}: {m['parameter']} "
-                          f"(correlation {m['correlation']:+.2f})" for c, m in mixed)
+                          + (f"together (multiple correlation {m['correlation']:+.2f})" if "+" in m["parameter"]
+                             else f"(correlation {m['correlation']:+.2f})") for c, m in mixed)
         L += [f"**Confounded with a named law:** {pairs}. The fit trades one for the other (|correlation| "
               f"of at least {CONFOUNDED_CORRELATION:g} at the all-runs optimum), so the data do not measure "
               "these constants apart from the named effect: read the correction and the effect together, "

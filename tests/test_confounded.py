@@ -72,6 +72,51 @@ def test_a_correction_traded_against_a_named_parameter_is_flagged(r, flagged):
     assert confounded(best, corr, fixed=("torque_gain", "load_friction")) == {}
 
 
+def test_multiple_correlation_matches_a_regression_over_noise_draws():
+    """Independent truth: a linear least-squares problem whose first parameter trades against the
+    other two jointly though against neither alone (correlation 0.65 with each); over noise draws
+    the share of the first estimate's variance a linear regression on the other two estimates
+    takes is R^2, which multiple_correlation must give from the Jacobian's correlation."""
+    from discrepancy.report import multiple_correlation
+    rng = np.random.default_rng(5)
+    t = np.linspace(0.0, 1.0, 400)
+    # the design whose estimates' correlation is `target`: 0.65 with each of the others, which are
+    # nearly uncorrelated (-0.1) with each other; J = Q target^(-1/2), so J^T J = target^-1
+    target = np.array([[1.0, 0.65, 0.65], [0.65, 1.0, -0.1], [0.65, -0.1, 1.0]])
+    w, v = np.linalg.eigh(target)
+    Q = np.linalg.qr(np.column_stack([np.sin(3 * t), np.cos(5 * t), t]))[0]
+    J = Q @ (v @ np.diag(w ** -0.5) @ v.T)
+    truth = np.array([0.4, 0.2, -0.1])
+    est = np.array([np.linalg.lstsq(J, J @ truth + 0.01 * rng.standard_normal(len(t)), rcond=None)[0]
+                    for _ in range(3000)])
+    X = np.column_stack([np.ones(len(est)), est[:, 1:]])
+    resid = est[:, 0] - X @ np.linalg.lstsq(X, est[:, 0], rcond=None)[0]
+    r2_empirical = 1.0 - resid.var() / est[:, 0].var()
+    corr = correlation(jacobian_cov(*_linear_problem(J, 0.01 * rng.standard_normal(len(t)))))
+    r = multiple_correlation(corr, 0, [1, 2])
+    # 3000 draws: R^2's sampling error is about 2 R (1 - R^2) / sqrt(3000) < 0.01 here
+    assert r ** 2 == pytest.approx(r2_empirical, abs=0.01)
+    assert r > CONFOUNDED_CORRELATION and max(abs(corr[0, 1]), abs(corr[0, 2])) < CONFOUNDED_CORRELATION
+
+
+def test_a_correction_traded_against_a_named_law_jointly_is_flagged():
+    """A gain correlated 0.7 with each of load_friction's two coefficients, which are
+    uncorrelated with each other: no pair reaches 0.9, the two together do (R^2 = 0.98)."""
+    gain, load = fx.get("torque_gain"), fx.get("load_friction")
+    mid = [np.array([0.5 * (p.lower + p.upper) if np.isfinite(p.upper - p.lower) else 1.0 for p in e.params])
+           for e in (gain, load)]
+    best = _best(("torque_gain", "load_friction"), mid)
+    n = gain.nparam + load.nparam
+    corr = np.eye(n)
+    for j in (gain.nparam, gain.nparam + 1):
+        corr[0, j] = corr[j, 0] = 0.7
+    out = confounded(best, corr, fixed=("torque_gain",))
+    joined = "+".join(p.name for p in load.params)
+    assert out == {("torque_gain", gain.params[0].name): [("load_friction", joined, pytest.approx(0.98 ** 0.5))]}
+    corr[0, gain.nparam] = corr[gain.nparam, 0] = 0.3  # R^2 = 0.58: not flagged
+    assert confounded(best, corr, fixed=("torque_gain",)) == {}
+
+
 def test_a_parameter_on_its_bound_is_never_flagged():
     gain, load = fx.get("torque_gain"), fx.get("load_friction")
     at_lower = np.array([p.lower for p in load.params])
@@ -94,5 +139,9 @@ def test_report_page_says_which_correction_is_confounded():
     assert "Confounded with a named law" in text
     assert "torque_gain: gear_nm_per_v with load_friction: mu_drive (correlation -0.97)" in text
     assert "confounded with load_friction" in text  # the row's own column
+    joint = dict(row, confounded_with=[{"effect": "load_friction", "parameter": "mu_drive+mu_back",
+                                        "correlation": 0.96}])
+    assert ("torque_gain: gear_nm_per_v with load_friction: mu_drive+mu_back together (multiple correlation "
+            "+0.96)") in "\n".join(_md_corrections({"corrections": [joint]}))
     clean = "\n".join(_md_corrections({"corrections": [dict(row, confounded_with=[])]}))
     assert "onfounded" not in clean
