@@ -505,6 +505,9 @@ BANK_PARTS = {
     # the third test half reuses the first's plant, campaign and scoring and the second's loop
     # and scoring, nothing else
     "test_half_3": ({"identification"}, {"test_half", "test_half_2", "test_half_3"}),
+    # the fourth test half reuses the first's plant, campaign and scoring, the second's loop, make
+    # and scoring and the third's voltage read-back, families and scoring, nothing else
+    "test_half_4": ({"identification"}, {"test_half", "test_half_2", "test_half_3", "test_half_4"}),
 }
 
 
@@ -514,7 +517,8 @@ def bank_part(module: str) -> str | None:
     parts = module.split(".")
     if parts[0] != BANK or len(parts) == 1:
         return None
-    return parts[1] if parts[1] in ("studies", "writers", "test_half", "test_half_2", "test_half_3") else "truths"
+    return parts[1] if parts[1] in ("studies", "writers", "test_half", "test_half_2", "test_half_3",
+                                           "test_half_4") else "truths"
 
 
 def bank_imports(source: str) -> list[tuple[int, str, bool]]:
