@@ -985,5 +985,10 @@ def test_docs_users_pendulum_is_the_record():
     assert f"gap ×{rep['shrink_factor']:.1f}" in par
     (gain,) = [c for c in rep["corrections"] if c["parameter"] == "gear_nm_per_v"]
     assert f"torque gain came back at {gain['fitted']:.3f} ± {gain['half_width_95']:.2g}" in par
+    truth = 0.3  # servo_truth's gear, the nominal's
+    assert f"for the truth's 0.3 ({100 * (gain['fitted'] / truth - 1):+.1f} %: within the issue's 2 %" in par
+    assert abs(gain["fitted"] / truth - 1) <= 0.02 and abs(gain["fitted"] - truth) <= gain["half_width_95"]
+    (mixed,) = gain["confounded_with"]
+    assert mixed["effect"] == "load_friction_smooth" and f"(multiple correlation {mixed['correlation']:.2f})" in par
     assert f"gear·(1 − μ_drive) = {gain['fitted'] * (1 - p['mu_drive']):.3f}" in par
     assert f"gear·(1 + μ_back) = {gain['fitted'] * (1 + p['mu_back']):.3f}" in par
