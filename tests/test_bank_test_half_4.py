@@ -537,3 +537,40 @@ def test_score_new_claims():
     assert filt["points"]["family"] is True and filt["points"]["direction"] is True
     cable = score.score_case(_case("d_cable_hysteresis"), _named(report, "joint_stiffness", {"stiffness": 0.4}))
     assert cable["points"]["family"] is True and cable["points"]["direction"] is True
+
+
+# --- the one run's record (bank/README.md, "The fourth half's one run") ------------------------
+RECORD = tr.ROOT / "bank" / "test_half_4" / "record"
+
+
+def test_readme_fourth_half_run_is_its_record():
+    """bank/README.md's table of the fourth half's one run is made from test_half_4/record (the
+    score as run and each case's report), the commit it names is the score's, the record's
+    scores are what score.py says of its reports, the wall times and physics steps it quotes
+    are the reports' own, and so are the figures of its prose."""
+    from tests.half_record import check_readme_run
+
+    flat = check_readme_run(RECORD, "fourth test half", score.score_case)
+    sc = json.loads((RECORD / "score.json").read_text())
+    t = sc["totals"]
+    assert f"family {t['family']}, no spurious second effect {t['no_spurious']}" in flat
+    unchecked = sum(c["points"]["direction"] is None for c in sc["cases"])
+    wrong = sum(c["points"]["direction"] is False for c in sc["cases"])
+    assert wrong == 0 and f"no direction claim wrong ({t['direction']} right, {unchecked} unchecked" in flat
+    rep = {c["case"]: json.loads((RECORD / c["case"] / "report.json").read_text()) for c in sc["cases"]}
+    spring, hyst = rep["d_cable_hysteresis"]["effects"]
+    p, u = spring["parameters"], spring["uncertainty"]
+    assert (f"`joint_stiffness` {p['stiffness_nm_per_rad']:.3f} ± {u['stiffness_nm_per_rad']:.2g} N m/rad about a rest "
+            f"of {p['rest_rad']:.3f} ± {u['rest_rad']:.2g} rad") in flat
+    assert (f"(sigma0 {hyst['parameters']['sigma0_nm_per_rad']:.2f} N m/rad, level "
+            f"{hyst['parameters']['fc_nm']:.3f} N m;") in flat
+    (delay,) = rep["i_encoder_filter"]["effects"]
+    assert delay["name"] == "time_delay" and f"{delay['parameters']['delay_s'] * 1e3:.1f} ms for a 10 ms lag" in flat
+    for case in ("f_goal_profile", "g_coast_off"):
+        r = rep[case]
+        assert f"({r['gap_before']:.2e} → {r['gap_after']:.2e} rad)" in flat, case
+    assert rep["g_coast_off"]["gap_after"] > rep["g_coast_off"]["gap_before"]  # "made ... worse"
+    flags = [c for c in sc["cases"] if c["unexplained_flag"] and not [
+        e for e in rep[c["case"]]["effects"] if e["name"] != "none"]]
+    assert len(flags) == 5 and all(c["points"]["family"] for c in flags)
+    assert "five of the nine family points are such flags" in flat
