@@ -24,6 +24,7 @@ from bank.test_half import truths as tr
 from bank.test_half_2 import truths as tr2
 from bank.test_half_3 import make, score
 from bank.test_half_3 import truths as tr3
+from tests import half_loops as loops
 from tests.half_record import check_readme_run
 
 PLANT = tr.nominal_plant()
@@ -32,24 +33,14 @@ G, EMF, B, FC, J = PLANT.gear, PLANT.emf, PLANT.bearing, PLANT.coulomb, PLANT.in
 
 
 def _constant(truth, u, seconds, theta0=0.0, sign=1.0, state=None):
-    """Angle every 0.1 ms under a constant command ``sign * u`` [V]."""
-    n = int(round(seconds / tr.CONTROL_PERIOD_S))
-    state = truth.initial_state() if state is None else state
-    theta, cmd = tr3.simulate(truth, np.full(n, sign * 1e3), np.ones(n), 1e6, u, theta0, state)
-    assert np.allclose(cmd, sign * u)
-    return theta
+    return loops.constant(tr3.simulate, truth, u, seconds, theta0, sign, state)
 
 
 def _torque_off(truth, seconds, theta0, state=None):
-    n = int(round(seconds / tr.CONTROL_PERIOD_S))
-    state = truth.initial_state() if state is None else state
-    theta, u = tr3.simulate(truth, np.zeros(n), np.zeros(n), 30.0, 12.0, theta0, state)
-    assert np.all(u == 0.0)
-    return theta
+    return loops.torque_off(tr3.simulate, truth, seconds, theta0, state)
 
 
-def _end_speed(theta, periods=10):
-    return (theta[-1] - theta[-1 - periods * tr.SUBSTEPS]) / (periods * tr.CONTROL_PERIOD_S)
+_end_speed = loops.end_speed
 
 
 def _initial_acceleration(truth, u, theta0):
