@@ -179,6 +179,9 @@ def _summary(outcome, out: Path) -> None:
     names = ", ".join(e["name"] for e in rep["effects"])
     print(f"named: {names}; gap {rep['gap_before']:.3e} -> {rep['gap_after']:.3e} rad "
           f"(x{rep['shrink_factor']:.1f}); report in {out}/report.md")
+    if rp.worse_than_nominal(rep):
+        print("warning: the corrected model predicts the held-out samples worse than your nominal "
+              "did: keep your nominal (report.md says more)")
 
 
 def demo(out: Path, force: bool = False, log=None) -> int:

@@ -372,6 +372,19 @@ def _md_sampling(rep: dict) -> list[str]:
     return L
 
 
+#: What report.md and the command say when the model handed back predicts the held-out samples
+#: worse than the user's nominal did (the corrections or the named effects do not generalise).
+WORSE_THAN_NOMINAL = ("**Warning: the corrected model predicts the held-out samples worse than your "
+                      "nominal did.** Its corrections and effects fit the training samples but do not "
+                      "carry over: keep your nominal model, and read the missing-torque maps for what "
+                      "it lacks.")
+
+
+def worse_than_nominal(rep: dict) -> bool:
+    """Whether the model handed back (``gap_after``) is worse held out than the nominal (``gap_before``)."""
+    return rep["gap_after"] > rep["gap_before"]
+
+
 def _md_named(rep: dict) -> list[str]:
     """The named effects, the gap before and after, the effects' table, ties, an unexplained gap."""
     L = []
@@ -386,6 +399,8 @@ def _md_named(rep: dict) -> list[str]:
           f"{_fmt(rep['gap_after'])} rad after** (x{_fmt(rep['shrink_factor'], 3)}); measurement noise "
           f"floor {_fmt(rep['noise_floor_rad'])} rad; unexplained share of the excess over noise "
           f"{rep['unexplained_share']:.0%}.", ""]
+    if worse_than_nominal(rep):
+        L += [WORSE_THAN_NOMINAL, ""]
     if eff[0]["name"] != "none":
         L += ["| effect | parameter | nominal | fitted | ± (95 %) | runner-up | margin | confidence |",
               "|---|---|---|---|---|---|---|---|"]

@@ -114,3 +114,24 @@ def test_nothing_named_reason_judges_the_gap_left_as_the_flag_does():
         if flagged:
             assert f"{left:.1f} x the noise floor" in reason
     assert "noise floor" in _none_item([], 21 * noise, 0.5 * noise, noise)["reason"]
+
+
+@pytest.mark.parametrize("before, after, warned", [(8.11e-2, 8.70e-2, True), (8.11e-2, 8.11e-2, False),
+                                                   (8.11e-2, 6.0e-4, False)])
+def test_a_model_worse_than_the_nominal_held_out_is_said_so(before, after, warned, capsys, tmp_path):
+    """When the model handed back predicts the held-out samples worse than the nominal did (the
+    fourth test half's torque-off coast: 8.11e-2 -> 8.70e-2 rad), report.md and the command say
+    to keep the nominal; otherwise neither says it."""
+    from types import SimpleNamespace
+
+    from omni_app.discrepancy import _summary
+
+    rep = {"effects": [{"name": "none", "parameters": {}, "reason": "nothing removes a clear share",
+                        "best_candidate": None}],
+           "gap_before": before, "gap_after": after, "shrink_factor": before / after,
+           "noise_floor_rad": 4e-4, "unexplained_share": 1.0, "unexplained": True}
+    page = "\n".join(rp._md_named(rep))
+    assert (rp.WORSE_THAN_NOMINAL in page) == warned
+    _summary(SimpleNamespace(report=rep), tmp_path)
+    out = capsys.readouterr().out
+    assert ("warning: the corrected model predicts the held-out samples worse than your nominal" in out) == warned
