@@ -38,6 +38,7 @@ VISCOUS_DAMPING = Effect(
     _get_joint("damping", 0), _set_joint("damping", 0),
     scaled_grid((0.25, 0.5, 1.0, 1.5, 2.0, 3.0)))
 
+
 def _read_spring(spec, target=OMNI):
     j = joint_of(spec, target)
     return np.array([float(j.stiffness[0]), float(j.springref)])
