@@ -347,6 +347,8 @@ def of_outcome(builder: fx.ModelBuilder, corrections, runs: list[ReplayRun], nam
                       "please report it", cost={"wall_s": 0.0, "compiles": 0, "inverse_calls": 0})
     cost = {**ev.cost, "wall_s": time.perf_counter() - t0, "compiles": ev.cost.get("compiles", 0) + 1}
     best = ev.best
-    log(f"evidence: {best.name} explains {best.explained:.0%} of the missing torque" if best is not None
+    alone = (f" (the nominal's corrections alone, refitted: {ev.baseline:.0%})"
+             if ev.baseline is not None and math.isfinite(ev.baseline) else "")
+    log(f"evidence: {best.name} explains {best.explained:.0%} of the missing torque{alone}" if best is not None
         else f"evidence: not available: {ev.reason}")
     return dataclasses.replace(ev, cost=cost)

@@ -234,8 +234,15 @@ def _md_evidence(rep: dict, figs: list[str]) -> list[str]:
           f"Median along the motion (tau_miss sign(qd)): {along}.", ""]
     if EVIDENCE_FIG in figs:
         L += [f"![{EVIDENCE_FIG}]({EVIDENCE_FIG})", ""]
+    alone = ev.get("corrections_alone_explained")
+    if alone is not None:
+        L += [f"Each law is fitted with the nominal's corrections refitted beside it; the corrections "
+              f"alone explain {100 * alone:.1f} % of the missing torque, so a law's own part is what "
+              "it explains above that.", ""]
     L += ["| candidate | explains (% of the missing torque) | fitted values | where it disagrees |",
           "|---|---|---|---|"]
+    if alone is not None:
+        L.append(f"| (the nominal's corrections alone) | {100 * alone:.1f} % | — | — |")
     for f in ev["ranking"]:
         L.append(f"| {f['name']} | {100 * f['explained']:.1f} % | {_md_values(f)} | {_md_disagrees(f)} |")
     L.append("")

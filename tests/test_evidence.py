@@ -5,6 +5,7 @@
 dynamics refuses."""
 
 import json
+from pathlib import Path
 from types import SimpleNamespace
 
 import mujoco
@@ -197,3 +198,22 @@ def test_report_sets_the_two_estimates_side_by_side(ev):
         line = "\n".join(rp._md_two_estimates(entry, fc))
         assert words in line and f"{p} {rp._fmt(v, 4)} by equation error" in line, line
     assert rp._md_two_estimates({"name": "coulomb_friction", "parameters": {}}, fc) == []
+
+
+def test_report_shows_what_the_corrections_alone_explain():
+    """When the corrections are refitted beside each law, the section says what they explain
+    alone (the fourth test half's goal profile: every law 97.4-97.7 %, the corrections alone
+    97.4 %), as a sentence and the table's first row; without corrections, neither."""
+    import copy
+
+    rec = json.loads((Path(__file__).resolve().parents[1] / "bank" / "test_half_4" / "record" / "f_goal_profile"
+                      / "report.json").read_text())
+    alone = rec["evidence"]["corrections_alone_explained"]
+    md = "\n".join(rp._md_evidence(rec, []))
+    assert f"the corrections alone explain {100 * alone:.1f} % of the missing torque" in md
+    rows = [line for line in md.splitlines() if line.startswith("| ")]
+    assert rows[1] == f"| (the nominal's corrections alone) | {100 * alone:.1f} % | — | — |"
+    assert all(float(r.split("|")[2].strip(" %")) >= 100 * alone - 0.05 for r in rows[2:])  # each law with them
+    bare = copy.deepcopy(rec)
+    bare["evidence"]["corrections_alone_explained"] = None
+    assert "corrections alone" not in "\n".join(rp._md_evidence(bare, []))
