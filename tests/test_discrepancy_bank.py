@@ -600,6 +600,11 @@ def test_assess_outside_effects_are_checked_against_expect():
 #: Cases the workflow fails, by the bank's criteria, on record (docs/studies/discrepancy/bank.md): run
 #: as strict xfails, so each still runs, and a change of its outcome either way is reported.
 KNOWN_FAILURES = {
+    "gain_slope": "since joint_stiffness got its rest angle (9e96c32) it names joint_stiffness with low "
+                  "confidence (stiffness -0.0745 +- 0.03 N*m/rad about a rest of 0.194 +- 0.11 rad, x1.54): "
+                  "a preloaded spring stands in for the torque constant's slope; not on the case's list "
+                  "(none, torque_gain), which is not widened (docs/studies/discrepancy/bank.json at 8df8d13; "
+                  "torque_gain, low, x1.34 before)",
     "end_stop": "names presliding_friction with low confidence (x2.58), a stand-in not on the case's "
                 "expect list (none, torque_saturation, joint_stiffness); the list was set before any "
                 "run and is not widened to the result (docs/studies/discrepancy/bank.json at 397d76b and 86e7a53; "
@@ -823,8 +828,9 @@ def test_docs_fold_cost_figures_are_the_record():
     assert all(b["passes_bank_criteria"] for b in bench.values()) and srv["passes_bank_criteria"]
     unconverged = [(name, c["name"], c["unconverged_folds"]) for name, case in here.items()
                    for rnd in case["report"]["candidates"] for c in rnd if c.get("unconverged_folds")]
-    assert unconverged == [("delay+friction+armature", "stribeck_friction", 1)]
-    assert ("One fold of the bank stopped unconverged (one of `stribeck_friction` in `delay+friction+armature`)"
+    assert unconverged == [("delay+friction+armature", "stribeck_friction", 1), ("gain_slope", "presliding_friction", 2)]
+    assert ("Three folds of the bank stopped unconverged (one of `stribeck_friction` in `delay+friction+armature`, "
+            "two of `presliding_friction` in `gain_slope`)"
             in par)
 
 
