@@ -8,7 +8,6 @@ huge gain clipped at ``command_limit = u`` with a goal far away.  "Horizontal" p
 
 from __future__ import annotations
 
-import hashlib
 import math
 from dataclasses import replace
 
@@ -19,6 +18,7 @@ from scipy.optimize import brentq
 
 from bank.test_half import make, score
 from bank.test_half import truths as tr
+from tests import half_make
 
 PLANT = tr.nominal_plant()
 FLAT = replace(PLANT, mgl=0.0)
@@ -256,18 +256,13 @@ def test_torque_off_is_a_shorted_winding():
     assert zeta > 1.0
 
 
-def _digest(folder):
-    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
 def test_make_is_deterministic(tmp_path, capsys):
     """Same seed -> same bytes; another seed -> other bytes (jitter and the plant's offsets)."""
     args = ["--only", "j_null,h_current_limit", "--quick"]
     assert make.main(["--out", str(tmp_path / "a"), *args]) == 0
     assert make.main(["--out", str(tmp_path / "b"), *args]) == 0
     assert make.main(["--out", str(tmp_path / "c"), "--seed", "7", *args]) == 0
-    a, b, c = (_digest(tmp_path / x) for x in "abc")
+    a, b, c = (half_make.digest(tmp_path / x) for x in "abc")
     assert a == b and len(a) == 2 * 4 + 1
     assert a["j_null/lift_and_drop.csv"] != c["j_null/lift_and_drop.csv"]
     from identification.dataset import read_dataset

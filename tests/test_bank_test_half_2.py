@@ -8,7 +8,6 @@ As in the first half's tests: a constant command ``u`` is had by a huge gain cli
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from dataclasses import replace
@@ -21,6 +20,7 @@ from scipy.optimize import brentq
 from bank.test_half import truths as tr
 from bank.test_half_2 import make, score
 from bank.test_half_2 import truths as tr2
+from tests import half_make
 from tests.half_record import check_readme_run
 
 PLANT = tr.nominal_plant()
@@ -303,11 +303,6 @@ def test_compliance_against_an_ode_solver():
 
 # --- make.py: determinism and the dataset contract --------------------------------------------
 
-def _digest(folder):
-    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
 def test_make_is_deterministic_and_keeps_the_contract(tmp_path, capsys):
     """Same seed -> same bytes, another seed -> other bytes; the runs read back through the
     dataset contract with their metadata (kind, kp, command_limit, control_period_s,
@@ -318,7 +313,7 @@ def test_make_is_deterministic_and_keeps_the_contract(tmp_path, capsys):
     assert make.main(["--out", str(tmp_path / "a"), *args]) == 0
     assert make.main(["--out", str(tmp_path / "b"), *args]) == 0
     assert make.main(["--out", str(tmp_path / "c"), "--seed", "7", *args]) == 0
-    a, b, c = (_digest(tmp_path / x) for x in "abc")
+    a, b, c = (half_make.digest(tmp_path / x) for x in "abc")
     assert a == b and len(a) == 2 * 4 + 1
     assert a["j_null/lift_and_drop.csv"] != c["j_null/lift_and_drop.csv"]
     runs = read_dataset(tmp_path / "a" / "h_latency", require_pose=False, uniform=False)

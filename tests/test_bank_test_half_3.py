@@ -9,7 +9,6 @@ As in the earlier halves' tests: a constant command ``u`` is had by a huge gain 
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from dataclasses import replace
@@ -25,6 +24,7 @@ from bank.test_half_2 import truths as tr2
 from bank.test_half_3 import make, score
 from bank.test_half_3 import truths as tr3
 from tests import half_loops as loops
+from tests import half_make
 from tests.half_record import check_readme_run
 
 PLANT = tr.nominal_plant()
@@ -335,41 +335,12 @@ def test_torsion_spring_rest_and_acceleration():
 
 # --- make.py: determinism and the dataset contract --------------------------------------------
 
-def _digest(folder):
-    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
 def test_make_is_deterministic_and_keeps_the_contract(tmp_path, capsys):
     """Same seed -> same bytes, another seed -> other bytes; the runs read back through the
     dataset contract with their metadata, jittered log intervals and encoder counts (the
     eccentric encoder's reading too); cases.json holds each case's law, source, equation,
     plant factors and expectation; the default seed is 44."""
-    from identification.dataset import read_dataset
-    args = ["--only", "h_eccentricity,j_null", "--quick"]
-    assert make.main(["--out", str(tmp_path / "a"), *args]) == 0
-    assert make.main(["--out", str(tmp_path / "b"), *args]) == 0
-    assert make.main(["--out", str(tmp_path / "c"), "--seed", "7", *args]) == 0
-    a, b, c = (_digest(tmp_path / x) for x in "abc")
-    assert a == b and len(a) == 2 * 4 + 1
-    assert a["j_null/lift_and_drop.csv"] != c["j_null/lift_and_drop.csv"]
-    for case in ("h_eccentricity", "j_null"):
-        runs = read_dataset(tmp_path / "a" / case, purpose="discrepancy")
-        assert len(runs) == 2
-        for r in runs:
-            assert {"kind", "kp", "command_limit", "control_period_s", "encoder_step_rad", "units"} <= set(r.meta)
-            assert r.meta["kp"] == 30.0 and r.meta["command_limit"] == 12.0
-            assert r.meta["control_period_s"] == 0.001
-            dt = np.diff(r.t)
-            assert dt.min() >= 3.5e-3 - 1e-12 and dt.max() <= 6.5e-3 + 1e-12 and np.ptp(dt) > 1e-3
-            assert np.allclose(np.round(r.theta / tr.ENCODER_STEP_RAD) * tr.ENCODER_STEP_RAD, r.theta)
-            assert np.all(np.isfinite(r.theta)) and np.all(np.abs(r.v) <= 12.0)
-    doc = json.loads((tmp_path / "a" / "cases.json").read_text())
-    assert doc["seed"] == make.DEFAULT_SEED == 44 and [x["name"] for x in doc["cases"]] == ["h_eccentricity", "j_null"]
-    for case in doc["cases"]:
-        assert {"law", "source", "equation", "params", "plant", "plant_factors", "expected",
-                "model", "joint", "actuator"} <= set(case)
-        assert all(0.85 <= f <= 1.15 and abs(f - 1) >= 0.05 - 1e-12 for f in case["plant_factors"].values())
+    half_make.check_make_keeps_the_contract(make, tmp_path, ("h_eccentricity", "j_null"), 44)
 
 
 def test_make_null_case_is_the_first_halfs_loop():
