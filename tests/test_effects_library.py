@@ -315,21 +315,30 @@ def test_arm_mass_changes_the_yaw_inertia_by_the_parallel_axis_theorem():
     assert dI[0] > 0 and dI[1] > 1.5 * dI[0]  # the stretched pose gains more than the folded one
 
 
+def _added_force(spec, name, values, target, field, qs):
+    """The joint force ``field`` (``qfrc_actuator``, ``qfrc_spring``) that effect ``name`` at
+    ``values`` adds to ``spec``'s target joint, at rest at each angle of ``qs``."""
+    m = fx.compile_with(spec, [(fx.get(name), values)], target)
+    m0 = spec.compile()
+    j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, target.joint)
+    d, d0 = mujoco.MjData(m), mujoco.MjData(m0)
+    out = []
+    for q in qs:
+        d.qpos[m.jnt_qposadr[j]] = d0.qpos[m0.jnt_qposadr[j]] = q
+        mujoco.mj_forward(m, d)
+        mujoco.mj_forward(m0, d0)
+        dof = m.jnt_dofadr[j]
+        out.append(getattr(d, field)[dof] - getattr(d0, field)[dof])
+    return out
+
+
 @pytest.mark.parametrize("scene,target", [("scene_coulomb.xml", om.OMNI), ("pendulum", PENDULUM_TARGET)])
 def test_cogging_torque_formula(scene, target):
     """The torque on the joint is a sin(n q + phi) at any angle (n = COGGING_PERIODS)."""
     spec = _pendulum() if scene == "pendulum" else _omni(scene)
     a, ph = 0.004, 0.7
-    m = fx.compile_with(spec, [(fx.get("cogging"), [a, ph])], target)
-    m0 = spec.compile()
-    j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, target.joint)
-    d, d0 = mujoco.MjData(m), mujoco.MjData(m0)
-    for q in np.linspace(-0.9, 0.9, 13):
-        d.qpos[m.jnt_qposadr[j]] = d0.qpos[m0.jnt_qposadr[j]] = q
-        mujoco.mj_forward(m, d)
-        mujoco.mj_forward(m0, d0)
-        dof = m.jnt_dofadr[j]
-        tau = d.qfrc_actuator[dof] - d0.qfrc_actuator[dof]
+    qs = np.linspace(-0.9, 0.9, 13)
+    for q, tau in zip(qs, _added_force(spec, "cogging", [a, ph], target, "qfrc_actuator", qs)):
         assert tau == pytest.approx(a * math.sin(fx.COGGING_PERIODS * q + ph), abs=1e-12), q
 
 
@@ -338,17 +347,9 @@ def test_joint_stiffness_is_a_preloaded_spring(scene, target):
     """joint_stiffness's torque on the joint is Hooke's law about its rest angle, -k (q - rest),
     at any angle, and reads back what it wrote (rest 0: the plain spring)."""
     spec = _pendulum() if scene == "pendulum" else _omni(scene)
+    qs = np.linspace(-0.9, 0.9, 7)
     for k, rest in ((0.6, 0.25), (0.06, 0.0), (0.2, -0.4)):
-        m = fx.compile_with(spec, [(fx.get("joint_stiffness"), [k, rest])], target)
-        m0 = spec.compile()
-        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, target.joint)
-        d, d0 = mujoco.MjData(m), mujoco.MjData(m0)
-        for q in np.linspace(-0.9, 0.9, 7):
-            d.qpos[m.jnt_qposadr[j]] = d0.qpos[m0.jnt_qposadr[j]] = q
-            mujoco.mj_forward(m, d)
-            mujoco.mj_forward(m0, d0)
-            dof = m.jnt_dofadr[j]
-            tau = d.qfrc_spring[dof] - d0.qfrc_spring[dof]
+        for q, tau in zip(qs, _added_force(spec, "joint_stiffness", [k, rest], target, "qfrc_spring", qs)):
             assert tau == pytest.approx(-k * (q - rest), abs=1e-12), (k, rest, q)
         s2 = spec.copy()
         fx.get("joint_stiffness").write(s2, [k, rest], target)

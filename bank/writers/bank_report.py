@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from discrepancy.effects.family import PARENT
 from omni_app.provenance import git_commit, uncommitted
 from bank import hidden
 
@@ -270,7 +271,6 @@ def _efficiency_variant_reading(rep: dict, eq: dict) -> list[str]:
     """When the first named law is a variant nested in ``load_friction`` (the case's expectation,
     set before the variants existed, asks for ``load_friction`` itself and is kept as written):
     whether each of its load coefficients' intervals holds the truth's equivalent."""
-    from discrepancy.effects.family import PARENT
     first = rep["effects"][0]
     if PARENT.get(first["name"]) != "load_friction":
         return []
