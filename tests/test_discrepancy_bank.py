@@ -998,3 +998,21 @@ def test_docs_users_pendulum_is_the_record():
     assert mixed["effect"] == "load_friction_smooth" and f"(multiple correlation {mixed['correlation']:.2f})" in par
     assert f"gear·(1 − μ_drive) = {gain['fitted'] * (1 - p['mu_drive']):.3f}" in par
     assert f"gear·(1 + μ_back) = {gain['fitted'] * (1 + p['mu_back']):.3f}" in par
+
+
+def test_docs_gain_slope_is_the_record():
+    """The method page's gain_slope sentence and the strict xfail's reason quote the bank record
+    (docs/studies/discrepancy/bank.json): the stand-in named, its confidence, values, half-widths
+    and shrink."""
+    case = json.loads((ROOT / "docs" / "studies" / "discrepancy" / "bank.json").read_text())["cases"]["gain_slope"]
+    rep = case["report"]
+    (e,) = rep["effects"]
+    assert e["name"] == "joint_stiffness" and e["confidence"] == "low" and not case["pass"]
+    p, u = e["parameters"], e["uncertainty"]
+    text = _flat(PAGE.read_text())
+    par = text[text.index("**`gain_slope` fails**"):text.index("**`end_stop` fails**")]
+    assert f"(×{rep['shrink_factor']:.2f};" in par and f"about {p['rest_rad']:.2f} rad" in par
+    reason = KNOWN_FAILURES["gain_slope"]
+    assert (f"stiffness {p['stiffness_nm_per_rad']:.3g} +- {u['stiffness_nm_per_rad']:.1g} N*m/rad about a rest of "
+            f"{p['rest_rad']:.3g} +- {u['rest_rad']:.2g} rad, x{rep['shrink_factor']:.2f}") in reason
+    assert f"bank.json at {case['commit']}" in reason
