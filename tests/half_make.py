@@ -1,6 +1,7 @@
 """The test halves' ``make.py`` checks, shared by tests/test_bank_test_half*.py: a folder's
 bytes by file (:func:`digest`), and a half's make run twice with its seed and once with another,
-its runs read back through the dataset contract (:func:`check_make_keeps_the_contract`)."""
+its runs read back through the dataset contract (:func:`check_make_keeps_the_contract`: the
+second, third and fourth halves)."""
 
 from __future__ import annotations
 

@@ -308,30 +308,7 @@ def test_make_is_deterministic_and_keeps_the_contract(tmp_path, capsys):
     dataset contract with their metadata (kind, kp, command_limit, control_period_s,
     encoder_step_rad, units), jittered log intervals, encoder counts; cases.json holds each
     case's law, source, equation, plant factors and expectation."""
-    from identification.dataset import read_dataset
-    args = ["--only", "h_latency,j_null", "--quick"]
-    assert make.main(["--out", str(tmp_path / "a"), *args]) == 0
-    assert make.main(["--out", str(tmp_path / "b"), *args]) == 0
-    assert make.main(["--out", str(tmp_path / "c"), "--seed", "7", *args]) == 0
-    a, b, c = (half_make.digest(tmp_path / x) for x in "abc")
-    assert a == b and len(a) == 2 * 4 + 1
-    assert a["j_null/lift_and_drop.csv"] != c["j_null/lift_and_drop.csv"]
-    runs = read_dataset(tmp_path / "a" / "h_latency", require_pose=False, uniform=False)
-    assert len(runs) == 2
-    for r in runs:
-        assert {"kind", "kp", "command_limit", "control_period_s", "encoder_step_rad", "units"} <= set(r.meta)
-        assert r.meta["kp"] == 30.0 and r.meta["command_limit"] == 12.0
-        assert r.meta["control_period_s"] == 0.001
-        dt = np.diff(r.t)
-        assert dt.min() >= 3.5e-3 - 1e-12 and dt.max() <= 6.5e-3 + 1e-12 and np.ptp(dt) > 1e-3
-        assert np.allclose(np.round(r.theta / tr.ENCODER_STEP_RAD) * tr.ENCODER_STEP_RAD, r.theta)
-        assert np.all(np.isfinite(r.theta)) and np.all(np.abs(r.v) <= 12.0)
-    doc = json.loads((tmp_path / "a" / "cases.json").read_text())
-    assert doc["seed"] == make.DEFAULT_SEED == 43 and [x["name"] for x in doc["cases"]] == ["h_latency", "j_null"]
-    for case in doc["cases"]:
-        assert {"law", "source", "equation", "params", "plant", "plant_factors", "expected",
-                "model", "joint", "actuator"} <= set(case)
-        assert all(0.85 <= f <= 1.15 and abs(f - 1) >= 0.05 - 1e-12 for f in case["plant_factors"].values())
+    half_make.check_make_keeps_the_contract(make, tmp_path, ("h_latency", "j_null"), 43)
 
 
 def test_make_refuses_unknown_case(tmp_path, capsys):
